@@ -1,0 +1,160 @@
+"""Benchmarks (not tests): speed reported as ratios against a peer measured in the same run."""
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from .kernels.lemke import STATUS_NAMES, lemke_kernel, make_lemke_work
+from .lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, default_max_pivots, lemke
+from .lcp_corpus import load_corpus
+
+
+def _time_call(fn, min_total=0.02, max_reps=5000, rounds=3):
+    """Median seconds per call over `rounds` batches sized to last at least `min_total` seconds each."""
+    t0 = time.perf_counter()
+    fn()
+    one = max(time.perf_counter() - t0, 1e-7)
+    reps = int(min(max_reps, max(1, min_total / one)))
+    per = []
+    for _ in range(rounds):
+        t0 = time.perf_counter()
+        for _ in range(reps):
+            fn()
+        per.append((time.perf_counter() - t0) / reps)
+    return statistics.median(per)
+
+
+class _OurKernel:
+    """Our numba kernel with preallocated work arrays, as the time-stepper calls it."""
+
+    def __init__(self, M, q):
+        n = q.shape[0]
+        self.M, self.q = np.ascontiguousarray(M), np.ascontiguousarray(q)
+        self.args = make_lemke_work(n)
+        self.max_pivots = default_max_pivots(n)
+
+    def __call__(self):
+        return lemke_kernel(self.M, self.q, self.max_pivots, DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL,
+                            *self.args)
+
+
+class _QuantEcon:
+    """QuantEcon's numba lcp_lemke with its documented work arrays (tableau, basis, z), default options."""
+
+    def __init__(self, M, q):
+        from quantecon.optimize import lcp_lemke
+        n = q.shape[0]
+        self.f = lcp_lemke
+        self.M, self.q = np.ascontiguousarray(M), np.ascontiguousarray(q)
+        self.tab, self.basis, self.z = np.empty((n, 2 * n + 2)), np.empty(n, np.int64), np.empty(n)
+
+    def __call__(self):
+        return self.f(self.M, self.q, tableau=self.tab, basis=self.basis, z=self.z)
+
+
+def _residual(M, q, z):
+    w = M @ z + q
+    return float(np.max(np.abs(np.minimum(z, w))) + max(0.0, -z.min()) + max(0.0, -w.min())) if len(q) else 0.0
+
+
+def bench_lcp(corpus_dir=None, slow_cap_s=1.0):
+    """Ours vs QuantEcon's lcp_lemke on every corpus instance. Returns a list of row dicts."""
+    try:
+        import quantecon  # noqa: F401
+    except ImportError as e:
+        raise SystemExit("bench lcp needs quantecon (pip install -e '.[dev]'): " + str(e)) from None
+    rows = []
+    warm = np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0])
+    _QuantEcon(*warm)()  # compile QuantEcon before the first timed call
+    _OurKernel(*warm)()
+    for inst in load_corpus(corpus_dir):
+        ours, qe = _OurKernel(inst.M, inst.q), _QuantEcon(inst.M, inst.q)
+        status, pivots, res = ours()
+        t0 = time.perf_counter()
+        qres = qe()
+        qe_once = time.perf_counter() - t0
+        qe_status = {0: "solved", 1: "max_iter", 2: "ray_termination"}[int(qres.status)]
+        if qe_status == "solved":
+            # QuantEcon does not check its answer; we do, with the same residual as ours
+            scale = max(1.0, np.abs(inst.M).max(), np.abs(inst.q).max())
+            if _residual(inst.M, inst.q, qres.z) > DEFAULT_RES_TOL * scale:
+                qe_status = "wrong_z"
+        t_ours = _time_call(ours)
+        t_qe = qe_once if qe_once > slow_cap_s else _time_call(qe)
+        t_pub = _time_call(lambda: lemke(inst.M, inst.q))
+        rows.append(dict(id=inst.id, n=inst.n, status=STATUS_NAMES[status], pivots=int(pivots), residual=float(res),
+                         us=t_ours * 1e6, public_us=t_pub * 1e6, qe_status=qe_status, qe_pivots=int(qres.num_iter),
+                         qe_us=t_qe * 1e6, ratio=t_ours / t_qe))
+    return rows
+
+
+_COMPILE_SNIPPET = (
+    "import time; t0 = time.perf_counter()\n"
+    "import numpy as np\n"
+    "import planar_lcp\n"
+    "t1 = time.perf_counter()\n"
+    "planar_lcp.lemke(np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0]))\n"
+    "t2 = time.perf_counter()\n"
+    "print(t1 - t0, t2 - t1)\n"
+)
+
+
+def measure_compile_time():
+    """First-call JIT compile time (fresh NUMBA_CACHE_DIR) and the same call with the cache warm, in subprocesses."""
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        env.pop("NUMBA_DISABLE_JIT", None)
+        out = []
+        for _ in range(2):
+            p = subprocess.run([sys.executable, "-c", _COMPILE_SNIPPET], env=env, capture_output=True, text=True,
+                               check=True)
+            imp, call = map(float, p.stdout.split())
+            out.append((imp, call))
+    return dict(cold_import_s=out[0][0], cold_first_call_s=out[0][1], warm_import_s=out[1][0],
+                warm_first_call_s=out[1][1])
+
+
+def format_lcp_table(rows, compile_times=None):
+    lines = [
+        "| instance | n | ours: status | pivots | µs | QuantEcon: status | pivots | µs | ratio ours/QE | public lemke() µs |",
+        "|---|---:|---|---:|---:|---|---:|---:|---:|---:|",
+    ]
+    for r in rows:
+        lines.append(f"| {r['id']} | {r['n']} | {r['status']} | {r['pivots']} | {r['us']:.2f} | {r['qe_status']} | "
+                     f"{r['qe_pivots']} | {r['qe_us']:.2f} | {r['ratio']:.3f} | {r['public_us']:.2f} |")
+    ratios = [r["ratio"] for r in rows]
+    lines.append("")
+    lines.append(f"median ratio ours/QuantEcon over {len(rows)} instances: {statistics.median(ratios):.3f} "
+                 f"(target <= 1.0); geometric mean {float(np.exp(np.mean(np.log(ratios)))):.3f}")
+    both = [r for r in rows if r["status"] == "solved" and r["qe_status"] == "solved"]
+    if both:
+        lines.append(f"median ratio where both solve ({len(both)} instances): "
+                     f"{statistics.median([r['ratio'] for r in both]):.3f}")
+    if compile_times:
+        lines.append(f"first-call JIT compile (fresh cache): import {compile_times['cold_import_s']:.2f} s, "
+                     f"first lemke() {compile_times['cold_first_call_s']:.2f} s; warm cache: import "
+                     f"{compile_times['warm_import_s']:.2f} s, first lemke() {compile_times['warm_first_call_s']:.3f} s")
+    return "\n".join(lines)
+
+
+def run_bench(which, json_path=None):
+    report = {}
+    if which in ("lcp", "all"):
+        compile_times = measure_compile_time()
+        rows = bench_lcp()
+        if not rows:
+            raise SystemExit("bench lcp: the LCP corpus ../shared/data/lcp was not found (set PLANAR_LCP_CORPUS)")
+        print(format_lcp_table(rows, compile_times))
+        report["lcp"] = dict(rows=rows, compile=compile_times,
+                             median_ratio=statistics.median([r["ratio"] for r in rows]))
+    if json_path:
+        with open(json_path, "w") as f:
+            json.dump(report, f, indent=1)
+        print(f"wrote {json_path}")
+    return report

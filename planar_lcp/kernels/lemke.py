@@ -1,0 +1,391 @@
+"""Lemke's complementary pivoting algorithm on an explicit tableau, with lexicographic degeneracy resolution.
+
+Numba kernels only: no exceptions, no allocation inside `lemke_kernel` (work arrays are passed in so the
+time-stepper can reuse them), tolerances as arguments. `planar_lcp.lcp.lemke` is the validating public wrapper.
+
+Problem: find z >= 0 with w = M z + q >= 0 and z.w = 0.
+
+Tableau (n rows, 2n + 2 columns), the system  I w - M z - e z0 = q  premultiplied by the basis inverse:
+
+    columns 0 .. n-1     w_0 .. w_{n-1}   (initially I, so these columns always hold B^-1)
+    columns n .. 2n-1    z_0 .. z_{n-1}   (initially -M)
+    column  2n           z0, the artificial variable, covering vector e = (1, ..., 1)
+    column  2n + 1       right-hand side: the values of the basic variables
+
+Variable index k means: w_k for k < n, z_{k-n} for n <= k < 2n, the artificial variable for k == 2n.
+"""
+
+import numpy as np
+from numba import njit
+
+STATUS_SOLVED = 0
+STATUS_RAY = 1
+STATUS_MAX_PIVOTS = 2
+STATUS_INVALID = 3
+STATUS_INACCURATE = 4
+
+STATUS_NAMES = ("solved", "ray_termination", "max_pivots", "invalid_input", "inaccurate")
+
+
+@njit(cache=True)
+def lcp_residual(M, q, z, w):
+    """Natural-map residual max_i |min(z_i, w_i)| plus infeasibility max(0, -min z) + max(0, -min w).
+
+    `w` is overwritten with M z + q computed from the ORIGINAL data, never taken from a tableau.
+    """
+    n = q.shape[0]
+    comp = 0.0
+    zneg = 0.0
+    wneg = 0.0
+    for i in range(n):
+        s = q[i]
+        for k in range(n):
+            s += M[i, k] * z[k]
+        w[i] = s
+        m = min(z[i], s)
+        if abs(m) > comp:
+            comp = abs(m)
+        if -z[i] > zneg:
+            zneg = -z[i]
+        if -s > wneg:
+            wneg = -s
+    return comp + zneg + wneg
+
+
+@njit(cache=True)
+def lcp_scale(M, q):
+    """max(1, max|M|, max|q|): the scale the residual tolerance is relative to."""
+    n = q.shape[0]
+    s = 1.0
+    for i in range(n):
+        if abs(q[i]) > s:
+            s = abs(q[i])
+        for k in range(n):
+            if abs(M[i, k]) > s:
+                s = abs(M[i, k])
+    return s
+
+
+@njit(cache=True)
+def _pivot(T, n, r, j, prow):
+    """Pivot on (r, j). The normalized pivot row is copied to `prow` first: updating T[i, :] from T[r, :] of the
+    same array is a potential alias that keeps LLVM from vectorizing the row update (about 4x slower)."""
+    ncol = 2 * n + 2
+    p = T[r, j]
+    for c in range(ncol):
+        v = T[r, c] / p  # division, not multiplication by 1/p, which can overflow for a subnormal pivot
+        prow[c] = v
+        T[r, c] = v
+    for i in range(n):
+        if i == r:
+            continue
+        f = T[i, j]
+        if f != 0.0:
+            for c in range(ncol):
+                T[i, c] -= f * prow[c]
+    # exact zeros in the pivot column remove round-off residue
+    for i in range(n):
+        T[i, j] = 0.0
+    T[r, j] = 1.0
+
+
+@njit(cache=True)
+def _ratio_test(T, basis, n, j, piv_tol, ratio_tol, rhs_scale, cand):
+    """Lexicographic minimum-ratio test on entering column j; returns the leaving row or -1 (ray).
+
+    Candidates are rows whose pivot entry exceeds piv_tol relative to the column's largest magnitude.
+    First level: rhs / pivot (a slightly negative rhs from round-off counts as 0, so it can never win with a
+    negative ratio and start a cycle). On a tie the artificial variable leaves if it is among the tied rows
+    (this ends the algorithm, and is what Drake's unrevised Lemke does). Remaining ties are broken on the
+    columns of B^-1 in order: with exact arithmetic two rows of B^-1 are never proportional, so the
+    lexicographic order is strict and Lemke cannot cycle.
+
+    What counts as a tie is relative to the problem's own scale, never to 1: two first-level ratios tie when
+    they differ by at most ratio_tol * max(|min ratio|, rhs_scale / colmax), i.e. by round-off in the rhs
+    (whose magnitude is that of q) divided by the pivot. An absolute floor would merge real differences in
+    small problems (DART's 12-D box LCP has ratios 4.8e-5 apart by 1e-12), pick a row that is not the
+    minimum, drive a basic variable negative and cycle.
+    """
+    rhs = 2 * n + 1
+    z0 = 2 * n
+    colmax = 0.0
+    for i in range(n):
+        a = abs(T[i, j])
+        if a > colmax:
+            colmax = a
+    thresh = piv_tol * colmax
+    if colmax == 0.0:
+        return -1
+    nc = 0
+    best = np.inf
+    for i in range(n):
+        if T[i, j] > thresh:
+            b = T[i, rhs]
+            if b < 0.0:
+                b = 0.0
+            ratio = b / T[i, j]
+            if ratio < best:
+                best = ratio
+            cand[nc] = i
+            nc += 1
+    if nc == 0:
+        return -1
+    # keep the rows tied with the minimum
+    tol = ratio_tol * max(best, rhs_scale / colmax)
+    m = 0
+    for a in range(nc):
+        i = cand[a]
+        b = T[i, rhs]
+        if b < 0.0:
+            b = 0.0
+        if b / T[i, j] <= best + tol:
+            cand[m] = i
+            m += 1
+    nc = m
+    if nc == 1:
+        return cand[0]
+    for a in range(nc):
+        if basis[cand[a]] == z0:
+            return cand[a]
+    # Lexicographic tie-break on the columns of B^-1. Round-off in an entry of B^-1 is relative to the size of
+    # its row, which grows over the pivots, so ties at this level are judged against the largest |B^-1 / pivot|
+    # among the tied rows (tobenna's integer data has exact zero ratios decided here, and cycles otherwise).
+    lex_scale = 0.0
+    for a in range(nc):
+        i = cand[a]
+        for k in range(n):
+            v = abs(T[i, k]) / T[i, j]
+            if v > lex_scale:
+                lex_scale = v
+    tol = ratio_tol * lex_scale
+    for k in range(n):
+        best = np.inf
+        for a in range(nc):
+            i = cand[a]
+            ratio = T[i, k] / T[i, j]
+            if ratio < best:
+                best = ratio
+        m = 0
+        for a in range(nc):
+            i = cand[a]
+            if T[i, k] / T[i, j] <= best + tol:
+                cand[m] = i
+                m += 1
+        nc = m
+        if nc == 1:
+            return cand[0]
+    # Still tied (only possible through round-off): take the largest pivot element for stability.
+    r = cand[0]
+    for a in range(1, nc):
+        if T[cand[a], j] > T[r, j]:
+            r = cand[a]
+    return r
+
+
+@njit(cache=True)
+def _lu_solve_inplace(A, b, m, perm):
+    """Solve A[:m,:m] x = b[:m] by Gaussian elimination with partial pivoting, in place (x in b).
+
+    Returns False when a pivot is exactly zero (singular basis)."""
+    for k in range(m):
+        perm[k] = k
+    for k in range(m):
+        p = k
+        big = abs(A[k, k])
+        for i in range(k + 1, m):
+            if abs(A[i, k]) > big:
+                big = abs(A[i, k])
+                p = i
+        if big == 0.0:
+            return False
+        if p != k:
+            for c in range(m):
+                tmp = A[k, c]
+                A[k, c] = A[p, c]
+                A[p, c] = tmp
+            tmp = b[k]
+            b[k] = b[p]
+            b[p] = tmp
+        for i in range(k + 1, m):
+            f = A[i, k] / A[k, k]
+            if f != 0.0:
+                for c in range(k, m):
+                    A[i, c] -= f * A[k, c]
+                b[i] -= f * b[k]
+    for k in range(m - 1, -1, -1):
+        s = b[k]
+        for c in range(k + 1, m):
+            s -= A[k, c] * b[c]
+        b[k] = s / A[k, k]
+    return True
+
+
+@njit(cache=True)
+def _refine_from_basis(M, q, basis, n, z, lu, rhs, perm, zb):
+    """Recompute the basic solution of the final complementary basis from the original M and q.
+
+    The basic z's (index set Z) solve  M[W0, Z] z_Z = -q[W0]  where W0 are the rows whose w is nonbasic
+    (w = 0 there). For a complementary basis |W0| == |Z|. Writes the result into z; False if not solvable.
+    """
+    m = 0
+    for i in range(n):
+        k = basis[i]
+        if k >= n and k < 2 * n:
+            zb[m] = k - n
+            m += 1
+    # rows with nonbasic w: complement of the basic w's
+    for i in range(n):
+        perm[i] = 1
+    for i in range(n):
+        if basis[i] < n:
+            perm[basis[i]] = 0
+    r = 0
+    for i in range(n):
+        if perm[i] == 1:
+            if r >= m:
+                return False
+            for c in range(m):
+                lu[r, c] = M[i, zb[c]]
+            rhs[r] = -q[i]
+            r += 1
+    if r != m:
+        return False
+    if not _lu_solve_inplace(lu, rhs, m, perm):
+        return False
+    for i in range(n):
+        z[i] = 0.0
+    for c in range(m):
+        z[zb[c]] = rhs[c]
+    return True
+
+
+@njit(cache=True)
+def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, T, basis, z, w, cand, lu, rhs, perm, zb, zalt, walt,
+                 prow):
+    """Solve the LCP (M, q) in place. Never raises, never allocates.
+
+    Parameters
+    ----------
+    M : (n, n) float64;  q : (n,) float64 -- not modified.
+    max_pivots : int; piv_tol, ratio_tol, res_tol : float (res_tol relative to lcp_scale(M, q)).
+    T : (>=n, >=2n+2) float64 tableau work;  basis, cand, perm, zb : (>=n,) int64 work;
+    lu : (>=n, >=n) float64 work;  rhs, zalt, walt : (>=n,) float64 work;  prow : (>=2n+2,) float64 work.
+    `make_lemke_work(n)` allocates all of them in this order.
+    z, w : (>=n,) float64 outputs (the first n entries are written).
+
+    Returns
+    -------
+    (status, pivots, residual) -- status one of the STATUS_* codes; residual on the original M and q.
+    """
+    n = q.shape[0]
+    if n == 0:
+        return STATUS_SOLVED, 0, 0.0
+    for i in range(n):
+        if not np.isfinite(q[i]):
+            return STATUS_INVALID, 0, np.inf
+        for k in range(n):
+            if not np.isfinite(M[i, k]):
+                return STATUS_INVALID, 0, np.inf
+    for i in range(n):
+        z[i] = 0.0
+    scale = lcp_scale(M, q)
+
+    rhs_scale = 0.0
+    for i in range(n):
+        rhs_scale = max(rhs_scale, abs(q[i]))
+    qmin = 0.0
+    r = -1
+    for i in range(n):
+        # ties: the LAST index keeps the initial tableau lexicographically positive
+        if q[i] <= qmin and q[i] < 0.0:
+            qmin = q[i]
+            r = i
+    if r < 0:
+        res = lcp_residual(M, q, z, w)
+        return STATUS_SOLVED, 0, res
+
+    rhs_col = 2 * n + 1
+    z0 = 2 * n
+    for i in range(n):
+        for c in range(2 * n + 2):
+            T[i, c] = 0.0
+        T[i, i] = 1.0
+        for k in range(n):
+            T[i, n + k] = -M[i, k]
+        T[i, z0] = -1.0
+        T[i, rhs_col] = q[i]
+        basis[i] = i
+
+    _pivot(T, n, r, z0, prow)
+    leaving = basis[r]
+    basis[r] = z0
+    pivots = 1
+    status = STATUS_MAX_PIVOTS
+    while pivots < max_pivots:
+        # complement of the variable that just left
+        if leaving < n:
+            entering = leaving + n
+        else:
+            entering = leaving - n
+        r = _ratio_test(T, basis, n, entering, piv_tol, ratio_tol, rhs_scale, cand)
+        if r < 0:
+            status = STATUS_RAY
+            break
+        _pivot(T, n, r, entering, prow)
+        leaving = basis[r]
+        basis[r] = entering
+        pivots += 1
+        if leaving == z0:
+            status = STATUS_SOLVED
+            break
+
+    if status != STATUS_SOLVED:
+        # report the current basic z (useful for diagnosis) but never as solved
+        for i in range(n):
+            k = basis[i]
+            if k >= n and k < 2 * n:
+                z[k - n] = T[i, rhs_col]
+        res = lcp_residual(M, q, z, w)
+        return status, pivots, res
+
+    for i in range(n):
+        k = basis[i]
+        if k >= n and k < 2 * n:
+            z[k - n] = max(T[i, rhs_col], 0.0)
+    res = lcp_residual(M, q, z, w)
+    # Refine from the original data: the tableau accumulates round-off over the pivots, the basis does not.
+    # Skipped when the tableau's answer is already well inside the tolerance (it then costs more than it gains).
+    if res > 1e-3 * res_tol * scale:
+        if _refine_from_basis(M, q, basis, n, zalt, lu, rhs, perm, zb):
+            res2 = lcp_residual(M, q, zalt, walt)
+            if res2 < res:
+                res = res2
+                for i in range(n):
+                    z[i] = zalt[i]
+                    w[i] = walt[i]
+    if res <= res_tol * scale:
+        return STATUS_SOLVED, pivots, res
+    return STATUS_INACCURATE, pivots, res
+
+
+def make_lemke_work(n):
+    """Work arrays for `lemke_kernel` for problems up to size n: (T, basis, z, w, cand, lu, rhs, perm, zb, zalt,
+    walt, prow). Plain Python so callers outside numba (bench, tests) share one definition with `lemke_solve`."""
+    return _make_work(n)
+
+
+@njit(cache=True)
+def _make_work(n):
+    return (np.empty((n, 2 * n + 2)), np.empty(n, np.int64), np.zeros(n), np.zeros(n), np.empty(n, np.int64),
+            np.empty((n, n)), np.empty(n), np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n), np.empty(n),
+            np.empty(2 * n + 2))
+
+
+@njit(cache=True)
+def lemke_solve(M, q, max_pivots, piv_tol, ratio_tol, res_tol):
+    """Allocate the work arrays and call `lemke_kernel`. Returns (z, w, status, pivots, residual)."""
+    n = q.shape[0]
+    T, basis, z, w, cand, lu, rhs, perm, zb, zalt, walt, prow = _make_work(n)
+    status, pivots, res = lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, T, basis, z, w, cand, lu, rhs,
+                                       perm, zb, zalt, walt, prow)
+    return z, w, status, pivots, res
