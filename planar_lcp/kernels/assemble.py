@@ -1,0 +1,208 @@
+"""Stage 3 of a step: the contact LCP of one island (seed paper eqs. 13-20 in 2D), and the PGS impulse problem.
+
+Unknowns of the LCP, blocked (see docs/method.md):
+
+    z = [ c_n (one per contact) | beta (+t, -t for each contact with mu > 0) | beta (k per support point)
+          | lambda (one per contact with mu > 0) | lambda (one per support point) ]
+
+All impulses (N s). A "generalized column" is the generalized impulse of a unit impulse along a world direction d
+at world point p: (d_x, d_y, (p - c) x d) on the body with COM c, and the negative on the other body of the contact.
+Static and kinematic bodies carry no unknowns: their velocity enters the constant vector.
+"""
+
+import numpy as np
+from numba import njit
+
+BODY_DYNAMIC = 0
+
+
+@njit(cache=True)
+def _cross(ax, ay, bx, by):
+    return ax * by - ay * bx
+
+
+@njit(cache=True)
+def _point_velocity(poses, vel, b, px, py):
+    """Velocity (2,) of the material point p of body b moving with (vx, vy, omega) about poses[b, :2]."""
+    rx = px - poses[b, 0]
+    ry = py - poses[b, 1]
+    return vel[0] - vel[2] * ry, vel[1] + vel[2] * rx
+
+
+@njit(cache=True)
+def contact_column(m, poses, con_pair, con_p, j, dx, dy, col_dyn, col_g, u):
+    """Write the generalized column of a unit impulse along (dx, dy) at contact j (on A, minus on B) as column u.
+
+    col_dyn[u, 0:2]: dynamic slots of the two bodies (-1: none); col_g[u, 0:2, 0:3]: their generalized vectors."""
+    p = con_pair[j]
+    ba = m.shape_body[m.pair_a[p]]
+    bb = m.shape_body[m.pair_b[p]]
+    px = con_p[j, 0]
+    py = con_p[j, 1]
+    for side in range(2):
+        b = ba if side == 0 else bb
+        sgn = 1.0 if side == 0 else -1.0
+        if m.body_kind[b] == BODY_DYNAMIC:
+            col_dyn[u, side] = m.body_slot[b]
+            col_g[u, side, 0] = sgn * dx
+            col_g[u, side, 1] = sgn * dy
+            col_g[u, side, 2] = sgn * _cross(px - poses[b, 0], py - poses[b, 1], dx, dy)
+        else:
+            col_dyn[u, side] = -1
+
+
+@njit(cache=True)
+def support_column(m, poses, s, dx, dy, col_dyn, col_g, u):
+    """Generalized column of a unit table-friction impulse along (dx, dy) at support point s."""
+    d = m.sup_dyn[s]
+    b = m.dyn_body[d]
+    # the support point's world offset from the COM, at the linearization pose
+    c = np.cos(poses[b, 2])
+    sn = np.sin(poses[b, 2])
+    rx = c * m.sup_local[s, 0] - sn * m.sup_local[s, 1]
+    ry = sn * m.sup_local[s, 0] + c * m.sup_local[s, 1]
+    col_dyn[u, 0] = d
+    col_dyn[u, 1] = -1
+    col_g[u, 0, 0] = dx
+    col_g[u, 0, 1] = dy
+    col_g[u, 0, 2] = _cross(rx, ry, dx, dy)
+
+
+@njit(cache=True)
+def delassus(m, nu, col_dyn, col_g, A):
+    """A[:nu, :nu] = G^T M^-1 G over the first nu columns (M is diagonal per body: m, m, J)."""
+    for u in range(nu):
+        for v in range(u, nu):
+            s = 0.0
+            for su in range(2):
+                du = col_dyn[u, su]
+                if du < 0:
+                    continue
+                for sv in range(2):
+                    if col_dyn[v, sv] != du:
+                        continue
+                    im = 1.0 / m.dyn_mass[du]
+                    s += (col_g[u, su, 0] * col_g[v, sv, 0] + col_g[u, su, 1] * col_g[v, sv, 1]) * im
+                    s += col_g[u, su, 2] * col_g[v, sv, 2] / m.dyn_inertia[du]
+            A[u, v] = s
+            A[v, u] = s
+
+
+@njit(cache=True)
+def column_dot(col_dyn, col_g, u, vel):
+    """g_u . vel over the dynamic bodies, vel (ndyn, 3)."""
+    s = 0.0
+    for side in range(2):
+        d = col_dyn[u, side]
+        if d >= 0:
+            s += col_g[u, side, 0] * vel[d, 0] + col_g[u, side, 1] * vel[d, 1] + col_g[u, side, 2] * vel[d, 2]
+    return s
+
+
+@njit(cache=True)
+def kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, dx, dy):
+    """Relative velocity along (dx, dy) at contact j contributed by kinematic bodies (A minus B)."""
+    p = con_pair[j]
+    s = 0.0
+    for side in range(2):
+        b = m.shape_body[m.pair_a[p]] if side == 0 else m.shape_body[m.pair_b[p]]
+        if m.body_kind[b] == 2:
+            k = m.body_slot[b]
+            vx, vy = _point_velocity(poses, vk[k], b, con_p[j, 0], con_p[j, 1])
+            sgn = 1.0 if side == 0 else -1.0
+            s += sgn * (vx * dx + vy * dy)
+    return s
+
+
+@njit(cache=True)
+def assemble_lcp(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h,
+                 velocity_form, col_dyn, col_g, A, b):
+    """Build the island's LCP (A, b) of size returned; columns of the force unknowns go to col_dyn / col_g.
+
+    Normal rows: position forms (linearized at the pose q_hat = q + h v_hat):  phi/h + n.(v+ - v_hat) >= 0;
+    velocity form (contacts at q):  n.v+ + (kinematic normal velocity) + max(phi, 0)/h >= 0.
+    Friction rows: lambda e + D^T v+ (+ kinematic tangential velocity) >= 0.  Slack rows: mu c_n - e^T beta >= 0.
+    """
+    k = m.fric_dirs.shape[0]
+    nf = 0
+    for a in range(nci):
+        if m.pair_mu[con_pair[isl_con[a]]] > 0.0:
+            nf += 1
+    o_bc = nci
+    o_bs = o_bc + 2 * nf
+    o_lc = o_bs + k * nsi
+    o_ls = o_lc + nf
+    n = o_ls + nsi
+    nforce = o_lc
+    # generalized columns of the force unknowns
+    f = 0
+    for a in range(nci):
+        j = isl_con[a]
+        nx = con_n[j, 0]
+        ny = con_n[j, 1]
+        contact_column(m, poses, con_pair, con_p, j, nx, ny, col_dyn, col_g, a)
+        if m.pair_mu[con_pair[j]] > 0.0:
+            # tangent t = (-n_y, n_x); the two rays +t and -t make the 2-D friction "cone" exact
+            contact_column(m, poses, con_pair, con_p, j, -ny, nx, col_dyn, col_g, o_bc + 2 * f)
+            contact_column(m, poses, con_pair, con_p, j, ny, -nx, col_dyn, col_g, o_bc + 2 * f + 1)
+            f += 1
+    for a in range(nsi):
+        s = isl_sup[a]
+        for i in range(k):
+            support_column(m, poses, s, m.fric_dirs[i, 0], m.fric_dirs[i, 1], col_dyn, col_g, o_bs + k * a + i)
+    for i in range(n):
+        for c in range(n):
+            A[i, c] = 0.0
+    delassus(m, nforce, col_dyn, col_g, A)
+    # constant vector
+    for a in range(nci):
+        j = isl_con[a]
+        if velocity_form:
+            b[a] = column_dot(col_dyn, col_g, a, v_tilde) + max(con_phi[j], 0.0) / h + \
+                kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, con_n[j, 0], con_n[j, 1])
+        else:
+            b[a] = con_phi[j] / h + column_dot(col_dyn, col_g, a, v_tilde) - column_dot(col_dyn, col_g, a, v_hat)
+    f = 0
+    for a in range(nci):
+        j = isl_con[a]
+        mu = m.pair_mu[con_pair[j]]
+        if mu <= 0.0:
+            continue
+        nx = con_n[j, 0]
+        ny = con_n[j, 1]
+        u = o_bc + 2 * f
+        vt = kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, -ny, nx)
+        b[u] = column_dot(col_dyn, col_g, u, v_tilde) + vt
+        b[u + 1] = column_dot(col_dyn, col_g, u + 1, v_tilde) - vt
+        A[u, o_lc + f] = 1.0
+        A[u + 1, o_lc + f] = 1.0
+        A[o_lc + f, a] = mu
+        A[o_lc + f, u] = -1.0
+        A[o_lc + f, u + 1] = -1.0
+        b[o_lc + f] = 0.0
+        f += 1
+    for a in range(nsi):
+        s = isl_sup[a]
+        for i in range(k):
+            u = o_bs + k * a + i
+            b[u] = column_dot(col_dyn, col_g, u, v_tilde)
+            A[u, o_ls + a] = 1.0
+            A[o_ls + a, u] = -1.0
+        # the normal impulse on the table is known: h * load
+        b[o_ls + a] = m.sup_mu[s] * h * m.sup_load[s]
+    return n, nf
+
+
+@njit(cache=True)
+def apply_impulses(nforce, col_dyn, col_g, z, m, v):
+    """v += M^-1 G z over the force unknowns (in place), v (ndyn, 3)."""
+    for u in range(nforce):
+        zu = z[u]
+        if zu == 0.0:
+            continue
+        for side in range(2):
+            d = col_dyn[u, side]
+            if d >= 0:
+                v[d, 0] += col_g[u, side, 0] * zu / m.dyn_mass[d]
+                v[d, 1] += col_g[u, side, 1] * zu / m.dyn_mass[d]
+                v[d, 2] += col_g[u, side, 2] * zu / m.dyn_inertia[d]

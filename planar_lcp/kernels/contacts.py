@@ -1,0 +1,112 @@
+"""Stage 1 of a step: body poses -> world geometry -> contacts (gap, normal, point) for every candidate shape pair.
+
+Numba only. Buffers are passed in; nothing is allocated.
+"""
+
+import numpy as np
+from numba import njit
+
+from .collision import contact_core_core, contact_core_halfplane
+
+BODY_DYNAMIC, BODY_STATIC, BODY_KINEMATIC = 0, 1, 2
+SHAPE_CORE, SHAPE_HALFPLANE = 0, 1
+
+
+@njit(cache=True)
+def body_poses(m, q, qk, out):
+    """World poses (nbody, 3) of all bodies: COM poses of dynamic ones from q, kinematic from qk, static fixed."""
+    for b in range(m.body_kind.shape[0]):
+        k = m.body_kind[b]
+        if k == BODY_DYNAMIC:
+            s = m.body_slot[b]
+            out[b, 0] = q[s, 0]
+            out[b, 1] = q[s, 1]
+            out[b, 2] = q[s, 2]
+        elif k == BODY_KINEMATIC:
+            s = m.body_slot[b]
+            out[b, 0] = qk[s, 0]
+            out[b, 1] = qk[s, 1]
+            out[b, 2] = qk[s, 2]
+        else:
+            out[b, 0] = m.static_pose[b, 0]
+            out[b, 1] = m.static_pose[b, 1]
+            out[b, 2] = m.static_pose[b, 2]
+
+
+@njit(cache=True)
+def world_vertices(m, poses, out):
+    """Core vertices of every shape in the world frame, (nvert, 2)."""
+    for s in range(m.shape_body.shape[0]):
+        if m.shape_kind[s] != SHAPE_CORE:
+            continue
+        b = m.shape_body[s]
+        c = np.cos(poses[b, 2])
+        sn = np.sin(poses[b, 2])
+        x = poses[b, 0]
+        y = poses[b, 1]
+        a0 = m.shape_vert_adr[s]
+        for k in range(a0, a0 + m.shape_vert_num[s]):
+            lx = m.vert_local[k, 0]
+            ly = m.vert_local[k, 1]
+            out[k, 0] = x + c * lx - sn * ly
+            out[k, 1] = y + sn * lx + c * ly
+
+
+@njit(cache=True)
+def _aabb_overlap(vw, a0, na, ra, b0, nb, rb, margin):
+    axmin = np.inf
+    axmax = -np.inf
+    aymin = np.inf
+    aymax = -np.inf
+    for k in range(a0, a0 + na):
+        axmin = min(axmin, vw[k, 0])
+        axmax = max(axmax, vw[k, 0])
+        aymin = min(aymin, vw[k, 1])
+        aymax = max(aymax, vw[k, 1])
+    bxmin = np.inf
+    bxmax = -np.inf
+    bymin = np.inf
+    bymax = -np.inf
+    for k in range(b0, b0 + nb):
+        bxmin = min(bxmin, vw[k, 0])
+        bxmax = max(bxmax, vw[k, 0])
+        bymin = min(bymin, vw[k, 1])
+        bymax = max(bymax, vw[k, 1])
+    pad = ra + rb + margin
+    return not (axmin > bxmax + pad or bxmin > axmax + pad or aymin > bymax + pad or bymin > aymax + pad)
+
+
+@njit(cache=True)
+def find_contacts(m, vw, margin, force_pair, con_pair, con_phi, con_n, con_p, tmp_phi, tmp_n, tmp_p):
+    """All contacts with gap < margin (any gap for pairs with force_pair[p] true).
+
+    Writes contact j's pair index, gap phi (m, negative = penetration), unit normal from shape B to shape A, and
+    world point into the con_* buffers (capacity 2 per pair). Returns the number of contacts.
+    """
+    nc = 0
+    for p in range(m.pair_a.shape[0]):
+        sa = m.pair_a[p]
+        sb = m.pair_b[p]
+        mg = np.inf if force_pair[p] else margin
+        a0 = m.shape_vert_adr[sa]
+        na = m.shape_vert_num[sa]
+        ra = m.shape_radius[sa]
+        if m.shape_kind[sb] == SHAPE_HALFPLANE:
+            cnt = contact_core_halfplane(vw[a0:a0 + na], na, ra, m.hp_point_w[sb], m.hp_normal_w[sb], mg,
+                                         tmp_phi, tmp_n, tmp_p)
+        else:
+            b0 = m.shape_vert_adr[sb]
+            nb = m.shape_vert_num[sb]
+            rb = m.shape_radius[sb]
+            if not force_pair[p] and not _aabb_overlap(vw, a0, na, ra, b0, nb, rb, margin):
+                continue
+            cnt = contact_core_core(vw[a0:a0 + na], na, ra, vw[b0:b0 + nb], nb, rb, mg, tmp_phi, tmp_n, tmp_p)
+        for k in range(cnt):
+            con_pair[nc] = p
+            con_phi[nc] = tmp_phi[k]
+            con_n[nc, 0] = tmp_n[k, 0]
+            con_n[nc, 1] = tmp_n[k, 1]
+            con_p[nc, 0] = tmp_p[k, 0]
+            con_p[nc, 1] = tmp_p[k, 1]
+            nc += 1
+    return nc

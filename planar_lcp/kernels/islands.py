@@ -1,0 +1,54 @@
+"""Stage 2 of a step: group dynamic bodies into islands (connected by contacts between dynamic bodies).
+
+Each island with at least one contact or support point is a separate LCP; a body that touches nothing (and has no
+table friction) is integrated without one.
+"""
+
+from numba import njit
+
+BODY_DYNAMIC = 0
+
+
+@njit(cache=True)
+def _find(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@njit(cache=True)
+def find_islands(m, ncon, con_pair, parent, island):
+    """island[d] = island id (0..K-1) of dynamic slot d. Returns K."""
+    ndyn = parent.shape[0]
+    for d in range(ndyn):
+        parent[d] = d
+    for j in range(ncon):
+        p = con_pair[j]
+        ba = m.shape_body[m.pair_a[p]]
+        bb = m.shape_body[m.pair_b[p]]
+        if m.body_kind[ba] == BODY_DYNAMIC and m.body_kind[bb] == BODY_DYNAMIC:
+            ra = _find(parent, m.body_slot[ba])
+            rb = _find(parent, m.body_slot[bb])
+            if ra != rb:
+                # the smaller root wins: island numbering does not depend on contact order
+                if ra < rb:
+                    parent[rb] = ra
+                else:
+                    parent[ra] = rb
+    k = 0
+    for d in range(ndyn):
+        island[d] = -1
+    for d in range(ndyn):
+        r = _find(parent, d)
+        if island[r] < 0:
+            island[r] = k
+            k += 1
+        island[d] = island[r]
+    return k
+
+
+@njit(cache=True)
+def contact_island(m, island, con_pair, j):
+    """Island of contact j (every contact touches at least one dynamic body; A is dynamic)."""
+    return island[m.body_slot[m.shape_body[m.pair_a[con_pair[j]]]]]

@@ -1,0 +1,108 @@
+"""Projected Gauss-Seidel on per-contact impulses: the fast approximate solver users know from Box2D and ODE.
+
+Unknowns per contact: the normal impulse c_n >= 0 and, if mu > 0, one tangential impulse |f_t| <= mu c_n (the
+planar friction "cone" is that interval, exact); per support point a 2-D table-friction impulse in the disk
+|f| <= mu h load (the circle itself, not a polygon). A fixed number of sweeps from zero: deterministic, and not
+converged in general - the iteration count is the speed/accuracy knob.
+"""
+
+import numpy as np
+from numba import njit
+
+from .assemble import column_dot, contact_column, delassus, kinematic_velocity_along, support_column
+
+
+@njit(cache=True)
+def assemble_pgs(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h,
+                 velocity_form, col_dyn, col_g, W, b):
+    """Columns: per contact [n, t (if mu > 0)], per support point [x, y]. Returns the number of unknowns."""
+    u = 0
+    for a in range(nci):
+        j = isl_con[a]
+        nx = con_n[j, 0]
+        ny = con_n[j, 1]
+        contact_column(m, poses, con_pair, con_p, j, nx, ny, col_dyn, col_g, u)
+        if velocity_form:
+            b[u] = column_dot(col_dyn, col_g, u, v_tilde) + max(con_phi[j], 0.0) / h + \
+                kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, nx, ny)
+        else:
+            b[u] = con_phi[j] / h + column_dot(col_dyn, col_g, u, v_tilde) - column_dot(col_dyn, col_g, u, v_hat)
+        u += 1
+        if m.pair_mu[con_pair[j]] > 0.0:
+            contact_column(m, poses, con_pair, con_p, j, -ny, nx, col_dyn, col_g, u)
+            b[u] = column_dot(col_dyn, col_g, u, v_tilde) + \
+                kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, -ny, nx)
+            u += 1
+    for a in range(nsi):
+        s = isl_sup[a]
+        support_column(m, poses, s, 1.0, 0.0, col_dyn, col_g, u)
+        b[u] = column_dot(col_dyn, col_g, u, v_tilde)
+        support_column(m, poses, s, 0.0, 1.0, col_dyn, col_g, u + 1)
+        b[u + 1] = column_dot(col_dyn, col_g, u + 1, v_tilde)
+        u += 2
+    delassus(m, u, col_dyn, col_g, W)
+    return u
+
+
+@njit(cache=True)
+def solve_pgs(m, isl_con, nci, isl_sup, nsi, con_pair, h, W, b, x, iterations):
+    """Fixed number of projected Gauss-Seidel sweeps on W x + b, from x = 0. Returns the final max |update|."""
+    n = 0
+    for a in range(nci):
+        n += 2 if m.pair_mu[con_pair[isl_con[a]]] > 0.0 else 1
+    n += 2 * nsi
+    for i in range(n):
+        x[i] = 0.0
+    last = 0.0
+    for it in range(iterations):
+        last = 0.0
+        u = 0
+        for a in range(nci):
+            mu = m.pair_mu[con_pair[isl_con[a]]]
+            r = b[u]
+            for c in range(n):
+                r += W[u, c] * x[c]
+            new = max(0.0, x[u] - r / W[u, u]) if W[u, u] > 0.0 else 0.0
+            last = max(last, abs(new - x[u]))
+            x[u] = new
+            u += 1
+            if mu > 0.0:
+                r = b[u]
+                for c in range(n):
+                    r += W[u, c] * x[c]
+                lim = mu * x[u - 1]
+                new = x[u] - r / W[u, u] if W[u, u] > 0.0 else 0.0
+                new = min(lim, max(-lim, new))
+                last = max(last, abs(new - x[u]))
+                x[u] = new
+                u += 1
+        for a in range(nsi):
+            s = isl_sup[a]
+            rx = b[u]
+            ry = b[u + 1]
+            for c in range(n):
+                rx += W[u, c] * x[c]
+                ry += W[u + 1, c] * x[c]
+            # 2x2 block step, then projection onto the friction disk
+            a11 = W[u, u]
+            a12 = W[u, u + 1]
+            a22 = W[u + 1, u + 1]
+            det = a11 * a22 - a12 * a12
+            if det > 0.0:
+                dx = -(a22 * rx - a12 * ry) / det
+                dy = -(-a12 * rx + a11 * ry) / det
+            else:
+                dx = 0.0
+                dy = 0.0
+            fx = x[u] + dx
+            fy = x[u + 1] + dy
+            lim = m.sup_mu[s] * h * m.sup_load[s]
+            nrm = np.sqrt(fx * fx + fy * fy)
+            if nrm > lim:
+                fx *= lim / nrm
+                fy *= lim / nrm
+            last = max(last, abs(fx - x[u]), abs(fy - x[u + 1]))
+            x[u] = fx
+            x[u + 1] = fy
+            u += 2
+    return last

@@ -1,0 +1,382 @@
+"""One time step (seed paper sections 3-4 in 2D): contacts, islands, one LCP per island, integration.
+
+    M (v+ - v) = h f_ext + G z        q+ = q + h v+
+
+Formulations (all over the same contact model):
+- position (default, seed 3.1): linearize the gap at q_hat = q + h v:  phi(q_hat)/h + n.(v+ - v) >= 0.
+- fixed_point (seed 3.4): re-linearize at q_hat <- q+ until it moves less than fp_tol (or fp_iters times).
+- velocity (Anitescu-Potra, seed 3.3): contacts at q; n.v+ >= -max(phi, 0)/h (touching contacts: n.v+ >= 0),
+  then a position-only projection removes penetration (velocities untouched: no kinetic energy is added).
+Active set (seed 4): contacts with gap < margin at the linearization pose; after the solve the configuration q+ is
+checked, and if a shape pair without contacts in the set is penetrating by more than pen_tol it is added and the
+step is solved again (at most max_resolves times).
+"""
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+from .assemble import apply_impulses, assemble_lcp, contact_column, delassus
+from .contacts import body_poses, find_contacts, world_vertices
+from .islands import contact_island, find_islands
+from .lemke import STATUS_SOLVED, lemke_kernel
+from .pgs import assemble_pgs, solve_pgs
+
+SOLVER_LEMKE, SOLVER_PGS = 0, 1
+FORM_POSITION, FORM_FIXED_POINT, FORM_VELOCITY = 0, 1, 2
+
+STEP_OK = 0
+STEP_LCP_FAILED = 1      # Lemke did not solve an island; PGS was used for it (recorded, never silent)
+STEP_NONFINITE = 2       # the new state is not finite
+
+MODE_SEPARATED, MODE_STICKING, MODE_SLIDING = 0, 1, 2
+
+# stats vector layout
+ST_LCP_SIZE, ST_LCP_MAX, ST_PIVOTS, ST_LEMKE_STATUS, ST_NCON, ST_NISLAND, ST_FP_ITERS, ST_RESOLVES, \
+    ST_RESIDUAL, ST_FP_CHANGE, ST_PGS_UPDATE = range(11)
+NSTAT = 11
+
+StepOptions = namedtuple("StepOptions", [
+    "solver", "formulation", "fp_iters", "fp_tol", "pgs_iters", "margin", "pen_tol", "max_resolves",
+    "piv_tol", "ratio_tol", "res_tol", "slip_tol", "impulse_tol",
+])
+
+StepWork = namedtuple("StepWork", [
+    "poses", "vw", "force_pair", "in_set",
+    "con_pair", "con_phi", "con_n", "con_p", "tmp_phi", "tmp_n", "tmp_p",
+    "chk_pair", "chk_phi", "chk_n", "chk_p",
+    "parent", "island", "isl_con", "isl_sup", "col_dyn", "col_g", "Abuf", "bvec", "zvec",
+    "lT", "lbasis", "lz", "lw", "lcand", "llu", "lrhs", "lperm", "lzb", "lzalt", "lwalt", "lprow",
+    "v_tilde", "v_hat", "q_hat", "v_new", "q_new",
+    "con_cn", "con_ft", "con_vn", "con_vt", "con_mode",
+])
+
+
+def make_step_work(model):
+    """Allocate every buffer a step needs, sized from the model (no allocation happens inside the kernels)."""
+    a = model.arrays
+    nbody = a.body_kind.shape[0]
+    nvert = a.vert_local.shape[0]
+    npair = a.pair_a.shape[0]
+    C = max(1, 2 * npair)
+    U = max(1, model.max_unknowns())
+    nd = max(1, model.ndyn)
+    nsup = max(1, a.sup_dyn.shape[0])
+    f, i = np.float64, np.int64
+    return StepWork(
+        poses=np.zeros((nbody, 3)), vw=np.zeros((max(1, nvert), 2)),
+        force_pair=np.zeros(max(1, npair), np.bool_), in_set=np.zeros(max(1, npair), np.bool_),
+        con_pair=np.zeros(C, i), con_phi=np.zeros(C), con_n=np.zeros((C, 2)), con_p=np.zeros((C, 2)),
+        tmp_phi=np.zeros(2), tmp_n=np.zeros((2, 2)), tmp_p=np.zeros((2, 2)),
+        chk_pair=np.zeros(C, i), chk_phi=np.zeros(C), chk_n=np.zeros((C, 2)), chk_p=np.zeros((C, 2)),
+        parent=np.zeros(nd, i), island=np.zeros(nd, i), isl_con=np.zeros(C, i), isl_sup=np.zeros(nsup, i),
+        col_dyn=np.zeros((U, 2), i), col_g=np.zeros((U, 2, 3)), Abuf=np.zeros(U * U), bvec=np.zeros(U),
+        zvec=np.zeros(U),
+        lT=np.zeros(U * (2 * U + 2)), lbasis=np.zeros(U, i), lz=np.zeros(U), lw=np.zeros(U), lcand=np.zeros(U, i),
+        llu=np.zeros((U, U)), lrhs=np.zeros(U), lperm=np.zeros(U, i), lzb=np.zeros(U, i), lzalt=np.zeros(U),
+        lwalt=np.zeros(U), lprow=np.zeros(2 * U + 2),
+        v_tilde=np.zeros((nd, 3)), v_hat=np.zeros((nd, 3)), q_hat=np.zeros((nd, 3)), v_new=np.zeros((nd, 3)),
+        q_new=np.zeros((nd, 3)),
+        con_cn=np.zeros(C), con_ft=np.zeros(C), con_vn=np.zeros(C), con_vt=np.zeros(C), con_mode=np.zeros(C, i),
+    )
+
+
+@njit(cache=True)
+def _problem_sizes(m, isl_con, nci, nsi, con_pair):
+    """(LCP size, number of frictional contacts, PGS size) of an island."""
+    nf = 0
+    for a in range(nci):
+        if m.pair_mu[con_pair[isl_con[a]]] > 0.0:
+            nf += 1
+    k = m.fric_dirs.shape[0]
+    return nci + 3 * nf + (k + 1) * nsi, nf, nci + nf + 2 * nsi
+
+
+@njit(cache=True)
+def _record_impulses(m, w, nci, z, friction_pairs_interleaved, nf_offset):
+    """Per-contact normal and tangential impulses from the solver's unknowns.
+
+    LCP layout: z = [c_n..., (beta+, beta-)...]; PGS layout: z = [c_n, f_t (if mu > 0)] per contact."""
+    f = 0
+    u = 0
+    for a in range(nci):
+        j = w.isl_con[a]
+        frict = m.pair_mu[w.con_pair[j]] > 0.0
+        if friction_pairs_interleaved:
+            w.con_cn[j] = z[u]
+            u += 1
+            if frict:
+                w.con_ft[j] = z[u]
+                u += 1
+            else:
+                w.con_ft[j] = 0.0
+        else:
+            w.con_cn[j] = z[a]
+            if frict:
+                w.con_ft[j] = z[nf_offset + 2 * f] - z[nf_offset + 2 * f + 1]
+                f += 1
+            else:
+                w.con_ft[j] = 0.0
+
+
+@njit(cache=True)
+def _solve_island(m, w, opt, poses, vk, isl, ncon, h, velocity_form, stats):
+    """Assemble and solve one island's problem, add its impulses to w.v_new, record contact impulses.
+
+    Returns the Lemke status (STATUS_SOLVED when PGS was asked for). When Lemke fails the island is solved by PGS
+    instead and the failure is returned, so that the step reports it."""
+    nci = 0
+    for j in range(ncon):
+        if contact_island(m, w.island, w.con_pair, j) == isl:
+            w.isl_con[nci] = j
+            nci += 1
+    nsi = 0
+    for s in range(m.sup_dyn.shape[0]):
+        if w.island[m.sup_dyn[s]] == isl:
+            w.isl_sup[nsi] = s
+            nsi += 1
+    if nci == 0 and nsi == 0:
+        return STATUS_SOLVED
+    n_lcp, nf, n_pgs = _problem_sizes(m, w.isl_con, nci, nsi, w.con_pair)
+    k = m.fric_dirs.shape[0]
+    status = STATUS_SOLVED
+    if opt.solver == SOLVER_LEMKE:
+        n = n_lcp
+        A = w.Abuf[:n * n].reshape((n, n))
+        assemble_lcp(m, poses, vk, w.isl_con, nci, w.isl_sup, nsi, w.con_pair, w.con_phi, w.con_n, w.con_p,
+                     w.v_tilde, w.v_hat, h, velocity_form, w.col_dyn, w.col_g, A, w.bvec)
+        T = w.lT[:n * (2 * n + 2)].reshape((n, 2 * n + 2))
+        status, piv, res = lemke_kernel(A, w.bvec[:n], 50 * n + 100, opt.piv_tol, opt.ratio_tol, opt.res_tol, T,
+                                        w.lbasis, w.lz, w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt,
+                                        w.lwalt, w.lprow)
+        stats[ST_LCP_SIZE] += n
+        stats[ST_LCP_MAX] = max(stats[ST_LCP_MAX], n)
+        stats[ST_PIVOTS] += piv
+        stats[ST_RESIDUAL] = max(stats[ST_RESIDUAL], res)
+        if status == STATUS_SOLVED:
+            apply_impulses(nci + 2 * nf + k * nsi, w.col_dyn, w.col_g, w.lz, m, w.v_new)
+            _record_impulses(m, w, nci, w.lz, False, nci)
+            return status
+        stats[ST_LEMKE_STATUS] = max(stats[ST_LEMKE_STATUS], status)
+    # PGS: asked for, or the fallback when Lemke failed on this island (the failure is returned)
+    n = n_pgs
+    W = w.Abuf[:n * n].reshape((n, n))
+    assemble_pgs(m, poses, vk, w.isl_con, nci, w.isl_sup, nsi, w.con_pair, w.con_phi, w.con_n, w.con_p,
+                 w.v_tilde, w.v_hat, h, velocity_form, w.col_dyn, w.col_g, W, w.bvec)
+    upd = solve_pgs(m, w.isl_con, nci, w.isl_sup, nsi, w.con_pair, h, W, w.bvec, w.zvec, opt.pgs_iters)
+    stats[ST_PGS_UPDATE] = max(stats[ST_PGS_UPDATE], upd)
+    stats[ST_LCP_SIZE] += n
+    stats[ST_LCP_MAX] = max(stats[ST_LCP_MAX], n)
+    apply_impulses(n, w.col_dyn, w.col_g, w.zvec, m, w.v_new)
+    _record_impulses(m, w, nci, w.zvec, True, 0)
+    return status
+
+
+@njit(cache=True)
+def _solve_all(m, w, opt, q, vk, qk_lin, h, velocity_form, stats):
+    """Contacts at (w.q_hat, qk_lin), islands, one problem per island; writes w.v_new and w.q_new.
+    Returns (number of contacts, worst Lemke status)."""
+    ndyn = q.shape[0]
+    body_poses(m, w.q_hat, qk_lin, w.poses)
+    world_vertices(m, w.poses, w.vw)
+    ncon = find_contacts(m, w.vw, opt.margin, w.force_pair, w.con_pair, w.con_phi, w.con_n, w.con_p,
+                         w.tmp_phi, w.tmp_n, w.tmp_p)
+    for p in range(w.in_set.shape[0]):
+        w.in_set[p] = False
+    for j in range(ncon):
+        w.in_set[w.con_pair[j]] = True
+        w.con_cn[j] = 0.0
+        w.con_ft[j] = 0.0
+    nisl = find_islands(m, ncon, w.con_pair, w.parent, w.island)
+    stats[ST_NISLAND] = nisl
+    for d in range(ndyn):
+        for c in range(3):
+            w.v_new[d, c] = w.v_tilde[d, c]
+    worst = STATUS_SOLVED
+    for isl in range(nisl):
+        st = _solve_island(m, w, opt, w.poses, vk, isl, ncon, h, velocity_form, stats)
+        if st != STATUS_SOLVED:
+            worst = st
+    for d in range(ndyn):
+        for c in range(3):
+            w.q_new[d, c] = q[d, c] + h * w.v_new[d, c]
+    return ncon, worst
+
+
+@njit(cache=True)
+def _violated_new_pairs(m, w, opt, qk_new):
+    """Seed section 4: check q+ for penetrating shape pairs that had no contact in the set; mark them for the
+    re-solve. Returns how many pairs were added."""
+    body_poses(m, w.q_new, qk_new, w.poses)
+    world_vertices(m, w.poses, w.vw)
+    nchk = find_contacts(m, w.vw, -opt.pen_tol, w.force_pair, w.chk_pair, w.chk_phi, w.chk_n, w.chk_p,
+                         w.tmp_phi, w.tmp_n, w.tmp_p)
+    added = 0
+    for j in range(nchk):
+        p = w.chk_pair[j]
+        if not w.in_set[p] and not w.force_pair[p]:
+            w.force_pair[p] = True
+            added += 1
+    return added
+
+
+@njit(cache=True)
+def _contact_velocities(m, w, opt, vk, ncon, qk_new):
+    """Post-step normal and tangential relative velocity (A minus B) at each contact, and its mode:
+    separated (normal impulse <= impulse_tol), sliding (|tangential velocity| > slip_tol), else sticking."""
+    body_poses(m, w.q_new, qk_new, w.poses)
+    for j in range(ncon):
+        p = w.con_pair[j]
+        nx = w.con_n[j, 0]
+        ny = w.con_n[j, 1]
+        vn = 0.0
+        vt = 0.0
+        for side in range(2):
+            b = m.shape_body[m.pair_a[p]] if side == 0 else m.shape_body[m.pair_b[p]]
+            sgn = 1.0 if side == 0 else -1.0
+            kind = m.body_kind[b]
+            if kind == 1:
+                continue
+            if kind == 0:
+                vel = w.v_new[m.body_slot[b]]
+            else:
+                vel = vk[m.body_slot[b]]
+            rx = w.con_p[j, 0] - w.poses[b, 0]
+            ry = w.con_p[j, 1] - w.poses[b, 1]
+            px = vel[0] - vel[2] * ry
+            py = vel[1] + vel[2] * rx
+            vn += sgn * (px * nx + py * ny)
+            vt += sgn * (-px * ny + py * nx)
+        w.con_vn[j] = vn
+        w.con_vt[j] = vt
+        if w.con_cn[j] <= opt.impulse_tol:
+            w.con_mode[j] = MODE_SEPARATED
+        elif abs(vt) > opt.slip_tol:
+            w.con_mode[j] = MODE_SLIDING
+        else:
+            w.con_mode[j] = MODE_STICKING
+
+
+@njit(cache=True)
+def _project_positions(m, w, opt, qk_new, stats):
+    """Velocity form's drift correction: move q+ (positions only) out of penetration by the smallest
+    mass-weighted displacement, dq = M^-1 N y with 0 <= y _|_ phi(q+) + N^T M^-1 N y >= 0 (normal rows only).
+    Velocities are not touched, so no kinetic energy is added."""
+    body_poses(m, w.q_new, qk_new, w.poses)
+    world_vertices(m, w.poses, w.vw)
+    nchk = find_contacts(m, w.vw, -opt.pen_tol, w.force_pair, w.chk_pair, w.chk_phi, w.chk_n, w.chk_p,
+                         w.tmp_phi, w.tmp_n, w.tmp_p)
+    # the force_pair mask may include pairs with any gap: keep only the penetrating ones
+    n = 0
+    for j in range(nchk):
+        if w.chk_phi[j] < -opt.pen_tol:
+            w.chk_pair[n] = w.chk_pair[j]
+            w.chk_phi[n] = w.chk_phi[j]
+            w.chk_n[n, 0] = w.chk_n[j, 0]
+            w.chk_n[n, 1] = w.chk_n[j, 1]
+            w.chk_p[n, 0] = w.chk_p[j, 0]
+            w.chk_p[n, 1] = w.chk_p[j, 1]
+            n += 1
+    if n == 0:
+        return
+    for j in range(n):
+        contact_column(m, w.poses, w.chk_pair, w.chk_p, j, w.chk_n[j, 0], w.chk_n[j, 1], w.col_dyn, w.col_g, j)
+    A = w.Abuf[:n * n].reshape((n, n))
+    delassus(m, n, w.col_dyn, w.col_g, A)
+    for j in range(n):
+        w.bvec[j] = w.chk_phi[j]
+    T = w.lT[:n * (2 * n + 2)].reshape((n, 2 * n + 2))
+    st, piv, res = lemke_kernel(A, w.bvec[:n], 50 * n + 100, opt.piv_tol, opt.ratio_tol, opt.res_tol, T,
+                                w.lbasis, w.lz, w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt, w.lwalt,
+                                w.lprow)
+    if st != STATUS_SOLVED:
+        stats[ST_LEMKE_STATUS] = max(stats[ST_LEMKE_STATUS], st)
+        return
+    # dq = M^-1 G y (reuse the impulse application on a zeroed buffer)
+    ndyn = w.q_new.shape[0]
+    for d in range(ndyn):
+        for c in range(3):
+            w.v_hat[d, c] = 0.0
+    apply_impulses(n, w.col_dyn, w.col_g, w.lz, m, w.v_hat)
+    for d in range(ndyn):
+        for c in range(3):
+            w.q_new[d, c] += w.v_hat[d, c]
+
+
+@njit(cache=True)
+def energy(m, q, v):
+    """Kinetic + potential energy of the dynamic bodies (J); the potential is -m g.x (vertical plane)."""
+    e = 0.0
+    for d in range(q.shape[0]):
+        ms = m.dyn_mass[d]
+        e += 0.5 * ms * (v[d, 0] ** 2 + v[d, 1] ** 2) + 0.5 * m.dyn_inertia[d] * v[d, 2] ** 2
+        e -= ms * (m.gravity[0] * q[d, 0] + m.gravity[1] * q[d, 1])
+    return e
+
+
+@njit(cache=True)
+def step_kernel(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """Advance (q, v, qk) by one step of size h with kinematic velocities vk.
+
+    q, v : (ndyn, 3) COM poses and velocities; qk, vk : (nkin, 3) kinematic poses and (prescribed) velocities.
+    Writes q_out, v_out, qk_out (may alias nothing of the inputs) and stats (NSTAT,). Returns a STEP_* code.
+    Contacts of the step stay in w.con_* (count in stats[ST_NCON]).
+    """
+    ndyn = q.shape[0]
+    for i in range(stats.shape[0]):
+        stats[i] = 0.0
+    velocity_form = opt.formulation == FORM_VELOCITY
+    for d in range(ndyn):
+        w.v_tilde[d, 0] = v[d, 0] + h * m.gravity[0]
+        w.v_tilde[d, 1] = v[d, 1] + h * m.gravity[1]
+        w.v_tilde[d, 2] = v[d, 2]
+        for c in range(3):
+            w.v_hat[d, c] = 0.0 if velocity_form else v[d, c]
+            w.q_hat[d, c] = q[d, c] + h * w.v_hat[d, c]
+    for kk in range(qk.shape[0]):
+        for c in range(3):
+            qk_out[kk, c] = qk[kk, c] + h * vk[kk, c]
+    # the velocity form evaluates contacts at the current configuration, the position forms at the end of the step
+    qk_lin = qk if velocity_form else qk_out
+    for p in range(w.force_pair.shape[0]):
+        w.force_pair[p] = False
+    worst = STATUS_SOLVED
+    ncon = 0
+    fp_iter = 0
+    resolves = 0
+    while True:
+        ncon, worst = _solve_all(m, w, opt, q, vk, qk_lin, h, velocity_form, stats)
+        if opt.formulation == FORM_FIXED_POINT and fp_iter < opt.fp_iters:
+            change = 0.0
+            for d in range(ndyn):
+                for c in range(3):
+                    change = max(change, abs(w.q_new[d, c] - w.q_hat[d, c]))
+                    w.q_hat[d, c] = w.q_new[d, c]
+                    w.v_hat[d, c] = (w.q_hat[d, c] - q[d, c]) / h
+            fp_iter += 1
+            stats[ST_FP_CHANGE] = change
+            if change > opt.fp_tol:
+                continue
+        if resolves < opt.max_resolves and _violated_new_pairs(m, w, opt, qk_out) > 0:
+            resolves += 1
+            continue
+        break
+    if velocity_form:
+        _project_positions(m, w, opt, qk_out, stats)
+    _contact_velocities(m, w, opt, vk, ncon, qk_out)
+    stats[ST_NCON] = ncon
+    stats[ST_FP_ITERS] = fp_iter
+    stats[ST_RESOLVES] = resolves
+    finite = True
+    for d in range(ndyn):
+        for c in range(3):
+            q_out[d, c] = w.q_new[d, c]
+            v_out[d, c] = w.v_new[d, c]
+            if not (np.isfinite(q_out[d, c]) and np.isfinite(v_out[d, c])):
+                finite = False
+    if not finite:
+        return STEP_NONFINITE
+    if worst != STATUS_SOLVED:
+        return STEP_LCP_FAILED
+    return STEP_OK

@@ -1,0 +1,236 @@
+"""Compile a Scene (spec) into a Model: flat arrays, never changed after compile.
+
+Frames. A dynamic body's dynamics use its centre of mass (COM): its state q = (x, y, theta) is the COM pose and its
+shape vertices are stored relative to the COM. Kinematic and static bodies use their body frame. Users see body-frame
+poses (the scene's `position`); `Model.com_local` converts between the two.
+
+Ragged data is flat with address/count arrays (MuJoCo's *_adr / *_num).
+"""
+
+from collections import namedtuple
+from dataclasses import dataclass
+
+import numpy as np
+
+from .massprops import body_mass_properties, default_support_points
+from .scene import Scene, SceneError
+
+BODY_DYNAMIC, BODY_STATIC, BODY_KINEMATIC = 0, 1, 2
+SHAPE_CORE, SHAPE_HALFPLANE = 0, 1
+PLANE_VERTICAL, PLANE_HORIZONTAL = 0, 1
+
+#: Arrays handed to the numba kernels (a namedtuple of arrays and scalars, which numba accepts as one argument).
+ModelArrays = namedtuple("ModelArrays", [
+    "plane",            # int: PLANE_VERTICAL | PLANE_HORIZONTAL
+    "gravity",          # (2,) m/s^2, vertical plane (zero in the horizontal plane)
+    "body_kind",        # (nbody,) int64: BODY_*
+    "body_slot",        # (nbody,) int64: index among the dynamic (or kinematic) bodies; -1 for static
+    "static_pose",      # (nbody, 3) world pose of static bodies (rows of other bodies unused)
+    "dyn_body",         # (ndyn,) int64 body index of each dynamic slot
+    "dyn_mass",         # (ndyn,) kg
+    "dyn_inertia",      # (ndyn,) kg m^2 about the COM
+    "shape_body",       # (nshape,) int64
+    "shape_kind",       # (nshape,) int64: SHAPE_*
+    "shape_vert_adr",   # (nshape,) int64 into vert_local
+    "shape_vert_num",   # (nshape,) int64
+    "shape_radius",     # (nshape,) m
+    "hp_point_w",       # (nshape, 2) half-plane point, world (half-planes are static)
+    "hp_normal_w",      # (nshape, 2) half-plane outward unit normal, world
+    "vert_local",       # (nvert, 2) core vertices in the body's dynamics frame (COM frame for dynamic bodies)
+    "pair_a",           # (npair,) int64 shape index; A is never a half-plane
+    "pair_b",           # (npair,) int64 shape index
+    "pair_mu",          # (npair,) Coulomb coefficient
+    "sup_dyn",          # (nsup,) int64 dynamic slot of the body a support point belongs to
+    "sup_local",        # (nsup, 2) support point, COM frame
+    "sup_load",         # (nsup,) N, known normal load on the table (m g w)
+    "sup_mu",           # (nsup,) body-table Coulomb coefficient
+    "fric_dirs",        # (k, 2) unit friction directions of the support friction (horizontal plane)
+])
+
+
+@dataclass(frozen=True)
+class Model:
+    """A compiled scene. `arrays` goes to the kernels; the rest is for Python-side bookkeeping."""
+
+    scene: Scene
+    arrays: ModelArrays
+    dyn_names: tuple
+    kin_names: tuple
+    com_local: np.ndarray       # (ndyn, 2) COM in the body frame of each dynamic body
+    q0: np.ndarray              # (ndyn, 3) initial COM poses
+    v0: np.ndarray              # (ndyn, 3) initial COM velocities
+    qk0: np.ndarray             # (nkin, 3) initial kinematic poses (body frame)
+    vk0: np.ndarray             # (nkin, 3) prescribed kinematic velocities
+
+    @property
+    def ndyn(self):
+        return len(self.dyn_names)
+
+    @property
+    def nkin(self):
+        return len(self.kin_names)
+
+    def max_contacts(self):
+        return 2 * len(self.arrays.pair_a)
+
+    def max_unknowns(self):
+        """LCP size bound: 4 per contact (normal, two friction rays, slack) plus k + 1 per support point."""
+        k = self.arrays.fric_dirs.shape[0]
+        return 4 * self.max_contacts() + (k + 1) * len(self.arrays.sup_dyn)
+
+    def com_to_frame(self, q):
+        """COM poses (..., ndyn, 3) -> body-frame origin poses, as the scene file describes bodies."""
+        q = np.asarray(q, dtype=float)
+        out = q.copy()
+        c, s = np.cos(q[..., 2]), np.sin(q[..., 2])
+        cx, cy = self.com_local[:, 0], self.com_local[:, 1]
+        out[..., 0] = q[..., 0] - (c * cx - s * cy)
+        out[..., 1] = q[..., 1] - (s * cx + c * cy)
+        return out
+
+    def frame_to_com(self, qf):
+        qf = np.asarray(qf, dtype=float)
+        out = qf.copy()
+        c, s = np.cos(qf[..., 2]), np.sin(qf[..., 2])
+        cx, cy = self.com_local[:, 0], self.com_local[:, 1]
+        out[..., 0] = qf[..., 0] + (c * cx - s * cy)
+        out[..., 1] = qf[..., 1] + (s * cx + c * cy)
+        return out
+
+
+def _rot(theta):
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+def compile_scene(scene: Scene, friction_directions=None) -> Model:
+    """Flatten a validated Scene into a Model. `friction_directions` overrides scene.sim.friction_directions."""
+    bodies = scene.bodies
+    nbody = len(bodies)
+    body_kind = np.empty(nbody, np.int64)
+    body_slot = np.full(nbody, -1, np.int64)
+    static_pose = np.zeros((nbody, 3))
+    dyn_names, kin_names = [], []
+    dyn_mass, dyn_inertia, com_local, q0, v0, qk0, vk0 = [], [], [], [], [], [], []
+    kinds = {"dynamic": BODY_DYNAMIC, "static": BODY_STATIC, "kinematic": BODY_KINEMATIC}
+    for i, b in enumerate(bodies):
+        body_kind[i] = kinds[b.type]
+        pose = np.array([b.position[0], b.position[1], b.angle], dtype=float)
+        if b.type == "dynamic":
+            body_slot[i] = len(dyn_names)
+            dyn_names.append(b.name)
+            com, inertia = body_mass_properties(b)
+            com = np.asarray(com, dtype=float)
+            com_local.append(com)
+            dyn_mass.append(float(b.mass))
+            dyn_inertia.append(float(inertia))
+            rc = _rot(b.angle) @ com
+            q0.append([pose[0] + rc[0], pose[1] + rc[1], pose[2]])
+            # velocity of the COM from the body-frame origin's velocity: v_c = v_o + omega x r_c
+            v0.append([b.velocity[0] - b.angular_velocity * rc[1], b.velocity[1] + b.angular_velocity * rc[0],
+                       b.angular_velocity])
+        elif b.type == "kinematic":
+            body_slot[i] = len(kin_names)
+            kin_names.append(b.name)
+            qk0.append(pose)
+            vk0.append([b.velocity[0], b.velocity[1], b.angular_velocity])
+        else:
+            static_pose[i] = pose
+
+    # shapes
+    shape_body, shape_kind, vadr, vnum, radius, hp_p, hp_n, verts = [], [], [], [], [], [], [], []
+    for i, b in enumerate(bodies):
+        shift = com_local[body_slot[i]] if body_kind[i] == BODY_DYNAMIC else np.zeros(2)
+        for s in b.shapes:
+            shape_body.append(i)
+            if s.type == "halfplane":
+                shape_kind.append(SHAPE_HALFPLANE)
+                R = _rot(static_pose[i, 2])
+                hp_p.append(R @ np.asarray(s.point, float) + static_pose[i, :2])
+                n = R @ np.asarray(s.normal, float)
+                hp_n.append(n / np.linalg.norm(n))
+                vadr.append(len(verts))
+                vnum.append(0)
+                radius.append(0.0)
+            else:
+                shape_kind.append(SHAPE_CORE)
+                core = np.asarray(s.core_vertices_body(), float).reshape(-1, 2) - shift
+                vadr.append(len(verts))
+                vnum.append(core.shape[0])
+                verts.extend(core.tolist())
+                radius.append(float(s.radius))
+                hp_p.append([0.0, 0.0])
+                hp_n.append([0.0, 0.0])
+
+    # candidate shape pairs: different bodies, at least one dynamic; A is never a half-plane
+    pa, pb, pmu = [], [], []
+    nshape = len(shape_body)
+    for s1 in range(nshape):
+        for s2 in range(s1 + 1, nshape):
+            b1, b2 = shape_body[s1], shape_body[s2]
+            if b1 == b2:
+                continue
+            k1, k2 = body_kind[b1], body_kind[b2]
+            if k1 != BODY_DYNAMIC and k2 != BODY_DYNAMIC:
+                continue
+            a, b_ = s1, s2
+            # put the dynamic body first (and never a half-plane as A)
+            if k1 != BODY_DYNAMIC or shape_kind[s1] == SHAPE_HALFPLANE:
+                a, b_ = s2, s1
+            if shape_kind[a] == SHAPE_HALFPLANE:
+                raise SceneError(f"{scene.source}: shapes of bodies '{bodies[b1].name}' and '{bodies[b2].name}': "
+                                 f"no contact model for half-plane against half-plane")
+            pa.append(a)
+            pb.append(b_)
+            pmu.append(scene.friction_between(bodies[shape_body[a]].name, bodies[shape_body[b_]].name))
+
+    # horizontal plane: support points with known normal loads
+    plane = PLANE_HORIZONTAL if scene.world.plane == "horizontal" else PLANE_VERTICAL
+    k = int(friction_directions if friction_directions is not None else scene.sim.friction_directions)
+    if k < 3:
+        raise ValueError(f"friction_directions must be >= 3 (the directions must positively span the plane), got {k}")
+    ang = 2.0 * np.pi * np.arange(k) / k
+    fric_dirs = np.column_stack([np.cos(ang), np.sin(ang)])
+    sup_dyn, sup_local, sup_load, sup_mu = [], [], [], []
+    if plane == PLANE_HORIZONTAL:
+        g = float(scene.world.support_gravity)
+        for i, b in enumerate(bodies):
+            if body_kind[i] != BODY_DYNAMIC:
+                continue
+            slot = body_slot[i]
+            if b.support_points is not None:
+                pts = np.asarray(b.support_points, float).reshape(-1, 2)
+                w = np.full(len(pts), 1.0 / len(pts))
+            else:
+                pts, w = default_support_points(b)
+                pts, w = np.asarray(pts, float).reshape(-1, 2), np.asarray(w, float)
+            mu = b.support_friction if b.support_friction is not None else scene.world.friction
+            for p, wi in zip(pts - com_local[slot], w):
+                sup_dyn.append(slot)
+                sup_local.append(p)
+                sup_load.append(dyn_mass[slot] * g * wi)
+                sup_mu.append(float(mu))
+        gravity = np.zeros(2)
+    else:
+        gravity = np.asarray(scene.world.gravity, float)
+
+    def arr(x, dtype=float, shape=None):
+        a = np.asarray(x, dtype=dtype)
+        if shape is not None and a.size == 0:
+            a = a.reshape(shape)
+        return np.ascontiguousarray(a)
+
+    arrays = ModelArrays(
+        plane=plane, gravity=arr(gravity), body_kind=body_kind, body_slot=body_slot, static_pose=static_pose,
+        dyn_body=arr(np.flatnonzero(body_kind == BODY_DYNAMIC), np.int64),
+        dyn_mass=arr(dyn_mass), dyn_inertia=arr(dyn_inertia),
+        shape_body=arr(shape_body, np.int64), shape_kind=arr(shape_kind, np.int64),
+        shape_vert_adr=arr(vadr, np.int64), shape_vert_num=arr(vnum, np.int64), shape_radius=arr(radius),
+        hp_point_w=arr(hp_p, shape=(0, 2)), hp_normal_w=arr(hp_n, shape=(0, 2)), vert_local=arr(verts, shape=(0, 2)),
+        pair_a=arr(pa, np.int64), pair_b=arr(pb, np.int64), pair_mu=arr(pmu),
+        sup_dyn=arr(sup_dyn, np.int64), sup_local=arr(sup_local, shape=(0, 2)), sup_load=arr(sup_load),
+        sup_mu=arr(sup_mu), fric_dirs=arr(fric_dirs),
+    )
+    return Model(scene=scene, arrays=arrays, dyn_names=tuple(dyn_names), kin_names=tuple(kin_names),
+                 com_local=arr(com_local, shape=(0, 2)), q0=arr(q0, shape=(0, 3)), v0=arr(v0, shape=(0, 3)),
+                 qk0=arr(qk0, shape=(0, 3)), vk0=arr(vk0, shape=(0, 3)))

@@ -1,0 +1,251 @@
+"""Public simulation API: validate, allocate, call a kernel.
+
+- `simulate(scene, ...)` -> `Trajectory`: the whole run, with diagnostics per step.
+- `Simulator` (model + options + work buffers) with `step()` and `rollout()` over flat state arrays, for planners.
+  `rollout` equals a Python loop of `step` bit for bit (tested).
+"""
+
+import csv
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .kernels.lemke import STATUS_NAMES
+from .kernels.rollout import rollout_kernel
+from .kernels.step import (FORM_FIXED_POINT, FORM_POSITION, FORM_VELOCITY, NSTAT, SOLVER_LEMKE, SOLVER_PGS,
+                           ST_FP_ITERS, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_STATUS, ST_NCON, ST_NISLAND, ST_PIVOTS,
+                           ST_RESIDUAL, ST_RESOLVES, STEP_LCP_FAILED, STEP_NONFINITE, STEP_OK, StepOptions,
+                           energy, make_step_work, step_kernel)
+from .model import Model, compile_scene
+from .scene import Scene, load_scene
+
+SOLVERS = {"lemke": SOLVER_LEMKE, "pgs": SOLVER_PGS}
+FORMULATIONS = {"position": FORM_POSITION, "fixed_point": FORM_FIXED_POINT, "velocity": FORM_VELOCITY}
+MODE_NAMES = ("separated", "sticking", "sliding")
+
+
+class SimulationError(RuntimeError):
+    """A step failed (LCP not solved, or a non-finite state); the message names the step, the time and the cause."""
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """Numerical settings of a step (the scene's [sim] gives h, solver, formulation and the iteration counts)."""
+
+    h: float
+    solver: str = "lemke"
+    formulation: str = "position"
+    fixed_point_iterations: int = 10
+    fixed_point_tol: float = 1e-9          # m / rad: stop re-linearizing when q_hat moves less than this
+    pgs_iterations: int = 20
+    contact_margin: float = 2e-3           # m: contacts with a gap below this at the linearization pose enter the LCP
+    penetration_tol: float = 1e-6          # m: the active-set check adds a pair penetrating by more than this
+    max_resolves: int = 3
+    piv_tol: float = 1e-12
+    ratio_tol: float = 1e-12
+    res_tol: float = 1e-9
+    slip_tol: float = 1e-6                 # m/s: a loaded contact slipping faster than this is "sliding"
+    impulse_tol: float = 1e-12             # N s: a contact with a smaller normal impulse is "separated"
+
+    def kernel_options(self):
+        if self.solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, got {self.solver!r}")
+        if self.formulation not in FORMULATIONS:
+            raise ValueError(f"formulation must be one of {', '.join(FORMULATIONS)}, got {self.formulation!r}")
+        if not (np.isfinite(self.h) and self.h > 0):
+            raise ValueError(f"h must be > 0, got {self.h}")
+        if int(self.fixed_point_iterations) < 1:
+            raise ValueError(f"fixed_point_iterations must be >= 1, got {self.fixed_point_iterations}")
+        if int(self.pgs_iterations) < 1:
+            raise ValueError(f"pgs_iterations must be >= 1, got {self.pgs_iterations}")
+        return StepOptions(
+            solver=SOLVERS[self.solver], formulation=FORMULATIONS[self.formulation],
+            fp_iters=int(self.fixed_point_iterations), fp_tol=float(self.fixed_point_tol),
+            pgs_iters=int(self.pgs_iterations), margin=float(self.contact_margin), pen_tol=float(self.penetration_tol),
+            max_resolves=int(self.max_resolves), piv_tol=float(self.piv_tol), ratio_tol=float(self.ratio_tol),
+            res_tol=float(self.res_tol), slip_tol=float(self.slip_tol), impulse_tol=float(self.impulse_tol))
+
+
+def _cause(status, stats):
+    if status == STEP_NONFINITE:
+        return "the new state is not finite (NaN or inf)"
+    if status == STEP_LCP_FAILED:
+        ls = int(stats[ST_LEMKE_STATUS])
+        return (f"Lemke returned '{STATUS_NAMES[ls]}' on an LCP of size up to {int(stats[ST_LCP_MAX])} "
+                f"(residual {stats[ST_RESIDUAL]:.3e}); that island was solved by PGS instead")
+    return "ok"
+
+
+class Simulator:
+    """A compiled model, step options, and the work buffers of its kernels.
+
+    State arrays: q, v (ndyn, 3) centre-of-mass poses and velocities of the dynamic bodies in scene order;
+    qk, vk (nkin, 3) kinematic body poses (body frame) and velocities (the controls).
+    """
+
+    def __init__(self, model: Model, options: SimOptions):
+        self.model = model
+        self.options = options
+        self.kopt = options.kernel_options()
+        self.work = make_step_work(model)
+        self.stats = np.zeros(NSTAT)
+
+    @property
+    def h(self):
+        return self.options.h
+
+    def initial_state(self):
+        m = self.model
+        return m.q0.copy(), m.v0.copy(), m.qk0.copy(), m.vk0.copy()
+
+    def step(self, q, v, qk, vk):
+        """One step. Returns (q+, v+, qk+, status code); self.stats holds the step's diagnostics."""
+        q_out, v_out, qk_out = np.empty_like(q), np.empty_like(v), np.empty_like(qk)
+        st = step_kernel(self.model.arrays, q, v, qk, vk, self.h, self.kopt, self.work, q_out, v_out, qk_out,
+                         self.stats)
+        return q_out, v_out, qk_out, int(st)
+
+    def rollout(self, q, v, qk, vk_seq, nsteps, stop_on_failure=True, record_contacts=False):
+        """nsteps steps in one jitted call. vk_seq: (nvk, nkin, 3), step i uses vk_seq[min(i, nvk - 1)].
+
+        Returns a dict of arrays: q, v (nsteps+1, ndyn, 3), qk (nsteps+1, nkin, 3), stats (nsteps, NSTAT),
+        status (nsteps,), steps_done, and contact arrays when record_contacts."""
+        m = self.model
+        nd, nk = m.ndyn, m.nkin
+        vk_seq = np.asarray(vk_seq, dtype=float)
+        if nk == 0 or vk_seq.size == 0:
+            vk_seq = np.zeros((1, nk, 3))  # nothing to prescribe (reshape(-1, 0, 3) would be ambiguous)
+        else:
+            vk_seq = vk_seq.reshape(-1, nk, 3)
+        vk_seq = np.ascontiguousarray(vk_seq)
+        C = m.max_contacts() if record_contacts else 0
+        out = dict(q=np.zeros((nsteps + 1, nd, 3)), v=np.zeros((nsteps + 1, nd, 3)),
+                   qk=np.zeros((nsteps + 1, nk, 3)), stats=np.zeros((nsteps, NSTAT)),
+                   status=np.zeros(nsteps, np.int64), con_count=np.zeros(nsteps if C else 0, np.int64),
+                   con_pair=np.zeros((nsteps, C), np.int64), con_phi=np.zeros((nsteps, C)),
+                   con_n=np.zeros((nsteps, C, 2)), con_p=np.zeros((nsteps, C, 2)), con_cn=np.zeros((nsteps, C)),
+                   con_ft=np.zeros((nsteps, C)), con_vt=np.zeros((nsteps, C)),
+                   con_mode=np.zeros((nsteps, C), np.int64))
+        done = rollout_kernel(m.arrays, np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(v, dtype=float),
+                              np.ascontiguousarray(qk, dtype=float), vk_seq, int(nsteps), self.h, self.kopt,
+                              self.work, out["q"], out["v"], out["qk"], out["stats"], out["status"],
+                              out["con_count"], out["con_pair"], out["con_phi"], out["con_n"], out["con_p"],
+                              out["con_cn"], out["con_ft"], out["con_vt"], out["con_mode"], bool(stop_on_failure))
+        out["steps_done"] = int(done)
+        return out
+
+
+@dataclass
+class Trajectory:
+    """A simulated run.
+
+    Attributes
+    ----------
+    t : (T,) s, the first row at t = 0.
+    q, v : (T, ndyn, 3) pose (x, y, theta) and velocity (vx, vy, omega) of each dynamic body's FRAME ORIGIN (the
+        scene's `position`), in scene order; q_com, v_com the same for the centres of mass.
+    qk : (T, nkin, 3) kinematic body poses.
+    body_names : names of the dynamic bodies (columns of q and v).
+    stats : dict of (T-1,) arrays per step: lcp_size, lcp_max, pivots, n_contacts, n_islands, fp_iterations,
+        resolves, residual, status (0 ok, 1 LCP failed, 2 non-finite), energy (J, after the step).
+    contacts : dict of per-step contact arrays (count (T-1,), then (T-1, C[, 2]): pair, phi, normal, point, cn, ft,
+        vt, mode with mode 0 separated, 1 sticking, 2 sliding) and `shape_pairs` naming each pair's bodies.
+    failures : list of (step index, t, cause) recorded with on_failure="record".
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    q_com: np.ndarray
+    v_com: np.ndarray
+    qk: np.ndarray
+    body_names: tuple
+    kinematic_names: tuple
+    stats: dict
+    contacts: dict
+    options: SimOptions
+    scene: Scene
+    failures: list = field(default_factory=list)
+
+    def to_csv(self, path):
+        """Header `t` then NAME.x, NAME.y, NAME.theta, NAME.vx, NAME.vy, NAME.omega per dynamic body; a row per step."""
+        header = ["t"]
+        for n in self.body_names:
+            header += [f"{n}.x", f"{n}.y", f"{n}.theta", f"{n}.vx", f"{n}.vy", f"{n}.omega"]
+        with open(path, "w", newline="") as f:
+            wr = csv.writer(f)
+            wr.writerow(header)
+            for i in range(len(self.t)):
+                row = [repr(float(self.t[i]))]
+                for b in range(len(self.body_names)):
+                    row += [repr(float(x)) for x in self.q[i, b]] + [repr(float(x)) for x in self.v[i, b]]
+                wr.writerow(row)
+
+
+def _frame_velocity(model, q_com, v_com):
+    """Velocity of the body-frame origin from the COM velocity: v_o = v_c + omega x (o - c)."""
+    v = v_com.copy()
+    c, s = np.cos(q_com[..., 2]), np.sin(q_com[..., 2])
+    cx, cy = model.com_local[:, 0], model.com_local[:, 1]
+    rx, ry = -(c * cx - s * cy), -(s * cx + c * cy)
+    v[..., 0] = v_com[..., 0] - v_com[..., 2] * ry
+    v[..., 1] = v_com[..., 1] + v_com[..., 2] * rx
+    return v
+
+
+def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_point_iterations=None,
+             friction_directions=None, pgs_iterations=None, on_failure="raise", record_contacts=True,
+             **options) -> Trajectory:
+    """Simulate a scene (a Scene, a shipped scene name, or a .toml path). Keywords override the scene's [sim].
+
+    on_failure: "raise" (default) raises SimulationError at the first failed step; "record" continues (the failed
+    island is solved by PGS) and lists every failure in Trajectory.failures. Further keywords go to SimOptions.
+    """
+    if on_failure not in ("raise", "record"):
+        raise ValueError(f"on_failure must be 'raise' or 'record', got {on_failure!r}")
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
+    sim = scene.sim
+    h = float(sim.h if h is None else h)
+    t_end = float(sim.t_end if t_end is None else t_end)
+    if not (np.isfinite(t_end) and t_end > 0):
+        raise ValueError(f"t_end must be > 0, got {t_end}")
+    def pick(value, default):
+        return default if value is None else value
+
+    opts = SimOptions(h=h, solver=pick(solver, sim.solver), formulation=pick(formulation, sim.formulation),
+                      fixed_point_iterations=pick(fixed_point_iterations, sim.fixed_point_iterations),
+                      pgs_iterations=pick(pgs_iterations, sim.pgs_iterations), **options)
+    model = compile_scene(scene, friction_directions=friction_directions)
+    simr = Simulator(model, opts)
+    nsteps = int(round(t_end / h))
+    q0, v0, qk0, vk0 = simr.initial_state()
+    out = simr.rollout(q0, v0, qk0, vk0[None], nsteps, stop_on_failure=(on_failure == "raise"),
+                       record_contacts=record_contacts)
+    done = out["steps_done"]
+    failures = []
+    for i in np.flatnonzero(out["status"][:done] != STEP_OK):
+        failures.append((int(i), float((i + 1) * h), _cause(out["status"][i], out["stats"][i])))
+    if failures and on_failure == "raise":
+        i, t, cause = failures[0]
+        raise SimulationError(f"{scene.source}: step {i} (t = {t:.6g} s, h = {h}): {cause}. "
+                              f"Pass on_failure='record' to continue and record failures.")
+    T = done + 1
+    q_com, v_com = out["q"][:T], out["v"][:T]
+    st = out["stats"][:done]
+    en = np.array([energy(model.arrays, q_com[i], v_com[i]) for i in range(T)])
+    stats = dict(lcp_size=st[:, ST_LCP_SIZE].astype(int), lcp_max=st[:, ST_LCP_MAX].astype(int),
+                 pivots=st[:, ST_PIVOTS].astype(int), n_contacts=st[:, ST_NCON].astype(int),
+                 n_islands=st[:, ST_NISLAND].astype(int), fp_iterations=st[:, ST_FP_ITERS].astype(int),
+                 resolves=st[:, ST_RESOLVES].astype(int), residual=st[:, ST_RESIDUAL].copy(),
+                 status=out["status"][:done].copy(), energy=en)
+    a = model.arrays
+    names = [b.name for b in scene.bodies]
+    pairs = [(names[a.shape_body[pa]], names[a.shape_body[pb]]) for pa, pb in zip(a.pair_a, a.pair_b)]
+    contacts = {k[4:]: out[k][:done] for k in ("con_count", "con_pair", "con_phi", "con_n", "con_p", "con_cn",
+                                               "con_ft", "con_vt", "con_mode")}
+    contacts["shape_pairs"] = pairs
+    return Trajectory(t=np.arange(T) * h, q=model.com_to_frame(q_com), v=_frame_velocity(model, q_com, v_com),
+                      q_com=q_com, v_com=v_com, qk=out["qk"][:T], body_names=model.dyn_names,
+                      kinematic_names=model.kin_names, stats=stats, contacts=contacts, options=opts, scene=scene,
+                      failures=failures)
