@@ -10,7 +10,7 @@ import numpy as np
 from .kernels.lemke import STATUS_NAMES, lcp_scale, lemke_solve
 
 #: Default tolerances (see docs/lcp.md for what each one governs).
-DEFAULT_PIV_TOL = 1e-12
+DEFAULT_PIV_TOL = 1e-9
 DEFAULT_RATIO_TOL = 1e-12
 DEFAULT_RES_TOL = 1e-9
 

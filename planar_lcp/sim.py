@@ -41,7 +41,7 @@ class SimOptions:
     contact_margin: float = 2e-3           # m: contacts with a gap below this at the linearization pose enter the LCP
     penetration_tol: float = 1e-6          # m: the active-set check adds a pair penetrating by more than this
     max_resolves: int = 3
-    piv_tol: float = 1e-12
+    piv_tol: float = 1e-9
     ratio_tol: float = 1e-12
     res_tol: float = 1e-9
     slip_tol: float = 1e-6                 # m/s: a loaded contact slipping faster than this is "sliding"
