@@ -34,8 +34,8 @@ MODE_SEPARATED, MODE_STICKING, MODE_SLIDING = 0, 1, 2
 
 # stats vector layout
 ST_LCP_SIZE, ST_LCP_MAX, ST_PIVOTS, ST_LEMKE_STATUS, ST_NCON, ST_NISLAND, ST_FP_ITERS, ST_RESOLVES, \
-    ST_RESIDUAL, ST_FP_CHANGE, ST_PGS_UPDATE = range(11)
-NSTAT = 11
+    ST_RESIDUAL, ST_FP_CHANGE, ST_PGS_UPDATE, ST_PENETRATION = range(12)
+NSTAT = 12
 
 StepOptions = namedtuple("StepOptions", [
     "solver", "formulation", "fp_iters", "fp_tol", "pgs_iters", "margin", "pen_tol", "max_resolves",
@@ -43,7 +43,7 @@ StepOptions = namedtuple("StepOptions", [
 ])
 
 StepWork = namedtuple("StepWork", [
-    "poses", "vw", "force_pair", "in_set",
+    "poses", "vw", "force_pair", "set_count",
     "con_pair", "con_phi", "con_n", "con_p", "tmp_phi", "tmp_n", "tmp_p",
     "chk_pair", "chk_phi", "chk_n", "chk_p",
     "parent", "island", "isl_con", "isl_sup", "col_dyn", "col_g", "Abuf", "bvec", "zvec",
@@ -66,7 +66,7 @@ def make_step_work(model):
     f, i = np.float64, np.int64
     return StepWork(
         poses=np.zeros((nbody, 3)), vw=np.zeros((max(1, nvert), 2)),
-        force_pair=np.zeros(max(1, npair), np.bool_), in_set=np.zeros(max(1, npair), np.bool_),
+        force_pair=np.zeros(max(1, npair), np.bool_), set_count=np.zeros(max(1, npair), np.int64),
         con_pair=np.zeros(C, i), con_phi=np.zeros(C), con_n=np.zeros((C, 2)), con_p=np.zeros((C, 2)),
         tmp_phi=np.zeros(2), tmp_n=np.zeros((2, 2)), tmp_p=np.zeros((2, 2)),
         chk_pair=np.zeros(C, i), chk_phi=np.zeros(C), chk_n=np.zeros((C, 2)), chk_p=np.zeros((C, 2)),
@@ -182,10 +182,10 @@ def _solve_all(m, w, opt, q, vk, qk_lin, h, velocity_form, stats):
     world_vertices(m, w.poses, w.vw)
     ncon = find_contacts(m, w.vw, opt.margin, w.force_pair, w.con_pair, w.con_phi, w.con_n, w.con_p,
                          w.tmp_phi, w.tmp_n, w.tmp_p)
-    for p in range(w.in_set.shape[0]):
-        w.in_set[p] = False
+    for p in range(w.set_count.shape[0]):
+        w.set_count[p] = 0
     for j in range(ncon):
-        w.in_set[w.con_pair[j]] = True
+        w.set_count[w.con_pair[j]] += 1
         w.con_cn[j] = 0.0
         w.con_ft[j] = 0.0
     nisl = find_islands(m, ncon, w.con_pair, w.parent, w.island)
@@ -205,19 +205,25 @@ def _solve_all(m, w, opt, q, vk, qk_lin, h, velocity_form, stats):
 
 
 @njit(cache=True)
-def _violated_new_pairs(m, w, opt, qk_new):
-    """Seed section 4: check q+ for penetrating shape pairs that had no contact in the set; mark them for the
-    re-solve. Returns how many pairs were added."""
+def _check_end_configuration(m, w, opt, qk_new, stats):
+    """Seed section 4: check q+ for penetrating shape pairs that had no contact in the set and mark them for the
+    re-solve. Also records the deepest penetration at q+ (stats[ST_PENETRATION], m, >= 0). Returns how many pairs
+    were added."""
     body_poses(m, w.q_new, qk_new, w.poses)
     world_vertices(m, w.poses, w.vw)
-    nchk = find_contacts(m, w.vw, -opt.pen_tol, w.force_pair, w.chk_pair, w.chk_phi, w.chk_n, w.chk_p,
+    nchk = find_contacts(m, w.vw, 0.0, w.force_pair, w.chk_pair, w.chk_phi, w.chk_n, w.chk_p,
                          w.tmp_phi, w.tmp_n, w.tmp_p)
     added = 0
+    deepest = 0.0
     for j in range(nchk):
+        deepest = max(deepest, -w.chk_phi[j])
         p = w.chk_pair[j]
-        if not w.in_set[p] and not w.force_pair[p]:
+        # The set is per contact, not per pair: a pair with one contact in the set can penetrate at another feature
+        # (the far end of a rod at slap-down). Forcing the pair adds all its candidates (at most 2) at any gap.
+        if w.chk_phi[j] < -opt.pen_tol and w.set_count[p] < 2 and not w.force_pair[p]:
             w.force_pair[p] = True
             added += 1
+    stats[ST_PENETRATION] = deepest
     return added
 
 
@@ -265,20 +271,14 @@ def _project_positions(m, w, opt, qk_new, stats):
     Velocities are not touched, so no kinetic energy is added."""
     body_poses(m, w.q_new, qk_new, w.poses)
     world_vertices(m, w.poses, w.vw)
-    nchk = find_contacts(m, w.vw, -opt.pen_tol, w.force_pair, w.chk_pair, w.chk_phi, w.chk_n, w.chk_p,
-                         w.tmp_phi, w.tmp_n, w.tmp_p)
-    # the force_pair mask may include pairs with any gap: keep only the penetrating ones
-    n = 0
-    for j in range(nchk):
-        if w.chk_phi[j] < -opt.pen_tol:
-            w.chk_pair[n] = w.chk_pair[j]
-            w.chk_phi[n] = w.chk_phi[j]
-            w.chk_n[n, 0] = w.chk_n[j, 0]
-            w.chk_n[n, 1] = w.chk_n[j, 1]
-            w.chk_p[n, 0] = w.chk_p[j, 0]
-            w.chk_p[n, 1] = w.chk_p[j, 1]
-            n += 1
-    if n == 0:
+    # Every contact within the margin is a constraint of the projection, not only the penetrating ones: lifting one
+    # end of a rod by rotating it would otherwise push its resting other end into the table.
+    n = find_contacts(m, w.vw, opt.margin, w.force_pair, w.chk_pair, w.chk_phi, w.chk_n, w.chk_p,
+                      w.tmp_phi, w.tmp_n, w.tmp_p)
+    deepest = 0.0
+    for j in range(n):
+        deepest = max(deepest, -w.chk_phi[j])
+    if deepest <= opt.pen_tol:
         return
     for j in range(n):
         contact_column(m, w.poses, w.chk_pair, w.chk_p, j, w.chk_n[j, 0], w.chk_n[j, 1], w.col_dyn, w.col_g, j)
@@ -358,12 +358,16 @@ def step_kernel(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
             stats[ST_FP_CHANGE] = change
             if change > opt.fp_tol:
                 continue
-        if resolves < opt.max_resolves and _violated_new_pairs(m, w, opt, qk_out) > 0:
+        if _check_end_configuration(m, w, opt, qk_out, stats) > 0 and resolves < opt.max_resolves:
             resolves += 1
             continue
         break
     if velocity_form:
         _project_positions(m, w, opt, qk_out, stats)
+        # re-measure the penetration after the projection (no pair is added: the step is done)
+        for p in range(w.set_count.shape[0]):
+            w.set_count[p] = 2
+        _check_end_configuration(m, w, opt, qk_out, stats)
     _contact_velocities(m, w, opt, vk, ncon, qk_out)
     stats[ST_NCON] = ncon
     stats[ST_FP_ITERS] = fp_iter

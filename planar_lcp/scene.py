@@ -1,0 +1,624 @@
+"""Scene specification: frozen dataclasses, TOML loading and validation.
+
+A scene is a world (plane, gravity, friction), simulation settings and a list of bodies, each made of shapes. Every
+shape except the halfplane is a convex *core* (1, 2 or >= 3 vertices) inflated by a rounding radius: a disk is a
+point inflated by its radius, a capsule a segment inflated by its radius, a rounded box a rectangle inflated by its
+radius. The file format is documented in docs/scene-format.md.
+
+All user input is validated here, at the boundary; every error is a `SceneError` whose message names the source,
+the field path in the TOML structure and what was expected, e.g.
+``scenes/x.toml: bodies[1].mass must be > 0, got -2.0``.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import os
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+SHAPE_TYPES = ("disk", "capsule", "box", "polygon", "segment", "halfplane")
+BODY_TYPES = ("dynamic", "static", "kinematic")
+PLANES = ("vertical", "horizontal")
+SOLVERS = ("lemke", "pgs", "osqp")
+FORMULATIONS = ("position", "fixed_point", "velocity")
+
+# Polygon vertex checks are relative to the polygon's size: a turn whose sine is below this is "collinear", two
+# points closer than this times the size are "repeated".
+_POLY_REL_TOL = 1e-10
+
+
+class SceneError(ValueError):
+    """A scene file or dict is invalid; the message names the source, the field and the expected value."""
+
+
+def _rot(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s], [s, c]])
+
+
+@dataclass(frozen=True)
+class ShapeSpec:
+    """One shape of a body, in the body frame.
+
+    Lengths in m, angles in rad. Every shape except "halfplane" is its convex core (see `core_vertices_body`)
+    inflated by `radius`.
+    """
+
+    type: str
+    radius: float = 0.0
+    length: float = 0.0
+    width: float = 0.0
+    height: float = 0.0
+    vertices: tuple = ()
+    a: tuple = (0.0, 0.0)
+    b: tuple = (0.0, 0.0)
+    point: tuple = (0.0, 0.0)
+    normal: tuple = (0.0, 1.0)
+    offset: tuple = (0.0, 0.0)
+    angle: float = 0.0
+
+    def core_vertices_local(self) -> np.ndarray:
+        """(k, 2) float64, m: the core in the shape's own frame (before `offset` and `angle`)."""
+        t = self.type
+        if t == "disk":
+            return np.zeros((1, 2))
+        if t == "capsule":
+            h = 0.5 * self.length
+            return np.array([[-h, 0.0], [h, 0.0]])
+        if t == "box":
+            w, h = 0.5 * self.width, 0.5 * self.height
+            return np.array([[-w, -h], [w, -h], [w, h], [-w, h]])
+        if t == "polygon":
+            return np.array(self.vertices, dtype=np.float64).reshape(-1, 2)
+        if t == "segment":
+            return np.array([self.a, self.b], dtype=np.float64)
+        if t == "halfplane":
+            raise ValueError("a halfplane has no core vertices (it is unbounded)")
+        raise ValueError(f"unknown shape type {t!r}")
+
+    def core_vertices_body(self) -> np.ndarray:
+        """The convex core in the BODY frame, `offset` and `angle` applied.
+
+        Returns
+        -------
+        (k, 2) float64, m
+            disk: 1 vertex (the centre); capsule: 2 (the end-cap centres, at +-length/2 on the shape's x axis);
+            box: 4 (the corners of the width x height core, counter-clockwise); polygon: its vertices (CCW);
+            segment: a, b. A halfplane raises ValueError.
+        """
+        local = self.core_vertices_local()
+        return local @ _rot(self.angle).T + np.asarray(self.offset, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class BodySpec:
+    """A rigid body: its shapes (body frame) and initial state.
+
+    `position` and `velocity` are those of the body-frame ORIGIN (world frame, m and m/s); the dynamics use the
+    centre of mass that `planar_lcp.massprops.body_mass_properties` computes from the shapes.
+    """
+
+    name: str
+    type: str
+    shapes: tuple
+    mass: float | None = None
+    inertia: float | None = None
+    position: tuple = (0.0, 0.0)
+    angle: float = 0.0
+    velocity: tuple = (0.0, 0.0)
+    angular_velocity: float = 0.0
+    support_friction: float | None = None
+    support_points: tuple | None = None
+
+
+@dataclass(frozen=True)
+class WorldSpec:
+    """Plane, gravity (m/s^2) and friction. In the horizontal plane `gravity` is (0, 0)."""
+
+    plane: str = "vertical"
+    gravity: tuple = (0.0, -9.81)
+    support_gravity: float = 9.81
+    friction: float = 0.5
+    friction_pairs: tuple = ()
+
+
+@dataclass(frozen=True)
+class SimSpec:
+    """Time step (s), duration (s) and solver settings."""
+
+    h: float = 0.0025
+    t_end: float = 1.0
+    solver: str = "lemke"
+    formulation: str = "position"
+    fixed_point_iterations: int = 10
+    friction_directions: int = 8
+    pgs_iterations: int = 20
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene. `source` is the file it came from, or "<dict>"."""
+
+    name: str
+    description: str
+    world: WorldSpec
+    sim: SimSpec
+    bodies: tuple
+    source: str
+
+    def body(self, name: str) -> BodySpec:
+        """The body called `name`; KeyError if there is none."""
+        for b in self.bodies:
+            if b.name == name:
+                return b
+        raise KeyError(f"scene {self.name!r} has no body {name!r} (bodies: {', '.join(b.name for b in self.bodies)})")
+
+    def friction_between(self, name_a: str, name_b: str) -> float:
+        """Coulomb coefficient between two bodies: the `world.friction_pairs` override if any, else `world.friction`.
+
+        Order-insensitive. KeyError if either name is not a body of the scene.
+        """
+        self.body(name_a)
+        self.body(name_b)
+        for a, b, mu in self.world.friction_pairs:
+            if {a, b} == {name_a, name_b}:
+                return mu
+        return self.world.friction
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Locating and loading scene files
+
+
+def scenes_dir() -> Path:
+    """The directory of shipped scenes: $PLANAR_LCP_SCENES if set, else <repo>/scenes."""
+    env = os.environ.get("PLANAR_LCP_SCENES")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parents[1] / "scenes"
+
+
+def _shipped_files() -> list[Path]:
+    d = scenes_dir()
+    return sorted(d.glob("*.toml")) if d.is_dir() else []
+
+
+def list_scenes() -> list[tuple[str, str]]:
+    """(name, description) of every scene in `scenes_dir()`, sorted by name. Each file is loaded and validated."""
+    out = []
+    for path in _shipped_files():
+        s = load_scene(path)
+        out.append((s.name, s.description))
+    return sorted(out)
+
+
+def load_scene(name_or_path) -> Scene:
+    """Load and validate a scene.
+
+    Parameters
+    ----------
+    name_or_path : str or os.PathLike
+        A shipped scene name (e.g. "falling_rod", looked up in `scenes_dir()`), or a path to a .toml file (a
+        PathLike, or a string ending in ".toml" or containing a path separator).
+
+    Raises
+    ------
+    SceneError
+        For an unknown name (the message lists the shipped names), a missing or unreadable file, invalid TOML, or
+        any validation failure.
+    """
+    if isinstance(name_or_path, os.PathLike):
+        path = Path(name_or_path)
+    elif isinstance(name_or_path, str):
+        s = name_or_path
+        if s.endswith(".toml") or "/" in s or os.sep in s or (os.altsep and os.altsep in s):
+            path = Path(s)
+        else:
+            path = scenes_dir() / f"{s}.toml"
+            if not path.is_file():
+                names = ", ".join(p.stem for p in _shipped_files()) or "none"
+                raise SceneError(f"unknown scene {s!r}: not a shipped scene in {scenes_dir()} (available: {names}); "
+                                 "give a path to a .toml file to load another")
+    else:
+        raise TypeError(f"load_scene: expected a scene name or a path, got {type(name_or_path).__name__}")
+    if not path.is_file():
+        raise SceneError(f"{path}: no such scene file")
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError(f"{path}: invalid TOML: {e}") from None
+    except OSError as e:
+        raise SceneError(f"{path}: cannot read the scene file: {e.strerror or e}") from None
+    return parse_scene(data, source=str(path))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Validation
+
+
+_TOP_KEYS = ("name", "description", "world", "sim", "bodies")
+_WORLD_KEYS = ("plane", "gravity", "support_gravity", "friction", "friction_pairs")
+_SIM_KEYS = ("h", "t_end", "solver", "formulation", "fixed_point_iterations", "friction_directions", "pgs_iterations")
+_BODY_KEYS = ("name", "type", "shapes", "mass", "inertia", "position", "angle", "angle_deg", "velocity",
+              "angular_velocity", "support_friction", "support_points")
+_PAIR_KEYS = ("a", "b", "mu")
+_PLACEMENT_KEYS = ("offset", "angle", "angle_deg")
+# Per shape type: (required keys, optional keys with their defaults). Placement keys are added for all but halfplane.
+_SHAPE_KEYS = {
+    "disk": (("radius",), {}),
+    "capsule": (("length", "radius"), {}),
+    "box": (("width", "height"), {"radius": 0.0}),
+    "polygon": (("vertices",), {"radius": 0.0}),
+    "segment": (("a", "b"), {"radius": 0.0}),
+    "halfplane": (("point", "normal"), {}),
+}
+
+
+def _allowed_shape_keys(stype: str) -> tuple:
+    req, opt = _SHAPE_KEYS[stype]
+    own = tuple(sorted(req + tuple(opt) + ("type",)))
+    return own if stype == "halfplane" else _PLACEMENT_KEYS + own
+
+
+def _is_real(x) -> bool:
+    return isinstance(x, numbers.Real) and not isinstance(x, (bool, np.bool_))
+
+
+def _is_int(x) -> bool:
+    return isinstance(x, numbers.Integral) and not isinstance(x, (bool, np.bool_))
+
+
+def _show_vec(value) -> str:
+    """A vector for a message: numbers as floats ([nan, 1.0]), anything else as given."""
+    if isinstance(value, (list, tuple)) and all(_is_real(v) for v in value):
+        try:
+            return repr([float(v) for v in value])
+        except OverflowError:
+            pass
+    return repr(value)
+
+
+def _fmt_num(x: float) -> str:
+    return repr(float(x))
+
+
+class _Validator:
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, msg: str):
+        raise SceneError(f"{self.source}: {msg}")
+
+    # -- tables and keys --------------------------------------------------------------------------------------
+
+    def table(self, path: str, value) -> dict:
+        if not isinstance(value, dict):
+            self.fail(f"{path} must be a table, got {value!r}")
+        return value
+
+    def keys(self, path: str, table: dict, allowed) -> None:
+        for k in table:
+            if k not in allowed:
+                where = f"{path}: " if path else ""
+                self.fail(f"{where}unknown key {k!r} (allowed: {', '.join(allowed)})")
+
+    def require(self, path: str, table: dict, key: str, context: str = ""):
+        if key not in table:
+            self.fail(f"{_join(path, key)} is required{context}")
+        return table[key]
+
+    # -- scalars ------------------------------------------------------------------------------------------------
+
+    def number(self, path: str, value) -> float:
+        if not _is_real(value):
+            self.fail(f"{path} must be a number, got {value!r}")
+        try:
+            x = float(value)
+        except OverflowError:
+            self.fail(f"{path} must be a finite number, got {value!r}")
+        if not math.isfinite(x):
+            self.fail(f"{path} must be a finite number, got {x!r}")
+        return x
+
+    def positive(self, path: str, value) -> float:
+        x = self.number(path, value)
+        if not x > 0.0:
+            self.fail(f"{path} must be > 0, got {_fmt_num(x)}")
+        return x
+
+    def nonneg(self, path: str, value) -> float:
+        x = self.number(path, value)
+        if not x >= 0.0:
+            self.fail(f"{path} must be >= 0, got {_fmt_num(x)}")
+        return x
+
+    def integer(self, path: str, value, minimum: int) -> int:
+        if not _is_int(value):
+            self.fail(f"{path} must be an integer, got {value!r}")
+        n = int(value)
+        if n < minimum:
+            self.fail(f"{path} must be >= {minimum}, got {n}")
+        return n
+
+    def string(self, path: str, value, nonempty: bool = False) -> str:
+        if not isinstance(value, str) or (nonempty and not value):
+            self.fail(f"{path} must be a {'non-empty ' if nonempty else ''}string, got {value!r}")
+        return value
+
+    def choice(self, path: str, value, allowed) -> str:
+        if not isinstance(value, str) or value not in allowed:
+            self.fail(f"{path} must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}")
+        return value
+
+    def vec2(self, path: str, value) -> tuple:
+        ok = isinstance(value, (list, tuple)) and len(value) == 2 and all(_is_real(v) for v in value)
+        if ok:
+            try:
+                out = (float(value[0]), float(value[1]))
+            except OverflowError:
+                ok = False
+            else:
+                ok = math.isfinite(out[0]) and math.isfinite(out[1])
+        if not ok:
+            self.fail(f"{path} must be 2 finite numbers, got {_show_vec(value)}")
+        return out
+
+    def points(self, path: str, value, minimum: int) -> tuple:
+        if not isinstance(value, (list, tuple)):
+            self.fail(f"{path} must be an array of [x, y] points, got {value!r}")
+        if len(value) < minimum:
+            if minimum == 1:
+                self.fail(f"{path} must be a non-empty array of [x, y] points, got {value!r}")
+            self.fail(f"{path} must have at least {minimum} points, got {len(value)}")
+        return tuple(self.vec2(f"{path}[{i}]", p) for i, p in enumerate(value))
+
+    def angle(self, path: str, table: dict) -> float:
+        """`angle` (rad) or `angle_deg` (degrees), not both; 0 if neither."""
+        if "angle" in table and "angle_deg" in table:
+            self.fail(f"{path}: give angle or angle_deg, not both, got angle = {table['angle']!r} "
+                      f"and angle_deg = {table['angle_deg']!r}")
+        if "angle_deg" in table:
+            return math.radians(self.number(_join(path, "angle_deg"), table["angle_deg"]))
+        if "angle" in table:
+            return self.number(_join(path, "angle"), table["angle"])
+        return 0.0
+
+
+def _join(path: str, key: str) -> str:
+    return f"{path}.{key}" if path else key
+
+
+def parse_scene(data: dict, source: str = "<dict>") -> Scene:
+    """Validate a scene given as a dict (as parsed from TOML) and build the `Scene`.
+
+    Parameters
+    ----------
+    data : dict
+        The TOML document as a dict (tomllib's output, or built by hand).
+    source : str
+        Names the origin in error messages and is stored as `Scene.source`.
+
+    Raises
+    ------
+    SceneError
+        On the first violated rule (see docs/scene-format.md), naming `source`, the field and the expected value.
+    """
+    v = _Validator(source)
+    if not isinstance(data, dict):
+        v.fail(f"the scene must be a table, got {data!r}")
+    v.keys("", data, _TOP_KEYS)
+    name = v.string("name", v.require("", data, "name"), nonempty=True)
+    description = v.string("description", data.get("description", ""))
+    world_tbl = v.table("world", data.get("world", {}))
+    world = _parse_world(v, world_tbl)
+    sim = _parse_sim(v, v.table("sim", data.get("sim", {})))
+
+    if "bodies" not in data:
+        v.fail("bodies is required (at least one [[bodies]] table)")
+    bodies_raw = data["bodies"]
+    if not isinstance(bodies_raw, (list, tuple)) or not bodies_raw:
+        v.fail(f"bodies must be a non-empty array of tables, got {bodies_raw!r}")
+    bodies = []
+    seen = {}
+    for i, braw in enumerate(bodies_raw):
+        body = _parse_body(v, f"bodies[{i}]", braw, world.plane)
+        if body.name in seen:
+            v.fail(f"bodies[{i}].name must be unique, got {body.name!r} (already used by bodies[{seen[body.name]}])")
+        seen[body.name] = i
+        bodies.append(body)
+
+    pairs = _parse_friction_pairs(v, world_tbl.get("friction_pairs", []), [b.name for b in bodies])
+    world = WorldSpec(plane=world.plane, gravity=world.gravity, support_gravity=world.support_gravity,
+                      friction=world.friction, friction_pairs=pairs)
+    return Scene(name=name, description=description, world=world, sim=sim, bodies=tuple(bodies), source=source)
+
+
+def _parse_sim(v: _Validator, t: dict) -> SimSpec:
+    v.keys("sim", t, _SIM_KEYS)
+    d = SimSpec()
+    return SimSpec(
+        h=v.positive("sim.h", t["h"]) if "h" in t else d.h,
+        t_end=v.positive("sim.t_end", t["t_end"]) if "t_end" in t else d.t_end,
+        solver=v.choice("sim.solver", t["solver"], SOLVERS) if "solver" in t else d.solver,
+        formulation=(v.choice("sim.formulation", t["formulation"], FORMULATIONS)
+                     if "formulation" in t else d.formulation),
+        fixed_point_iterations=(v.integer("sim.fixed_point_iterations", t["fixed_point_iterations"], 1)
+                                if "fixed_point_iterations" in t else d.fixed_point_iterations),
+        friction_directions=(v.integer("sim.friction_directions", t["friction_directions"], 3)
+                             if "friction_directions" in t else d.friction_directions),
+        pgs_iterations=(v.integer("sim.pgs_iterations", t["pgs_iterations"], 1)
+                        if "pgs_iterations" in t else d.pgs_iterations),
+    )
+
+
+def _parse_world(v: _Validator, t: dict) -> WorldSpec:
+    """Everything but friction_pairs, which need the body names."""
+    v.keys("world", t, _WORLD_KEYS)
+    d = WorldSpec()
+    plane = v.choice("world.plane", t["plane"], PLANES) if "plane" in t else d.plane
+    if plane == "horizontal":
+        gravity = (0.0, 0.0)
+        if "gravity" in t:
+            g = v.vec2("world.gravity", t["gravity"])
+            if g != (0.0, 0.0):
+                v.fail("world.gravity must be absent or [0, 0] in the horizontal plane (the table load is "
+                       f"world.support_gravity), got {_show_vec(g)}")
+    else:
+        gravity = v.vec2("world.gravity", t["gravity"]) if "gravity" in t else d.gravity
+    support_gravity = v.nonneg("world.support_gravity", t["support_gravity"]) if "support_gravity" in t \
+        else d.support_gravity
+    friction = v.nonneg("world.friction", t["friction"]) if "friction" in t else d.friction
+    return WorldSpec(plane=plane, gravity=gravity, support_gravity=support_gravity, friction=friction)
+
+
+def _parse_friction_pairs(v: _Validator, raw, names: list) -> tuple:
+    if not isinstance(raw, (list, tuple)):
+        v.fail(f"world.friction_pairs must be an array of tables {{a, b, mu}}, got {raw!r}")
+    out = []
+    seen = {}
+    for i, p in enumerate(raw):
+        path = f"world.friction_pairs[{i}]"
+        p = v.table(path, p)
+        v.keys(path, p, _PAIR_KEYS)
+        ends = []
+        for key in ("a", "b"):
+            n = v.string(f"{path}.{key}", v.require(path, p, key))
+            if n not in names:
+                v.fail(f"{path}.{key} must name a body (one of {', '.join(repr(x) for x in names)}), got {n!r}")
+            ends.append(n)
+        a, b = ends
+        if a == b:
+            v.fail(f"{path}.b must differ from {path}.a, got {b!r}")
+        mu = v.nonneg(f"{path}.mu", v.require(path, p, "mu"))
+        key = frozenset((a, b))
+        if key in seen:
+            v.fail(f"{path} must not repeat the pair of world.friction_pairs[{seen[key]}], got ({a!r}, {b!r})")
+        seen[key] = i
+        out.append((a, b, mu))
+    return tuple(out)
+
+
+def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
+    t = v.table(path, raw)
+    v.keys(path, t, _BODY_KEYS)
+    name = v.string(f"{path}.name", v.require(path, t, "name"), nonempty=True)
+    btype = v.choice(f"{path}.type", v.require(path, t, "type"), BODY_TYPES)
+
+    shapes_raw = v.require(path, t, "shapes")
+    if not isinstance(shapes_raw, (list, tuple)) or not shapes_raw:
+        v.fail(f"{path}.shapes must be a non-empty array of tables, got {shapes_raw!r}")
+    shapes = tuple(_parse_shape(v, f"{path}.shapes[{j}]", s, btype, plane) for j, s in enumerate(shapes_raw))
+
+    mass = inertia = support_friction = support_points = None
+    if btype == "dynamic":
+        mass = v.positive(f"{path}.mass", v.require(path, t, "mass", " for a dynamic body"))
+        if "inertia" in t:
+            inertia = v.positive(f"{path}.inertia", t["inertia"])
+        for key in ("support_friction", "support_points"):
+            if key in t and plane != "horizontal":
+                v.fail(f"{path}.{key} is only allowed in the horizontal plane, got world.plane = {plane!r}")
+        if "support_friction" in t:
+            support_friction = v.nonneg(f"{path}.support_friction", t["support_friction"])
+        if "support_points" in t:
+            support_points = v.points(f"{path}.support_points", t["support_points"], 1)
+        if not any(s.type != "segment" or s.radius > 0.0 for s in shapes):
+            v.fail(f"{path}.shapes must include a shape with area for a dynamic body (a disk, capsule, box, polygon "
+                   "or a segment with radius > 0), got only segments with radius 0")
+    else:
+        for key in ("mass", "inertia", "support_friction", "support_points"):
+            if key in t:
+                v.fail(f"{path}.{key} is not allowed on a {btype} body, got {t[key]!r}")
+
+    position = v.vec2(f"{path}.position", t["position"]) if "position" in t else (0.0, 0.0)
+    angle = v.angle(path, t)
+    velocity = v.vec2(f"{path}.velocity", t["velocity"]) if "velocity" in t else (0.0, 0.0)
+    omega = v.number(f"{path}.angular_velocity", t["angular_velocity"]) if "angular_velocity" in t else 0.0
+    if btype == "static":
+        if velocity != (0.0, 0.0):
+            v.fail(f"{path}.velocity must be [0, 0] on a static body (use a kinematic body for prescribed "
+                   f"motion), got {_show_vec(velocity)}")
+        if omega != 0.0:
+            v.fail(f"{path}.angular_velocity must be 0 on a static body (use a kinematic body for prescribed "
+                   f"motion), got {omega!r}")
+
+    return BodySpec(name=name, type=btype, shapes=shapes, mass=mass, inertia=inertia, position=position,
+                    angle=angle, velocity=velocity, angular_velocity=omega, support_friction=support_friction,
+                    support_points=support_points)
+
+
+def _parse_shape(v: _Validator, path: str, raw, btype: str, plane: str) -> ShapeSpec:
+    t = v.table(path, raw)
+    stype = v.choice(f"{path}.type", v.require(path, t, "type"), SHAPE_TYPES)
+    v.keys(path, t, _allowed_shape_keys(stype))
+    required, optional = _SHAPE_KEYS[stype]
+    for key in required:
+        v.require(path, t, key, f" for a {stype}")
+
+    if stype == "halfplane":
+        if btype != "static":
+            v.fail(f"{path}.type 'halfplane' is only allowed on a static body, got a {btype} body")
+        if plane == "horizontal":
+            v.fail(f"{path}.type 'halfplane' is not allowed in the horizontal plane (the table is implicit), "
+                   f"got world.plane = {plane!r}")
+        point = v.vec2(f"{path}.point", t["point"])
+        normal = v.vec2(f"{path}.normal", t["normal"])
+        norm = math.hypot(*normal)
+        if norm == 0.0:
+            v.fail(f"{path}.normal must be non-zero, got {_show_vec(normal)}")
+        return ShapeSpec(type="halfplane", point=point, normal=(normal[0] / norm, normal[1] / norm))
+
+    kw = {"type": stype}
+    kw["offset"] = v.vec2(f"{path}.offset", t["offset"]) if "offset" in t else (0.0, 0.0)
+    kw["angle"] = v.angle(path, t)
+    if stype in ("disk", "capsule"):
+        kw["radius"] = v.positive(f"{path}.radius", t["radius"])
+    else:
+        kw["radius"] = v.nonneg(f"{path}.radius", t["radius"]) if "radius" in t else optional["radius"]
+    if stype == "capsule":
+        kw["length"] = v.positive(f"{path}.length", t["length"])
+    elif stype == "box":
+        kw["width"] = v.positive(f"{path}.width", t["width"])
+        kw["height"] = v.positive(f"{path}.height", t["height"])
+    elif stype == "polygon":
+        verts = v.points(f"{path}.vertices", t["vertices"], 3)
+        _check_convex_ccw(v, f"{path}.vertices", verts)
+        kw["vertices"] = verts
+    elif stype == "segment":
+        kw["a"] = v.vec2(f"{path}.a", t["a"])
+        kw["b"] = v.vec2(f"{path}.b", t["b"])
+        if kw["a"] == kw["b"]:
+            v.fail(f"{path}.b must differ from {path}.a, got {_show_vec(kw['b'])}")
+    return ShapeSpec(**kw)
+
+
+def _check_convex_ccw(v: _Validator, path: str, verts: tuple) -> None:
+    """Strictly convex (no repeated points, no collinear triples, simple) and counter-clockwise."""
+    p = np.array(verts, dtype=np.float64)
+    k = len(p)
+    size = float(np.max(np.linalg.norm(p - p.mean(axis=0), axis=1)))
+    for i in range(k):
+        for j in range(i + 1, k):
+            if np.linalg.norm(p[i] - p[j]) <= _POLY_REL_TOL * size:
+                v.fail(f"{path} must be strictly convex, got a repeated point at vertices[{i}] and vertices[{j}]")
+    e = np.roll(p, -1, axis=0) - p                      # e[i] = p[i+1] - p[i]
+    e_next = np.roll(e, -1, axis=0)                     # turn at vertex i+1
+    cross = e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0]
+    dot = np.sum(e * e_next, axis=1)
+    scale = np.linalg.norm(e, axis=1) * np.linalg.norm(e_next, axis=1)
+    for i in range(k):
+        if abs(cross[i]) <= _POLY_REL_TOL * scale[i]:
+            a, b, c = i, (i + 1) % k, (i + 2) % k
+            v.fail(f"{path} must be strictly convex, got collinear vertices {a}, {b}, {c}")
+    turning = float(np.sum(np.arctan2(cross, dot)))
+    # All turns one way and a total turn of exactly one revolution: convex and simple (a pentagram turns twice).
+    if np.all(cross > 0) and abs(turning - 2 * math.pi) < 1e-6:
+        return
+    if np.all(cross < 0) and abs(turning + 2 * math.pi) < 1e-6:
+        v.fail(f"{path} must be counter-clockwise, got a clockwise polygon")
+    v.fail(f"{path} must be strictly convex, got a non-convex polygon")
