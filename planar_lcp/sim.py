@@ -19,7 +19,8 @@ from .kernels.step import (FORM_FIXED_POINT, FORM_POSITION, FORM_VELOCITY, NSTAT
 from .model import Model, compile_scene
 from .scene import Scene, load_scene
 
-SOLVERS = {"lemke": SOLVER_LEMKE, "pgs": SOLVER_PGS}
+SOLVER_OSQP = 2  # never reaches the kernels: Simulator runs osqp_step (Python) instead
+SOLVERS = {"lemke": SOLVER_LEMKE, "pgs": SOLVER_PGS, "osqp": SOLVER_OSQP}
 FORMULATIONS = {"position": FORM_POSITION, "fixed_point": FORM_FIXED_POINT, "velocity": FORM_VELOCITY}
 MODE_NAMES = ("separated", "sticking", "sliding")
 
@@ -71,8 +72,8 @@ def _cause(status, stats):
         return "the new state is not finite (NaN or inf)"
     if status == STEP_LCP_FAILED:
         ls = int(stats[ST_LEMKE_STATUS])
-        return (f"Lemke returned '{STATUS_NAMES[ls]}' on an LCP of size up to {int(stats[ST_LCP_MAX])} "
-                f"(residual {stats[ST_RESIDUAL]:.3e}); that island was solved by PGS instead")
+        return (f"the contact solver returned '{STATUS_NAMES[ls]}' on a problem of size up to "
+                f"{int(stats[ST_LCP_MAX])} (residual {stats[ST_RESIDUAL]:.3e}); that island was solved by PGS instead")
     return "ok"
 
 
@@ -98,12 +99,19 @@ class Simulator:
         m = self.model
         return m.q0.copy(), m.v0.copy(), m.qk0.copy(), m.vk0.copy()
 
+    def _step_into(self, q, v, qk, vk, q_out, v_out, qk_out, stats):
+        if self.kopt.solver == SOLVER_OSQP:
+            from .osqp_step import osqp_step
+            return osqp_step(self.model.arrays, q, v, qk, vk, self.h, self.kopt, self.work, q_out, v_out, qk_out,
+                             stats)
+        return int(step_kernel(self.model.arrays, q, v, qk, vk, self.h, self.kopt, self.work, q_out, v_out, qk_out,
+                               stats))
+
     def step(self, q, v, qk, vk):
         """One step. Returns (q+, v+, qk+, status code); self.stats holds the step's diagnostics."""
         q_out, v_out, qk_out = np.empty_like(q), np.empty_like(v), np.empty_like(qk)
-        st = step_kernel(self.model.arrays, q, v, qk, vk, self.h, self.kopt, self.work, q_out, v_out, qk_out,
-                         self.stats)
-        return q_out, v_out, qk_out, int(st)
+        st = self._step_into(q, v, qk, vk, q_out, v_out, qk_out, self.stats)
+        return q_out, v_out, qk_out, st
 
     def rollout(self, q, v, qk, vk_seq, nsteps, stop_on_failure=True, record_contacts=False):
         """nsteps steps in one jitted call. vk_seq: (nvk, nkin, 3), step i uses vk_seq[min(i, nvk - 1)].
@@ -126,6 +134,9 @@ class Simulator:
                    con_n=np.zeros((nsteps, C, 2)), con_p=np.zeros((nsteps, C, 2)), con_cn=np.zeros((nsteps, C)),
                    con_ft=np.zeros((nsteps, C)), con_vt=np.zeros((nsteps, C)),
                    con_mode=np.zeros((nsteps, C), np.int64))
+        if self.kopt.solver == SOLVER_OSQP:
+            out["steps_done"] = self._rollout_python(out, q, v, qk, vk_seq, nsteps, stop_on_failure, C)
+            return out
         done = rollout_kernel(m.arrays, np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(v, dtype=float),
                               np.ascontiguousarray(qk, dtype=float), vk_seq, int(nsteps), self.h, self.kopt,
                               self.work, out["q"], out["v"], out["qk"], out["stats"], out["status"],
@@ -133,6 +144,25 @@ class Simulator:
                               out["con_cn"], out["con_ft"], out["con_vt"], out["con_mode"], bool(stop_on_failure))
         out["steps_done"] = int(done)
         return out
+
+    def _rollout_python(self, out, q, v, qk, vk_seq, nsteps, stop_on_failure, C):
+        """The rollout loop for solvers that cannot run inside numba (osqp); same outputs as rollout_kernel."""
+        w = self.work
+        out["q"][0], out["v"][0], out["qk"][0] = q, v, qk
+        for i in range(nsteps):
+            st = self._step_into(out["q"][i], out["v"][i], out["qk"][i], vk_seq[min(i, len(vk_seq) - 1)],
+                                 out["q"][i + 1], out["v"][i + 1], out["qk"][i + 1], out["stats"][i])
+            out["status"][i] = st
+            if C:
+                nc = int(out["stats"][i, ST_NCON])
+                out["con_count"][i] = nc
+                for key, src in (("con_pair", w.con_pair), ("con_phi", w.con_phi), ("con_n", w.con_n),
+                                 ("con_p", w.con_p), ("con_cn", w.con_cn), ("con_ft", w.con_ft),
+                                 ("con_vt", w.con_vt), ("con_mode", w.con_mode)):
+                    out[key][i, :nc] = src[:nc]
+            if st != STEP_OK and stop_on_failure:
+                return i + 1
+        return nsteps
 
 
 @dataclass

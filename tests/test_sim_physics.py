@@ -206,7 +206,7 @@ def test_separate_piles_are_separate_islands():
 
 def test_lcp_failure_raises_with_step_and_cause_or_is_recorded():
     # res_tol = 0 demands an exact residual, which round-off denies on some step: a controlled LCP "failure"
-    with pytest.raises(SimulationError, match=r"step \d+ \(t = .* s, h = 0\.0025\): Lemke returned 'inaccurate'"):
+    with pytest.raises(SimulationError, match=r"step \d+ \(t = .* s, h = 0\.0025\): the contact solver returned 'inaccurate'"):
         simulate("falling_rod", res_tol=0.0)
     tr = simulate("falling_rod", res_tol=0.0, on_failure="record")
     assert tr.failures and len(tr.t) == 401
@@ -224,3 +224,29 @@ def test_bad_simulate_arguments():
         simulate("falling_rod", h=-0.1)
     with pytest.raises(ValueError, match="on_failure must be 'raise' or 'record'"):
         simulate("falling_rod", on_failure="ignore")
+
+
+# --- the osqp relaxation ---------------------------------------------------------------------------------------
+
+def test_osqp_relaxation_separates_while_sliding_and_lemke_does_not():
+    """Anitescu's convex relaxation replaces n.v+ + phi/h = 0 by = mu lambda while sliding: a box sliding on the
+    table lifts off at mu |v_t| per unit time (documented artefact). Lemke's complementarity keeps it on the table."""
+    mu, v0, h = 0.4, 2.0, 0.001
+    sc = scene([{"name": "box", "type": "dynamic", "mass": 1.0, "position": [0.0, 0.05], "velocity": [v0, 0.0],
+                 "shapes": [{"type": "box", "width": 0.2, "height": 0.1}]}, table()], friction=mu, h=h, t_end=0.05)
+    lem = simulate(sc, solver="lemke")
+    qp = simulate(sc, solver="osqp")
+    np.testing.assert_allclose(lem.q[:, 0, 1], 0.05, atol=1e-12)
+    # first step: the relaxation's normal velocity is mu times the sliding speed (to OSQP's tolerance)
+    vt = qp.v[1, 0, 0]
+    assert qp.v[1, 0, 1] == pytest.approx(mu * vt, rel=1e-4)
+    assert qp.q[:, 0, 1].max() > 0.05 + 0.5 * mu * vt * h
+
+
+def test_osqp_matches_lemke_without_sliding():
+    """A box resting on a table (no sliding, no impact): both solve the same problem exactly."""
+    sc = scene([{"name": "box", "type": "dynamic", "mass": 2.0, "position": [0.3, 0.05],
+                 "shapes": [{"type": "box", "width": 0.2, "height": 0.1}]}, table()], h=0.005, t_end=0.1)
+    lem, qp = simulate(sc, solver="lemke"), simulate(sc, solver="osqp")
+    np.testing.assert_allclose(qp.q, lem.q, atol=1e-9)
+    np.testing.assert_allclose(qp.contacts["cn"], lem.contacts["cn"], atol=1e-8)

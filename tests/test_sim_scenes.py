@@ -12,7 +12,7 @@ SCENES = [name for name, _ in list_scenes()]
 
 @pytest.mark.parametrize("name", SCENES)
 @pytest.mark.parametrize("formulation", ["position", "fixed_point", "velocity"])
-@pytest.mark.parametrize("solver", ["lemke", "pgs"])
+@pytest.mark.parametrize("solver", ["lemke", "pgs", "osqp"])
 def test_every_scene_runs_with_every_formulation_and_solver(name, formulation, solver):
     tr = simulate(name, formulation=formulation, solver=solver)  # on_failure="raise": any failed step fails here
     assert np.all(np.isfinite(tr.q)) and np.all(np.isfinite(tr.v))

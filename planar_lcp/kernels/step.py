@@ -174,37 +174,6 @@ def _solve_island(m, w, opt, poses, vk, isl, ncon, h, velocity_form, stats):
 
 
 @njit(cache=True)
-def _solve_all(m, w, opt, q, vk, qk_lin, h, velocity_form, stats):
-    """Contacts at (w.q_hat, qk_lin), islands, one problem per island; writes w.v_new and w.q_new.
-    Returns (number of contacts, worst Lemke status)."""
-    ndyn = q.shape[0]
-    body_poses(m, w.q_hat, qk_lin, w.poses)
-    world_vertices(m, w.poses, w.vw)
-    ncon = find_contacts(m, w.vw, opt.margin, w.force_pair, w.con_pair, w.con_phi, w.con_n, w.con_p,
-                         w.tmp_phi, w.tmp_n, w.tmp_p)
-    for p in range(w.set_count.shape[0]):
-        w.set_count[p] = 0
-    for j in range(ncon):
-        w.set_count[w.con_pair[j]] += 1
-        w.con_cn[j] = 0.0
-        w.con_ft[j] = 0.0
-    nisl = find_islands(m, ncon, w.con_pair, w.parent, w.island)
-    stats[ST_NISLAND] = nisl
-    for d in range(ndyn):
-        for c in range(3):
-            w.v_new[d, c] = w.v_tilde[d, c]
-    worst = STATUS_SOLVED
-    for isl in range(nisl):
-        st = _solve_island(m, w, opt, w.poses, vk, isl, ncon, h, velocity_form, stats)
-        if st != STATUS_SOLVED:
-            worst = st
-    for d in range(ndyn):
-        for c in range(3):
-            w.q_new[d, c] = q[d, c] + h * w.v_new[d, c]
-    return ncon, worst
-
-
-@njit(cache=True)
 def _check_end_configuration(m, w, opt, qk_new, stats):
     """Seed section 4: check q+ for penetrating shape pairs that had no contact in the set and mark them for the
     re-solve. Also records the deepest penetration at q+ (stats[ST_PENETRATION], m, >= 0). Returns how many pairs
@@ -316,18 +285,12 @@ def energy(m, q, v):
 
 
 @njit(cache=True)
-def step_kernel(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """Advance (q, v, qk) by one step of size h with kinematic velocities vk.
-
-    q, v : (ndyn, 3) COM poses and velocities; qk, vk : (nkin, 3) kinematic poses and (prescribed) velocities.
-    Writes q_out, v_out, qk_out (may alias nothing of the inputs) and stats (NSTAT,). Returns a STEP_* code.
-    Contacts of the step stay in w.con_* (count in stats[ST_NCON]).
-    """
-    ndyn = q.shape[0]
+def begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats):
+    """Free-motion velocity v_tilde = v + h M^-1 f_ext, the first linearization pose, the kinematic end poses."""
     for i in range(stats.shape[0]):
         stats[i] = 0.0
     velocity_form = opt.formulation == FORM_VELOCITY
-    for d in range(ndyn):
+    for d in range(q.shape[0]):
         w.v_tilde[d, 0] = v[d, 0] + h * m.gravity[0]
         w.v_tilde[d, 1] = v[d, 1] + h * m.gravity[1]
         w.v_tilde[d, 2] = v[d, 2]
@@ -337,32 +300,64 @@ def step_kernel(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     for kk in range(qk.shape[0]):
         for c in range(3):
             qk_out[kk, c] = qk[kk, c] + h * vk[kk, c]
-    # the velocity form evaluates contacts at the current configuration, the position forms at the end of the step
-    qk_lin = qk if velocity_form else qk_out
     for p in range(w.force_pair.shape[0]):
         w.force_pair[p] = False
-    worst = STATUS_SOLVED
-    ncon = 0
-    fp_iter = 0
-    resolves = 0
-    while True:
-        ncon, worst = _solve_all(m, w, opt, q, vk, qk_lin, h, velocity_form, stats)
-        if opt.formulation == FORM_FIXED_POINT and fp_iter < opt.fp_iters:
-            change = 0.0
-            for d in range(ndyn):
-                for c in range(3):
-                    change = max(change, abs(w.q_new[d, c] - w.q_hat[d, c]))
-                    w.q_hat[d, c] = w.q_new[d, c]
-                    w.v_hat[d, c] = (w.q_hat[d, c] - q[d, c]) / h
-            fp_iter += 1
-            stats[ST_FP_CHANGE] = change
-            if change > opt.fp_tol:
-                continue
-        if _check_end_configuration(m, w, opt, qk_out, stats) > 0 and resolves < opt.max_resolves:
-            resolves += 1
-            continue
-        break
-    if velocity_form:
+
+
+@njit(cache=True)
+def prepare_contacts(m, w, opt, qk_lin, stats):
+    """Contacts at (w.q_hat, qk_lin), the per-pair count of the set, islands; w.v_new = v_tilde.
+    Returns (number of contacts, number of islands)."""
+    body_poses(m, w.q_hat, qk_lin, w.poses)
+    world_vertices(m, w.poses, w.vw)
+    ncon = find_contacts(m, w.vw, opt.margin, w.force_pair, w.con_pair, w.con_phi, w.con_n, w.con_p,
+                         w.tmp_phi, w.tmp_n, w.tmp_p)
+    for p in range(w.set_count.shape[0]):
+        w.set_count[p] = 0
+    for j in range(ncon):
+        w.set_count[w.con_pair[j]] += 1
+        w.con_cn[j] = 0.0
+        w.con_ft[j] = 0.0
+    nisl = find_islands(m, ncon, w.con_pair, w.parent, w.island)
+    stats[ST_NISLAND] = nisl
+    for d in range(w.v_new.shape[0]):
+        for c in range(3):
+            w.v_new[d, c] = w.v_tilde[d, c]
+    return ncon, nisl
+
+
+@njit(cache=True)
+def integrate_positions(q, h, w):
+    for d in range(q.shape[0]):
+        for c in range(3):
+            w.q_new[d, c] = q[d, c] + h * w.v_new[d, c]
+
+
+@njit(cache=True)
+def needs_another_solve(m, w, opt, q, h, qk_out, fp_iter, stats):
+    """After a solve: (True, fp_iter) to re-linearize at q+ (fixed point, not converged, under the cap);
+    (True, -1) if the active-set check added a pair; (False, fp_iter) when the step is done."""
+    if opt.formulation == FORM_FIXED_POINT and fp_iter < opt.fp_iters:
+        change = 0.0
+        for d in range(q.shape[0]):
+            for c in range(3):
+                change = max(change, abs(w.q_new[d, c] - w.q_hat[d, c]))
+                w.q_hat[d, c] = w.q_new[d, c]
+                w.v_hat[d, c] = (w.q_hat[d, c] - q[d, c]) / h
+        fp_iter += 1
+        stats[ST_FP_CHANGE] = change
+        if change > opt.fp_tol:
+            return True, fp_iter
+    if _check_end_configuration(m, w, opt, qk_out, stats) > 0 and stats[ST_RESOLVES] < opt.max_resolves:
+        stats[ST_RESOLVES] += 1
+        return True, -1
+    return False, fp_iter
+
+
+@njit(cache=True)
+def finish_step(m, w, opt, vk, ncon, qk_out, q_out, v_out, stats, fp_iter, worst):
+    """Velocity-form projection, contact velocities and modes, outputs and status."""
+    if opt.formulation == FORM_VELOCITY:
         _project_positions(m, w, opt, qk_out, stats)
         # re-measure the penetration after the projection (no pair is added: the step is done)
         for p in range(w.set_count.shape[0]):
@@ -371,9 +366,8 @@ def step_kernel(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     _contact_velocities(m, w, opt, vk, ncon, qk_out)
     stats[ST_NCON] = ncon
     stats[ST_FP_ITERS] = fp_iter
-    stats[ST_RESOLVES] = resolves
     finite = True
-    for d in range(ndyn):
+    for d in range(q_out.shape[0]):
         for c in range(3):
             q_out[d, c] = w.q_new[d, c]
             v_out[d, c] = w.v_new[d, c]
@@ -384,3 +378,32 @@ def step_kernel(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     if worst != STATUS_SOLVED:
         return STEP_LCP_FAILED
     return STEP_OK
+
+
+@njit(cache=True)
+def step_kernel(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """Advance (q, v, qk) by one step of size h with kinematic velocities vk.
+
+    q, v : (ndyn, 3) COM poses and velocities; qk, vk : (nkin, 3) kinematic poses and (prescribed) velocities.
+    Writes q_out, v_out, qk_out (must not alias the inputs) and stats (NSTAT,). Returns a STEP_* code.
+    Contacts of the step stay in w.con_* (count in stats[ST_NCON]).
+    """
+    begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats)
+    velocity_form = opt.formulation == FORM_VELOCITY
+    # the velocity form evaluates contacts at the current configuration, the position forms at the end of the step
+    qk_lin = qk if velocity_form else qk_out
+    fp_iter = 0
+    while True:
+        ncon, nisl = prepare_contacts(m, w, opt, qk_lin, stats)
+        worst = STATUS_SOLVED
+        for isl in range(nisl):
+            st = _solve_island(m, w, opt, w.poses, vk, isl, ncon, h, velocity_form, stats)
+            if st != STATUS_SOLVED:
+                worst = st
+        integrate_positions(q, h, w)
+        again, it = needs_another_solve(m, w, opt, q, h, qk_out, fp_iter, stats)
+        if it >= 0:
+            fp_iter = it
+        if not again:
+            break
+    return finish_step(m, w, opt, vk, ncon, qk_out, q_out, v_out, stats, fp_iter, worst)
