@@ -1,6 +1,14 @@
-"""planar_lcp: planar rigid bodies with frictional contact, Stewart-Trinkle time-stepping solved by Lemke."""
+"""planar_lcp: planar rigid bodies with frictional contact, Stewart-Trinkle time-stepping solved by Lemke.
+
+    import planar_lcp
+    traj = planar_lcp.simulate("falling_rod")          # a shipped scene name or a .toml path
+    traj.to_csv("rod.csv")
+"""
 
 from .lcp import LCPResult, lemke
+from .scene import Scene, SceneError, list_scenes, load_scene
+from .sim import SimOptions, SimulationError, Simulator, Trajectory, simulate
 
-__all__ = ["LCPResult", "lemke"]
+__all__ = ["LCPResult", "Scene", "SceneError", "SimOptions", "SimulationError", "Simulator", "Trajectory",
+           "lemke", "list_scenes", "load_scene", "simulate"]
 __version__ = "0.1.0"

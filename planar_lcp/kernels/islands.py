@@ -50,5 +50,5 @@ def find_islands(m, ncon, con_pair, parent, island):
 
 @njit(cache=True)
 def contact_island(m, island, con_pair, j):
-    """Island of contact j (every contact touches at least one dynamic body; A is dynamic)."""
+    """Island of contact j. Relies on the invariant compile_scene establishes: side A of every pair is dynamic."""
     return island[m.body_slot[m.shape_body[m.pair_a[con_pair[j]]]]]

@@ -1,0 +1,36 @@
+"""Package-level contracts."""
+
+import subprocess
+import sys
+
+import planar_lcp
+
+
+def test_import_does_not_pull_in_optional_libraries():
+    code = ("import sys, planar_lcp\n"
+            "bad = [m for m in ('matplotlib', 'pymunk', 'ompl', 'osqp') if m in sys.modules]\n"
+            "print(','.join(bad))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "", f"import planar_lcp imported {out}"
+
+
+def test_public_names():
+    for name in ("load_scene", "simulate", "lemke", "Trajectory", "Simulator", "list_scenes"):
+        assert hasattr(planar_lcp, name)
+    tr = planar_lcp.simulate(planar_lcp.load_scene("falling_rod"), t_end=0.01)
+    assert tr.body_names == ("rod",)
+
+
+def test_numba_cache_is_keyed_on_the_kernel_sources(tmp_path):
+    """A change in ANY kernel file must start a fresh cache (numba alone only watches the defining file)."""
+    import shutil
+
+    from planar_lcp import kernels
+    src = tmp_path / "k"
+    shutil.copytree(kernels.__path__[0], src, ignore=shutil.ignore_patterns("__pycache__"))
+    code = "import sys; sys.path.insert(0, %r); import k; print(k._kernel_source_hash())" % str(tmp_path)
+    h1 = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    with open(src / "assemble.py", "a") as f:
+        f.write("\n# edited\n")
+    h2 = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert h1 != h2
