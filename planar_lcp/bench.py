@@ -143,8 +143,78 @@ def format_lcp_table(rows, compile_times=None):
     return "\n".join(lines)
 
 
+STEP_SCENES = ("falling_rod", "box_push")
+
+_STEP_COMPILE_SNIPPET = (
+    "import time; t0 = time.perf_counter()\n"
+    "import planar_lcp\n"
+    "t1 = time.perf_counter()\n"
+    "planar_lcp.simulate('falling_rod', t_end=0.01)\n"
+    "t2 = time.perf_counter()\n"
+    "print(t1 - t0, t2 - t1)\n"
+)
+
+
+def measure_step_compile_time():
+    """First simulate() with a fresh numba cache (compile) and again with the cache warm, in subprocesses."""
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        env.pop("NUMBA_DISABLE_JIT", None)
+        out = []
+        for _ in range(2):
+            p = subprocess.run([sys.executable, "-c", _STEP_COMPILE_SNIPPET], env=env, capture_output=True,
+                               text=True, check=True)
+            out.append(tuple(map(float, p.stdout.split())))
+    return dict(cold_import_s=out[0][0], cold_first_simulate_s=out[0][1], warm_import_s=out[1][0],
+                warm_first_simulate_s=out[1][1])
+
+
+def bench_step(scenes=STEP_SCENES, rounds=5):
+    """Microseconds per step of our stepper (one jitted rollout over the scene's duration, warm JIT)."""
+    from .model import compile_scene
+    from .scene import load_scene
+    from .sim import SimOptions, Simulator
+    rows = []
+    for name in scenes:
+        sc = load_scene(name)
+        sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, solver=sc.sim.solver,
+                                                      formulation=sc.sim.formulation))
+        q, v, qk, vk = sim.initial_state()
+        n = int(round(sc.sim.t_end / sc.sim.h))
+        sim.rollout(q, v, qk, vk[None], 5)  # warm
+        times = []
+        for _ in range(rounds):
+            t0 = time.perf_counter()
+            out = sim.rollout(q, v, qk, vk[None], n)
+            times.append(time.perf_counter() - t0)
+        st = out["stats"]
+        rows.append(dict(scene=name, steps=n, h=sc.sim.h, us_per_step=statistics.median(times) / n * 1e6,
+                         mean_lcp_size=float(st[:, 0].mean()), max_lcp_size=int(st[:, 1].max()),
+                         pivots_per_step=float(st[:, 2].mean())))
+    return rows
+
+
+def format_step_table(rows, compile_times=None):
+    lines = ["| scene | steps | h (s) | µs / step | mean LCP size | largest LCP | pivots / step |",
+             "|---|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['scene']} | {r['steps']} | {r['h']} | {r['us_per_step']:.1f} | {r['mean_lcp_size']:.1f} | "
+                     f"{r['max_lcp_size']} | {r['pivots_per_step']:.1f} |")
+    if compile_times:
+        lines.append("")
+        lines.append(f"first simulate() with a fresh numba cache (compile): {compile_times['cold_first_simulate_s']:.1f} s "
+                     f"(import {compile_times['cold_import_s']:.2f} s); with the cache warm: "
+                     f"{compile_times['warm_first_simulate_s']:.2f} s (import {compile_times['warm_import_s']:.2f} s)")
+    return "\n".join(lines)
+
+
 def run_bench(which, json_path=None):
     report = {}
+    if which in ("step", "all"):
+        compile_times = measure_step_compile_time()
+        rows = bench_step()
+        print(format_step_table(rows, compile_times))
+        report["step"] = dict(rows=rows, compile=compile_times)
     if which in ("lcp", "all"):
         compile_times = measure_compile_time()
         rows = bench_lcp()
