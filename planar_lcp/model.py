@@ -103,8 +103,46 @@ def _rot(theta):
     return np.array([[c, -s], [s, c]])
 
 
+#: Largest overlap allowed between two bodies at the start (m); a scene that starts deeper is rejected.
+START_OVERLAP_TOL = 1e-6
+
+
+def _check_start_overlaps(scene, model):
+    """Reject a scene whose bodies interpenetrate at the start by more than START_OVERLAP_TOL."""
+    from .kernels.contacts import body_poses, find_contacts, world_vertices
+    a = model.arrays
+    nbody = a.body_kind.shape[0]
+    npair = a.pair_a.shape[0]
+    if npair == 0:
+        return
+    poses = np.zeros((nbody, 3))
+    vw = np.zeros((max(1, a.vert_local.shape[0]), 2))
+    body_poses(a, model.q0, model.qk0, poses)
+    world_vertices(a, poses, vw)
+    C = 2 * npair
+    con_pair, con_phi = np.zeros(C, np.int64), np.zeros(C)
+    con_n, con_p = np.zeros((C, 2)), np.zeros((C, 2))
+    n = find_contacts(a, vw, -START_OVERLAP_TOL, np.zeros(npair, np.bool_), con_pair, con_phi, con_n, con_p,
+                      np.zeros(2), np.zeros((2, 2)), np.zeros((2, 2)))
+    if n == 0:
+        return
+    j = int(np.argmin(con_phi[:n]))
+    sa, sb = a.pair_a[con_pair[j]], a.pair_b[con_pair[j]]
+
+    def where(s):
+        b = int(a.shape_body[s])
+        k = int(np.sum(a.shape_body[:s] == b))  # index of the shape within its body
+        return f"bodies[{b}].shapes[{k}] ('{scene.bodies[b].name}')"
+
+    raise SceneError(f"{scene.source}: {where(sa)} and {where(sb)} must not overlap at the start by more than "
+                     f"{START_OVERLAP_TOL:g} m, got an overlap of {-con_phi[j]:.6g} m at "
+                     f"({con_p[j, 0]:.6g}, {con_p[j, 1]:.6g})")
+
+
 def compile_scene(scene: Scene, friction_directions=None) -> Model:
-    """Flatten a validated Scene into a Model. `friction_directions` overrides scene.sim.friction_directions."""
+    """Flatten a validated Scene into a Model. `friction_directions` overrides scene.sim.friction_directions.
+
+    Raises SceneError if bodies interpenetrate at the start by more than START_OVERLAP_TOL."""
     bodies = scene.bodies
     nbody = len(bodies)
     body_kind = np.empty(nbody, np.int64)
@@ -231,6 +269,8 @@ def compile_scene(scene: Scene, friction_directions=None) -> Model:
         sup_dyn=arr(sup_dyn, np.int64), sup_local=arr(sup_local, shape=(0, 2)), sup_load=arr(sup_load),
         sup_mu=arr(sup_mu), fric_dirs=arr(fric_dirs),
     )
-    return Model(scene=scene, arrays=arrays, dyn_names=tuple(dyn_names), kin_names=tuple(kin_names),
-                 com_local=arr(com_local, shape=(0, 2)), q0=arr(q0, shape=(0, 3)), v0=arr(v0, shape=(0, 3)),
-                 qk0=arr(qk0, shape=(0, 3)), vk0=arr(vk0, shape=(0, 3)))
+    model = Model(scene=scene, arrays=arrays, dyn_names=tuple(dyn_names), kin_names=tuple(kin_names),
+                  com_local=arr(com_local, shape=(0, 2)), q0=arr(q0, shape=(0, 3)), v0=arr(v0, shape=(0, 3)),
+                  qk0=arr(qk0, shape=(0, 3)), vk0=arr(vk0, shape=(0, 3)))
+    _check_start_overlaps(scene, model)
+    return model

@@ -250,3 +250,23 @@ def test_osqp_matches_lemke_without_sliding():
     lem, qp = simulate(sc, solver="lemke"), simulate(sc, solver="osqp")
     np.testing.assert_allclose(qp.q, lem.q, atol=1e-9)
     np.testing.assert_allclose(qp.contacts["cn"], lem.contacts["cn"], atol=1e-8)
+
+
+# --- scenes that cannot start --------------------------------------------------------------------------------------
+
+def test_bodies_interpenetrating_at_the_start_are_rejected():
+    from planar_lcp.scene import SceneError
+    sc = scene([{"name": "box", "type": "dynamic", "mass": 1.0, "position": [0.0, 0.04],
+                 "shapes": [{"type": "box", "width": 0.2, "height": 0.1}]}, table()])
+    with pytest.raises(SceneError, match=r"<dict>: bodies\[0\]\.shapes\[0\] \('box'\) and bodies\[1\]\.shapes\[0\] "
+                                         r"\('table'\) must not overlap at the start by more than 1e-06 m, got an "
+                                         r"overlap of 0\.01 m"):
+        simulate(sc)
+    # touching (gap 0) and a sub-tolerance overlap are accepted
+    simulate(scene([{"name": "box", "type": "dynamic", "mass": 1.0, "position": [0.0, 0.05 - 5e-7],
+                     "shapes": [{"type": "box", "width": 0.2, "height": 0.1}]}, table()], t_end=0.01))
+    two = [{"name": f"d{i}", "type": "dynamic", "mass": 1.0, "position": [0.15 * i, 0.5],
+            "shapes": [{"type": "disk", "radius": 0.1}]} for i in range(2)]
+    with pytest.raises(SceneError, match=r"bodies\[0\]\.shapes\[0\] \('d0'\) and bodies\[1\]\.shapes\[0\] \('d1'\) "
+                                         r".*got an overlap of 0\.05 m"):
+        simulate(scene(two))
