@@ -1,6 +1,8 @@
 """The `planar-lcp` command."""
 
 import argparse
+import math
+import os
 import sys
 
 
@@ -37,6 +39,140 @@ def _cmd_bench(args):
     return 0
 
 
+class _InputError(Exception):
+    """Bad user input found after parsing: one line on stderr, exit status 2."""
+
+
+def _finite(kind, minimum, strict):
+    """An argparse type: a finite number of `kind` (float or int) that is > (strict) or >= `minimum`."""
+    def conv(text):
+        try:
+            x = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be {'an integer' if kind is int else 'a number'}, "
+                                             f"got {text!r}") from None
+        if kind is float and not math.isfinite(x):
+            raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+        if (strict and not x > minimum) or (not strict and not x >= minimum):
+            raise argparse.ArgumentTypeError(f"must be {'>' if strict else '>='} {minimum}, got {text!r}")
+        return x
+    conv.__name__ = kind.__name__
+    return conv
+
+
+def _one_line_errors(parser):
+    """Argument errors of this subcommand as one line on stderr (no usage block), exit status 2."""
+    def error(message):
+        parser.exit(2, f"{parser.prog}: error: {message}\n")
+    parser.error = error
+    return parser
+
+
+def _check_output(path, option):
+    d = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(d):
+        raise _InputError(f"{option} {path}: the directory {d} does not exist")
+
+
+def _cmd_scenes(args):
+    from .scene import SceneError, list_scenes, scenes_dir
+
+    try:
+        scenes = list_scenes()
+    except SceneError as e:
+        print(f"planar-lcp scenes: error: {e}", file=sys.stderr)
+        return 2
+    if not scenes:
+        print(f"no scenes in {scenes_dir()}")
+        return 0
+    width = max(len(n) for n, _ in scenes)
+    print(f"{len(scenes)} scenes in {scenes_dir()} (run one with: planar-lcp simulate NAME):")
+    for name, description in scenes:
+        print(f"  {name:<{width}}  {description}")
+    return 0
+
+
+def _cmd_simulate(args):
+    try:
+        return _simulate(args)
+    except _InputError as e:
+        print(f"planar-lcp simulate: error: {e}", file=sys.stderr)
+        return 2
+
+
+def _simulate(args):
+    import time
+
+    import numpy as np
+
+    from .scene import SceneError, load_scene
+    from .sim import SimulationError, simulate
+
+    for path, option in ((args.csv, "--csv"), (args.plot, "--plot"), (args.animate, "--animate")):
+        if path is not None:
+            _check_output(path, option)
+    try:
+        scene = load_scene(args.scene)
+    except SceneError as e:
+        raise _InputError(str(e)) from None
+    t0 = time.perf_counter()
+    try:
+        traj = simulate(scene, t_end=args.t_end, h=args.h, solver=args.solver, formulation=args.formulation,
+                        fixed_point_iterations=args.fixed_point_iterations,
+                        friction_directions=args.friction_directions, on_failure=args.on_failure)
+    except SimulationError as e:
+        print(f"planar-lcp simulate: simulation failed: {e}", file=sys.stderr)
+        return 1
+    except (ValueError, NotImplementedError) as e:
+        # options the scene accepts but the simulator rejects (e.g. a solver not available there)
+        raise _InputError(f"{scene.source}: {e}") from None
+    wall = time.perf_counter() - t0
+
+    o = traj.options
+    steps = len(traj.t) - 1
+    st = traj.stats
+    pen = float(np.max(st["penetration"])) if steps else 0.0
+    print(f"scene          {scene.name} ({scene.source})")
+    print(f"steps          {steps} (h = {o.h:g} s, t = 0 to {traj.t[-1]:.6g} s)")
+    print(f"solver         {o.solver}")
+    print(f"formulation    {o.formulation}")
+    print(f"wall time      {wall:.3f} s (including any JIT compilation)")
+    print("final pose     (body-frame origin: x [m], y [m], theta [rad])")
+    width = max([len(n) for n in traj.body_names] + [1])
+    for j, name in enumerate(traj.body_names):
+        x, y, th = traj.q[-1, j]
+        print(f"  {name:<{width}}  x = {x: .6f}  y = {y: .6f}  theta = {th: .6f}")
+    if not traj.body_names:
+        print("  (no dynamic bodies)")
+    print(f"max penetration {pen:.3e} m")
+    print(f"failed steps   {len(traj.failures)}")
+    for i, t, cause in traj.failures[:3]:
+        print(f"  step {i} (t = {t:.6g} s): {cause}")
+    if len(traj.failures) > 3:
+        print(f"  ... and {len(traj.failures) - 3} more")
+    print(f"total pivots   {int(np.sum(st['pivots']))}")
+
+    wrote = []
+    try:
+        if args.csv:
+            traj.to_csv(args.csv)
+            wrote.append(args.csv)
+        if args.plot or args.animate:
+            from .viz import animate_trajectory, plot_trajectory
+            if args.plot:
+                plot_trajectory(traj, args.plot)
+                wrote.append(args.plot)
+            if args.animate:
+                animate_trajectory(traj, args.animate)
+                wrote.append(args.animate)
+    except OSError as e:
+        print(f"planar-lcp simulate: error: cannot write {e.filename or ''}: {e.strerror or e}", file=sys.stderr)
+        return 1
+    for path in wrote:
+        print(f"wrote          {path}")
+    return 0
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="planar-lcp", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
@@ -45,9 +181,35 @@ def build_parser():
     d.set_defaults(func=_cmd_demo)
 
     b = sub.add_parser("bench", help="benchmarks against peers measured in the same run")
-    b.add_argument("what", choices=["lcp", "all"], help="lcp: our Lemke vs QuantEcon's lcp_lemke on the corpus")
+    b.add_argument("what", choices=["step", "lcp", "all"],
+                   help="step: microseconds per step and compile time; lcp: our Lemke vs QuantEcon's lcp_lemke")
     b.add_argument("--json", metavar="FILE", help="also write the measurements as JSON")
     b.set_defaults(func=_cmd_bench)
+
+    s = _one_line_errors(sub.add_parser(
+        "simulate", help="simulate a scene; print a summary, optionally write CSV, a plot and an animation",
+        description="Simulate a scene (a shipped name, see `planar-lcp scenes`, or a path to a .toml file). "
+                    "Options override the scene's [sim] table."))
+    s.add_argument("scene", metavar="SCENE", help="a shipped scene name or a path to a .toml scene file")
+    s.add_argument("--h", type=_finite(float, 0, True), metavar="H", help="time step [s]")
+    s.add_argument("--t-end", type=_finite(float, 0, True), metavar="T", help="duration [s]")
+    s.add_argument("--solver", choices=["lemke", "pgs", "osqp"], help="LCP solver")
+    s.add_argument("--formulation", choices=["position", "fixed_point", "velocity"],
+                   help="position (Stewart-Trinkle), fixed_point (re-linearized), velocity (Anitescu-Potra)")
+    s.add_argument("--fixed-point-iterations", type=_finite(int, 1, False), metavar="N",
+                   help="iterations of the fixed_point formulation")
+    s.add_argument("--friction-directions", type=_finite(int, 3, False), metavar="K",
+                   help="friction directions per support point (horizontal plane)")
+    s.add_argument("--on-failure", choices=["raise", "record"], default="raise",
+                   help="raise (default): stop with exit status 1 at the first failed step; record: continue and "
+                        "count the failures")
+    s.add_argument("--csv", metavar="FILE", help="write t and each dynamic body's pose and velocity per step")
+    s.add_argument("--plot", metavar="FILE.png", help="write a strobe of the motion and time series (PNG)")
+    s.add_argument("--animate", metavar="FILE.gif", help="write an animation (GIF)")
+    s.set_defaults(func=_cmd_simulate)
+
+    sc = _one_line_errors(sub.add_parser("scenes", help="list the shipped scenes with their descriptions"))
+    sc.set_defaults(func=_cmd_scenes)
     return p
 
 
