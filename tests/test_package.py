@@ -34,3 +34,13 @@ def test_numba_cache_is_keyed_on_the_kernel_sources(tmp_path):
         f.write("\n# edited\n")
     h2 = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert h1 != h2
+
+
+def test_demo_writes_its_files(tmp_path, capsys):
+    from planar_lcp.cli import main
+    assert main(["demo", "--out", str(tmp_path / "d")]) == 0
+    out = capsys.readouterr().out
+    assert (tmp_path / "d" / "falling_rod.png").stat().st_size > 10000
+    lines = (tmp_path / "d" / "falling_rod.csv").read_text().splitlines()
+    assert lines[0] == "t,rod.x,rod.y,rod.theta,rod.vx,rod.vy,rod.omega" and len(lines) == 402
+    assert "first contact in the step ending at t = 0.3850 s" in out
