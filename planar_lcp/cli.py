@@ -1,6 +1,7 @@
 """The `planar-lcp` command."""
 
 import argparse
+import importlib
 import math
 import os
 import sys
@@ -196,6 +197,11 @@ def _simulate(args):
     return 0
 
 
+#: Modules that add subcommands: each has `register(subparsers)`, which adds its parsers with set_defaults(func=...)
+#: and must import heavy or optional libraries (matplotlib, pymunk, ompl) only inside the command's function.
+COMMAND_MODULES = []
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="planar-lcp", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
@@ -235,6 +241,8 @@ def build_parser():
 
     sc = _one_line_errors(sub.add_parser("scenes", help="list the shipped scenes with their descriptions"))
     sc.set_defaults(func=_cmd_scenes)
+    for module in COMMAND_MODULES:
+        importlib.import_module(module).register(sub)
     return p
 
 
