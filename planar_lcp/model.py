@@ -45,6 +45,7 @@ ModelArrays = namedtuple("ModelArrays", [
     "sup_load",         # (nsup,) N, known normal load on the table (m g w)
     "sup_mu",           # (nsup,) body-table Coulomb coefficient
     "fric_dirs",        # (k, 2) unit friction directions of the support friction (horizontal plane)
+    "seed_friction_arm",  # int: 1 applies contact friction at the shapes' core points (the seed's simplification)
 ])
 
 
@@ -139,8 +140,12 @@ def _check_start_overlaps(scene, model):
                      f"({con_p[j, 0]:.6g}, {con_p[j, 1]:.6g})")
 
 
-def compile_scene(scene: Scene, friction_directions=None) -> Model:
+def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=False) -> Model:
     """Flatten a validated Scene into a Model. `friction_directions` overrides scene.sim.friction_directions.
+
+    seed_friction_arm: apply contact friction at each shape's core point (a capsule's end-cap centre) instead of the
+    contact point, reproducing the seed paper's friction vectors d = [+-1, 0, +-(l/2) sin theta] (for comparison only;
+    the moment arm to the contact point is the physically right one).
 
     Raises SceneError if bodies interpenetrate at the start by more than START_OVERLAP_TOL."""
     bodies = scene.bodies
@@ -267,7 +272,7 @@ def compile_scene(scene: Scene, friction_directions=None) -> Model:
         hp_point_w=arr(hp_p, shape=(0, 2)), hp_normal_w=arr(hp_n, shape=(0, 2)), vert_local=arr(verts, shape=(0, 2)),
         pair_a=arr(pa, np.int64), pair_b=arr(pb, np.int64), pair_mu=arr(pmu),
         sup_dyn=arr(sup_dyn, np.int64), sup_local=arr(sup_local, shape=(0, 2)), sup_load=arr(sup_load),
-        sup_mu=arr(sup_mu), fric_dirs=arr(fric_dirs),
+        sup_mu=arr(sup_mu), fric_dirs=arr(fric_dirs), seed_friction_arm=int(bool(seed_friction_arm)),
     )
     model = Model(scene=scene, arrays=arrays, dyn_names=tuple(dyn_names), kin_names=tuple(kin_names),
                   com_local=arr(com_local, shape=(0, 2)), q0=arr(q0, shape=(0, 3)), v0=arr(v0, shape=(0, 3)),

@@ -226,11 +226,13 @@ def _frame_velocity(model, q_com, v_com):
 
 def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_point_iterations=None,
              friction_directions=None, pgs_iterations=None, on_failure="raise", record_contacts=True,
-             **options) -> Trajectory:
+             seed_friction_arm=False, **options) -> Trajectory:
     """Simulate a scene (a Scene, a shipped scene name, or a .toml path). Keywords override the scene's [sim].
 
     on_failure: "raise" (default) raises SimulationError at the first failed step; "record" continues (the failed
-    island is solved by PGS) and lists every failure in Trajectory.failures. Further keywords go to SimOptions.
+    island is solved by PGS) and lists every failure in Trajectory.failures. seed_friction_arm applies contact
+    friction at the shapes' core points, as the seed paper's rod does (see compile_scene). Further keywords go to
+    SimOptions.
     """
     if on_failure not in ("raise", "record"):
         raise ValueError(f"on_failure must be 'raise' or 'record', got {on_failure!r}")
@@ -247,7 +249,7 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     opts = SimOptions(h=h, solver=pick(solver, sim.solver), formulation=pick(formulation, sim.formulation),
                       fixed_point_iterations=pick(fixed_point_iterations, sim.fixed_point_iterations),
                       pgs_iterations=pick(pgs_iterations, sim.pgs_iterations), **options)
-    model = compile_scene(scene, friction_directions=friction_directions)
+    model = compile_scene(scene, friction_directions=friction_directions, seed_friction_arm=seed_friction_arm)
     simr = Simulator(model, opts)
     nsteps = int(round(t_end / h))
     q0, v0, qk0, vk0 = simr.initial_state()

@@ -270,3 +270,28 @@ def test_bodies_interpenetrating_at_the_start_are_rejected():
     with pytest.raises(SceneError, match=r"bodies\[0\]\.shapes\[0\] \('d0'\) and bodies\[1\]\.shapes\[0\] \('d1'\) "
                                          r".*got an overlap of 0\.05 m"):
         simulate(scene(two))
+
+
+def test_seed_friction_arm_puts_the_friction_moment_arm_at_the_end_cap_centre():
+    """The seed's rod: d = [+-1, 0, +-(l/2) sin theta], i.e. friction applied at the end-cap centre. Our default
+    applies it at the contact point (r lower still); seed_friction_arm reproduces the seed for comparison."""
+    from planar_lcp.model import compile_scene
+    from planar_lcp.scene import load_scene
+    from planar_lcp.sim import SimOptions, Simulator
+    sc = load_scene("falling_rod")
+    for seed_arm, extra in ((True, 0.0), (False, 0.05)):
+        sim = Simulator(compile_scene(sc, seed_friction_arm=seed_arm), SimOptions(h=sc.sim.h))
+        q, v, qk, vk = sim.initial_state()
+        out = sim.rollout(q, v, qk, vk[None], 153)       # the step of first contact is the 154th
+        q, v = out["q"][153], out["v"][153]
+        sim.step(q, v, qk, vk)
+        w = sim.work
+        assert sim.stats[4] == 1                          # one contact: the lower cap
+        theta = q[0, 2] + sim.h * v[0, 2]                 # linearization pose q + h v
+        nci = 1
+        # friction column +t = (1, 0) on the table (n = (0, 1) gives t = (-1, 0); the first ray is -x): torque
+        # about the COM of a horizontal unit impulse at height y below the COM is +y for d = -x
+        # the contact point is the midpoint of the witness points: phi/2 above the cap's lowest point
+        arm_y = 0.25 * abs(np.sin(theta)) + (extra + 0.5 * w.con_phi[0] if extra else 0.0)
+        assert w.col_g[nci, 0, 0] == pytest.approx(-1.0)
+        assert w.col_g[nci, 0, 2] == pytest.approx(-arm_y, rel=1e-9, abs=1e-12)

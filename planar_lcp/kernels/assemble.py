@@ -52,6 +52,29 @@ def contact_column(m, poses, con_pair, con_p, j, dx, dy, col_dyn, col_g, u):
 
 
 @njit(cache=True)
+def friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, dx, dy, col_dyn, col_g, u):
+    """The generalized column of a tangential impulse at contact j: at the contact point (physically right), or,
+    if the model was compiled with seed_friction_arm, at each shape's core point p +- (phi/2 + r) n (for a
+    capsule: the end-cap centre), which is what the seed paper's d = [+-1, 0, +-(l/2) sin theta] does."""
+    contact_column(m, poses, con_pair, con_p, j, dx, dy, col_dyn, col_g, u)
+    if m.seed_friction_arm == 0:
+        return
+    p = con_pair[j]
+    nx = con_n[j, 0]
+    ny = con_n[j, 1]
+    for side in range(2):
+        if col_dyn[u, side] < 0:
+            continue
+        s = m.pair_a[p] if side == 0 else m.pair_b[p]
+        b = m.shape_body[s]
+        off = 0.5 * con_phi[j] + m.shape_radius[s]
+        sgn = 1.0 if side == 0 else -1.0
+        px = con_p[j, 0] + sgn * off * nx
+        py = con_p[j, 1] + sgn * off * ny
+        col_g[u, side, 2] = sgn * _cross(px - poses[b, 0], py - poses[b, 1], dx, dy)
+
+
+@njit(cache=True)
 def support_column(m, poses, s, dx, dy, col_dyn, col_g, u):
     """Generalized column of a unit table-friction impulse along (dx, dy) at support point s."""
     d = m.sup_dyn[s]
@@ -143,8 +166,8 @@ def assemble_lcp(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, co
         contact_column(m, poses, con_pair, con_p, j, nx, ny, col_dyn, col_g, a)
         if m.pair_mu[con_pair[j]] > 0.0:
             # tangent t = (-n_y, n_x); the two rays +t and -t make the 2-D friction "cone" exact
-            contact_column(m, poses, con_pair, con_p, j, -ny, nx, col_dyn, col_g, o_bc + 2 * f)
-            contact_column(m, poses, con_pair, con_p, j, ny, -nx, col_dyn, col_g, o_bc + 2 * f + 1)
+            friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, -ny, nx, col_dyn, col_g, o_bc + 2 * f)
+            friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, ny, -nx, col_dyn, col_g, o_bc + 2 * f + 1)
             f += 1
     for a in range(nsi):
         s = isl_sup[a]

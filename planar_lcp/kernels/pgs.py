@@ -9,7 +9,8 @@ converged in general - the iteration count is the speed/accuracy knob.
 import numpy as np
 from numba import njit
 
-from .assemble import column_dot, contact_column, delassus, kinematic_velocity_along, support_column
+from .assemble import (column_dot, contact_column, delassus, friction_column, kinematic_velocity_along,
+                       support_column)
 
 
 @njit(cache=True)
@@ -29,7 +30,7 @@ def assemble_pgs(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, co
             b[u] = con_phi[j] / h + column_dot(col_dyn, col_g, u, v_tilde) - column_dot(col_dyn, col_g, u, v_hat)
         u += 1
         if m.pair_mu[con_pair[j]] > 0.0:
-            contact_column(m, poses, con_pair, con_p, j, -ny, nx, col_dyn, col_g, u)
+            friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, -ny, nx, col_dyn, col_g, u)
             b[u] = column_dot(col_dyn, col_g, u, v_tilde) + \
                 kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, -ny, nx)
             u += 1
