@@ -199,7 +199,7 @@ def _simulate(args):
 
 #: Modules that add subcommands: each has `register(subparsers)`, which adds its parsers with set_defaults(func=...)
 #: and must import heavy or optional libraries (matplotlib, pymunk, ompl) only inside the command's function.
-COMMAND_MODULES = []
+COMMAND_MODULES = ["planar_lcp.compare", "planar_lcp.studies", "planners.cli", "planar_lcp.tradeoff"]
 
 
 def build_parser():
