@@ -212,8 +212,9 @@ def build_parser():
     d.set_defaults(func=_cmd_demo)
 
     b = sub.add_parser("bench", help="benchmarks against peers measured in the same run")
-    b.add_argument("what", choices=["step", "lcp", "all"],
-                   help="step: microseconds per step and compile time; lcp: our Lemke vs QuantEcon's lcp_lemke")
+    b.add_argument("what", choices=["step", "lcp", "scaling", "all"],
+                   help="step: microseconds per step and compile time; lcp: our Lemke vs QuantEcon's lcp_lemke; "
+                        "scaling: cost per step against the number of bodies")
     b.add_argument("--json", metavar="FILE", help="also write the measurements as JSON")
     b.set_defaults(func=_cmd_bench)
 
