@@ -197,6 +197,21 @@ def list_scenes() -> list[tuple[str, str]]:
     return sorted(out)
 
 
+def display_source(scene) -> str:
+    """The scene's source for reports and files other people read: `scenes/NAME.toml` for a shipped scene, the path
+    relative to the working directory when it is below it, else the path as given (never this machine's
+    absolute path for a shipped scene)."""
+    src = Path(scene.source)
+    try:
+        return str(Path("scenes") / src.resolve().relative_to(scenes_dir().resolve()))
+    except (ValueError, OSError):
+        pass
+    try:
+        return str(src.resolve().relative_to(Path.cwd().resolve()))
+    except (ValueError, OSError):
+        return scene.source
+
+
 def load_scene(name_or_path) -> Scene:
     """Load and validate a scene.
 

@@ -60,7 +60,8 @@ def summary_field(out, label):
 
 def _check_scene_listing(out):
     listed = list_scenes()
-    assert sorted(n for n, _ in listed) == SHIPPED
+    # issue B's eight scenes are shipped (the planning tasks add scenes of their own)
+    assert set(SHIPPED) <= {n for n, _ in listed}
     for name, description in listed:
         assert re.search(rf"^\s+{re.escape(name)}\s+{re.escape(description)}$", out, re.M), (name, out)
 

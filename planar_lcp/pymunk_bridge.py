@@ -1,0 +1,376 @@
+"""Build a pymunk (Chipmunk2D) space from a planar_lcp Scene and run it, for apples-to-apples comparisons.
+
+pymunk is imported inside the functions only: `import planar_lcp.pymunk_bridge` does not need pymunk.
+
+Mapping (docs/pymunk-comparison.md says more):
+
+- disk -> Circle, capsule -> Segment with radius, box / polygon -> Poly with radius (pymunk inflates a Poly by its
+  radius exactly as we inflate a core), segment -> Segment with radius. A half-plane -> a long static Segment of
+  thickness `HALFPLANE_RADIUS` whose surface lies on the boundary (its centre line offset by that radius into the
+  solid).
+- Frames: a pymunk body's `position` is its body-frame origin and its `center_of_gravity` is set to our centre of
+  mass (`massprops.body_mass_properties`) in that frame, so `position` and `angle` are the scene's body-frame pose.
+  pymunk's `velocity` is the velocity of the centre of gravity; we convert to and from the origin's velocity.
+- Mass and moment (about the centre of mass) are set on the body; shapes carry no mass, so pymunk does not
+  recompute them.
+- Friction: pymunk's arbiter friction is the product of the two shapes' frictions. `friction_assignment` solves
+  f_a f_b = mu_ab for every body pair that can touch (least squares on log f, then checked exactly). When no
+  assignment exists (e.g. an even cycle a-b-c-d with mu_ab mu_cd != mu_bc mu_da, or mu = 0 between two bodies that
+  have positive mu elsewhere), a wildcard pre_solve callback sets each arbiter's friction to the scene's mu for its
+  pair (slower: one Python call per touching pair per step).
+- Elasticity 0 everywhere (our model is perfectly inelastic).
+- Kinematic bodies -> KINEMATIC pymunk bodies with the scene's constant velocity.
+- Horizontal plane: pymunk has no table. As pymunk's own top-down examples (tank.py) do, each dynamic body gets a
+  PivotJoint (at its centre of mass) and a GearJoint to the static body with max_bias = 0 (velocity only, no
+  position correction), max_force = mu m g (the Coulomb limit of the whole load) on the pivot and max torque =
+  mu m g sum_s w_s |p_s - c| on the gear (the torque of the same support points as ours when the body spins
+  about its centre of mass). Linear and angular friction are decoupled there: a body that slides and turns at
+  once feels more friction than Coulomb's law gives (ours couples them through the support points).
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .massprops import body_mass_properties, default_support_points
+from .scene import Scene, load_scene
+
+#: pymunk's defaults (slop 0.1, for pixels) are far too large in metres; these are SI-sensible.
+DEFAULT_ITERATIONS = 10            # solver iterations per step (pymunk's default)
+DEFAULT_COLLISION_SLOP = 1e-4      # m: overlap pymunk leaves uncorrected (0.1 mm; pymunk's 0.1 would be 10 cm)
+DEFAULT_COLLISION_BIAS = (1.0 - 0.1) ** 60   # fraction of overlap left after 1 s (pymunk's default, time-based)
+HALFPLANE_HALF_LENGTH = 100.0      # m: a half-plane is a static segment this long each way from its point
+HALFPLANE_RADIUS = 0.5             # m: its thickness (radius); the surface is on the half-plane's boundary
+
+
+def _mu_key(a, b):
+    return (a, b) if a <= b else (b, a)
+
+
+def contact_pairs(scene: Scene):
+    """{(name_a, name_b) sorted: mu} for every pair of bodies that can touch (different, at least one dynamic)."""
+    out = {}
+    bodies = scene.bodies
+    for i, a in enumerate(bodies):
+        for b in bodies[i + 1:]:
+            if a.type != "dynamic" and b.type != "dynamic":
+                continue
+            out[_mu_key(a.name, b.name)] = float(scene.friction_between(a.name, b.name))
+    return out
+
+
+def friction_assignment(scene: Scene, rtol=1e-12):
+    """Per-body shape frictions f with f_a f_b = mu_ab for every pair that can touch, if they exist.
+
+    Returns
+    -------
+    f : dict name -> float
+        The frictions to put on each body's shapes (the best least-squares fit when not exact).
+    exact : bool
+        True if pymunk's product rule reproduces every pair's mu to `rtol`; False means a pre_solve callback is
+        needed.
+    """
+    pairs = contact_pairs(scene)
+    names = [b.name for b in scene.bodies]
+    f = {n: 1.0 for n in names}
+    # a body whose every pair has mu = 0 gets friction 0; the others are solved on log f
+    zero_only = {n for n in names
+                 if all(mu == 0.0 for (a, b), mu in pairs.items() if n in (a, b))
+                 and any(n in k for k in pairs)}
+    for n in zero_only:
+        f[n] = 0.0
+    rows = [(a, b, mu) for (a, b), mu in pairs.items() if mu > 0.0 and a not in zero_only and b not in zero_only]
+    free = sorted({n for a, b, _ in rows for n in (a, b)})
+    if rows:
+        idx = {n: i for i, n in enumerate(free)}
+        A = np.zeros((len(rows), len(free)))
+        rhs = np.zeros(len(rows))
+        for r, (a, b, mu) in enumerate(rows):
+            A[r, idx[a]] += 1.0
+            A[r, idx[b]] += 1.0
+            rhs[r] = np.log(mu)
+        x = np.linalg.lstsq(A, rhs, rcond=None)[0]  # minimum norm: balanced (sqrt mu each) when underdetermined
+        for n, i in idx.items():
+            f[n] = float(np.exp(x[i]))
+    exact = all(abs(f[a] * f[b] - mu) <= rtol * max(mu, 1e-300) if mu > 0 else f[a] * f[b] == 0.0
+                for (a, b), mu in pairs.items())
+    return f, exact
+
+
+@dataclass
+class SpaceHandles:
+    """What `build_space` made, by scene body name.
+
+    bodies : name -> pymunk.Body (static bodies map to their own STATIC body)
+    shapes : name -> list of pymunk shapes, in the scene's shape order
+    shape_body : pymunk shape -> body name
+    dynamic_names, kinematic_names : scene order
+    com_local : name -> (2,) centre of mass in the body frame (dynamic bodies)
+    friction_mode : "product" (shape frictions reproduce every pair's mu) or "pre_solve" (a callback sets them)
+    pair_mu : {(a, b) sorted: mu}
+    support_joints : name -> (PivotJoint, GearJoint) in the horizontal plane
+    h : the time step the space is meant to be stepped with (s)
+    settings : iterations, collision_slop, collision_bias as set
+    """
+
+    bodies: dict
+    shapes: dict
+    shape_body: dict
+    dynamic_names: tuple
+    kinematic_names: tuple
+    com_local: dict
+    friction_mode: str
+    pair_mu: dict
+    support_joints: dict
+    h: float
+    settings: dict = field(default_factory=dict)
+
+
+def _rot(theta):
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+def _make_shapes(pymunk, body, spec, static_pose=None):
+    """pymunk shapes for one ShapeSpec on `body` (body-frame coordinates)."""
+    t = spec.type
+    if t == "halfplane":
+        p = np.asarray(spec.point, float)
+        n = np.asarray(spec.normal, float)
+        n = n / np.linalg.norm(n)
+        tang = np.array([-n[1], n[0]])
+        c = p - HALFPLANE_RADIUS * n
+        a, b = c - HALFPLANE_HALF_LENGTH * tang, c + HALFPLANE_HALF_LENGTH * tang
+        return pymunk.Segment(body, tuple(a), tuple(b), HALFPLANE_RADIUS)
+    core = np.asarray(spec.core_vertices_body(), float).reshape(-1, 2)
+    r = float(spec.radius)
+    if t == "disk":
+        return pymunk.Circle(body, r, tuple(core[0]))
+    if t in ("capsule", "segment"):
+        return pymunk.Segment(body, tuple(core[0]), tuple(core[1]), r)
+    if t in ("box", "polygon"):
+        return pymunk.Poly(body, [tuple(v) for v in core], None, r)
+    raise ValueError(f"unknown shape type {t!r}")
+
+
+def build_space(scene, *, iterations=DEFAULT_ITERATIONS, collision_slop=DEFAULT_COLLISION_SLOP,
+                collision_bias=DEFAULT_COLLISION_BIAS, h=None):
+    """A pymunk.Space holding the scene's bodies at their initial state.
+
+    Parameters
+    ----------
+    scene : Scene, shipped scene name or .toml path
+    iterations : int
+        Chipmunk's solver iterations per step (sequential impulses; more = stiffer contacts and stacks).
+    collision_slop : float, m
+        Overlap allowed before pymunk pushes shapes apart. pymunk's default 0.1 assumes pixels (10 cm here).
+    collision_bias : float
+        Fraction of an overlap still left after one second (pymunk's time-based Baumgarte-like correction).
+    h : float, s, optional
+        The step the space will be stepped with (default the scene's sim.h); recorded in the handles.
+
+    Returns
+    -------
+    (pymunk.Space, SpaceHandles)
+    """
+    import pymunk
+
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
+    if int(iterations) < 1:
+        raise ValueError(f"iterations must be >= 1, got {iterations}")
+    if not (np.isfinite(collision_slop) and collision_slop >= 0):
+        raise ValueError(f"collision_slop must be >= 0 (m), got {collision_slop}")
+    if not (np.isfinite(collision_bias) and 0 <= collision_bias <= 1):
+        raise ValueError(f"collision_bias must be in [0, 1], got {collision_bias}")
+    h = float(scene.sim.h if h is None else h)
+    space = pymunk.Space()
+    space.iterations = int(iterations)
+    space.collision_slop = float(collision_slop)
+    space.collision_bias = float(collision_bias)
+    horizontal = scene.world.plane == "horizontal"
+    space.gravity = (0.0, 0.0) if horizontal else tuple(float(g) for g in scene.world.gravity)
+
+    fric, exact = friction_assignment(scene)
+    pair_mu = contact_pairs(scene)
+    bodies, shapes, shape_body, com_local, joints = {}, {}, {}, {}, {}
+    dyn, kin = [], []
+    for b in scene.bodies:
+        if b.type == "dynamic":
+            com, inertia = body_mass_properties(b)
+            body = pymunk.Body(float(b.mass), float(inertia), body_type=pymunk.Body.DYNAMIC)
+            dyn.append(b.name)
+            com_local[b.name] = np.asarray(com, float)
+        elif b.type == "kinematic":
+            body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            kin.append(b.name)
+        else:
+            body = pymunk.Body(body_type=pymunk.Body.STATIC)
+        made = []
+        for s in b.shapes:
+            sh = _make_shapes(pymunk, body, s)
+            sh.friction = fric[b.name]
+            sh.elasticity = 0.0
+            made.append(sh)
+            shape_body[sh] = b.name
+        if b.type == "dynamic":
+            # set after the shapes: mass-less shapes leave mass and moment alone, and the COG is ours
+            body.mass = float(b.mass)
+            body.moment = float(inertia)
+            body.center_of_gravity = tuple(com_local[b.name])
+        body.angle = float(b.angle)
+        body.position = (float(b.position[0]), float(b.position[1]))
+        w = float(b.angular_velocity)
+        vo = np.asarray(b.velocity, float)
+        if b.type == "dynamic":
+            # pymunk's velocity is the centre of gravity's: v_c = v_o + omega x (c - o)
+            rc = _rot(b.angle) @ com_local[b.name]
+            body.velocity = (vo[0] - w * rc[1], vo[1] + w * rc[0])
+        else:
+            body.velocity = tuple(vo)
+        body.angular_velocity = w
+        space.add(body, *made)
+        bodies[b.name] = body
+        shapes[b.name] = made
+
+    if horizontal:
+        g = float(scene.world.support_gravity)
+        for b in scene.bodies:
+            if b.type != "dynamic":
+                continue
+            body = bodies[b.name]
+            mu = b.support_friction if b.support_friction is not None else scene.world.friction
+            if b.support_points is not None:
+                pts = np.asarray(b.support_points, float).reshape(-1, 2)
+                wts = np.full(len(pts), 1.0 / len(pts))
+            else:
+                pts, wts = default_support_points(b)
+            arm = float(np.sum(np.asarray(wts) * np.linalg.norm(np.asarray(pts) - com_local[b.name], axis=1)))
+            cog_world = body.local_to_world(body.center_of_gravity)
+            pivot = pymunk.PivotJoint(space.static_body, body, tuple(cog_world), tuple(body.center_of_gravity))
+            pivot.max_bias = 0.0
+            pivot.max_force = float(mu * b.mass * g)
+            gear = pymunk.GearJoint(space.static_body, body, 0.0, 1.0)
+            gear.max_bias = 0.0
+            gear.max_force = float(mu * b.mass * g * arm)
+            space.add(pivot, gear)
+            joints[b.name] = (pivot, gear)
+
+    mode = "product" if exact else "pre_solve"
+    if not exact:
+        def pre_solve(arbiter, space_, data):
+            s1, s2 = arbiter.shapes
+            arbiter.friction = pair_mu[_mu_key(shape_body[s1], shape_body[s2])]
+        space.on_collision(None, None, pre_solve=pre_solve)
+
+    handles = SpaceHandles(bodies=bodies, shapes=shapes, shape_body=shape_body, dynamic_names=tuple(dyn),
+                           kinematic_names=tuple(kin), com_local=com_local, friction_mode=mode, pair_mu=pair_mu,
+                           support_joints=joints, h=h,
+                           settings=dict(iterations=int(iterations), collision_slop=float(collision_slop),
+                                         collision_bias=float(collision_bias)))
+    return space, handles
+
+
+def read_state(handles):
+    """Body-frame poses and origin velocities of the dynamic bodies, and kinematic poses, as numpy arrays.
+
+    Returns q (ndyn, 3), v (ndyn, 3), qk (nkin, 3), v_com (ndyn, 3) the centre-of-mass velocities.
+    """
+    nd, nk = len(handles.dynamic_names), len(handles.kinematic_names)
+    q, v, qk, vc = np.zeros((nd, 3)), np.zeros((nd, 3)), np.zeros((nk, 3)), np.zeros((nd, 3))
+    for j, n in enumerate(handles.dynamic_names):
+        b = handles.bodies[n]
+        p = b.position
+        vo = b.velocity_at_world_point(p)
+        q[j] = (p.x, p.y, b.angle)
+        v[j] = (vo.x, vo.y, b.angular_velocity)
+        vc[j] = (b.velocity.x, b.velocity.y, b.angular_velocity)
+    for j, n in enumerate(handles.kinematic_names):
+        b = handles.bodies[n]
+        qk[j] = (b.position.x, b.position.y, b.angle)
+    return q, v, qk, vc
+
+
+@dataclass
+class PymunkTrajectory:
+    """A pymunk run, in the same conventions as `planar_lcp.sim.Trajectory`.
+
+    t (T,) s; q, v (T, ndyn, 3) body-FRAME origin pose and velocity of the dynamic bodies in scene order; q_com,
+    v_com (T, ndyn, 3) the centre-of-mass poses and velocities; qk (T, nkin, 3) kinematic poses; body_names, kinematic_names; scene; h;
+    settings (iterations, collision_slop, collision_bias); friction_mode ("product" or "pre_solve").
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    q_com: np.ndarray
+    v_com: np.ndarray
+    qk: np.ndarray
+    body_names: tuple
+    kinematic_names: tuple
+    scene: Scene
+    h: float
+    settings: dict
+    friction_mode: str
+
+
+def frame_to_com(q, com_local):
+    """Body-frame poses (..., ndyn, 3) -> centre-of-mass poses, com_local (ndyn, 2) in the body frame."""
+    q = np.asarray(q, float)
+    out = q.copy()
+    c, s = np.cos(q[..., 2]), np.sin(q[..., 2])
+    cx, cy = com_local[:, 0], com_local[:, 1]
+    out[..., 0] = q[..., 0] + c * cx - s * cy
+    out[..., 1] = q[..., 1] + s * cx + c * cy
+    return out
+
+
+def simulate_pymunk(scene, *, t_end=None, h=None, **settings) -> PymunkTrajectory:
+    """Run the scene in pymunk with a fixed step h (default the scene's) to t_end (default the scene's).
+
+    Note Chipmunk's order within `space.step(h)`: positions are integrated FIRST with the velocities of the end of
+    the previous step (q+ = q + h v), then collisions are detected and velocities updated and solved. Ours updates
+    velocities first and positions with the new velocities (q+ = q + h v+). In free flight both velocity sequences
+    are identical and pymunk's positions lag ours by one velocity update (tests/test_pymunk_bridge.py).
+
+    `settings` go to `build_space` (iterations, collision_slop, collision_bias).
+    """
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
+    h = float(scene.sim.h if h is None else h)
+    t_end = float(scene.sim.t_end if t_end is None else t_end)
+    if not (np.isfinite(h) and h > 0):
+        raise ValueError(f"h must be > 0, got {h}")
+    if not (np.isfinite(t_end) and t_end > 0):
+        raise ValueError(f"t_end must be > 0, got {t_end}")
+    space, hd = build_space(scene, h=h, **settings)
+    n = int(round(t_end / h))
+    nd, nk = len(hd.dynamic_names), len(hd.kinematic_names)
+    q, v, qk = np.zeros((n + 1, nd, 3)), np.zeros((n + 1, nd, 3)), np.zeros((n + 1, nk, 3))
+    vc = np.zeros((n + 1, nd, 3))
+    q[0], v[0], qk[0], vc[0] = read_state(hd)
+    for i in range(n):
+        space.step(h)
+        q[i + 1], v[i + 1], qk[i + 1], vc[i + 1] = read_state(hd)
+    com = np.array([hd.com_local[nm] for nm in hd.dynamic_names]).reshape(nd, 2)
+    return PymunkTrajectory(t=np.arange(n + 1) * h, q=q, v=v, q_com=frame_to_com(q, com), v_com=vc, qk=qk,
+                            body_names=hd.dynamic_names, kinematic_names=hd.kinematic_names, scene=scene, h=h,
+                            settings=dict(hd.settings), friction_mode=hd.friction_mode)
+
+
+def time_pymunk(scene, nsteps, *, h=None, repeats=3, **settings):
+    """Microseconds per `space.step(h)` (best of `repeats` fresh spaces, nsteps steps each, no recording)."""
+    import time
+
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
+    h = float(scene.sim.h if h is None else h)
+    best = np.inf
+    for _ in range(max(1, int(repeats))):
+        space, _hd = build_space(scene, h=h, **settings)
+        step = space.step
+        t0 = time.perf_counter()
+        for _i in range(int(nsteps)):
+            step(h)
+        best = min(best, time.perf_counter() - t0)
+    return 1e6 * best / max(1, int(nsteps))
