@@ -276,6 +276,8 @@ def check_island(prob, isl_con, isl_sup, rng=None):
 # ----------------------------------------------------------------------------------------------------------------
 
 SCENES = [name for name, _ in list_scenes()]
+ISSUE_B_SCENES = {"falling_rod", "four_disks", "block_on_incline", "box_push", "box_tip", "painleve_rod", "box_stack",
+                  "push_t"}
 
 
 @functools.lru_cache(maxsize=None)
@@ -323,7 +325,10 @@ def test_shipped_scene_matches_reference(name):
                 cases_with_contacts += bool(isl_con)
                 seen += len(isl_con)
             assert seen == prob.ncon, "every contact belongs to exactly one island"
-    assert cases_with_contacts > 0, f"{name}: no island with contacts was compared"
+    # issue B's scenes all make contact; a planning-task scene starts with its pusher at rest and clear of the object
+    # (the planner sets the velocity), so only its table-friction islands are compared
+    if name in ISSUE_B_SCENES:
+        assert cases_with_contacts > 0, f"{name}: no island with contacts was compared"
     assert cases >= 4
 
 

@@ -1,0 +1,258 @@
+"""The OMPL side of a task: state and control spaces, the propagator, validity, goal, projection, planners.
+
+The OMPL state is the full physics state, so propagation is a pure function of (state, control, duration):
+
+    CompoundStateSpace = SE2 (object centre of mass x, y, theta)  weight 1.0
+                       + R^3 (object vx, vy, omega)               weight 0.05
+                       + R^2 (pusher x, y)                        weight 0.2
+
+Controls: R^2, the pusher velocity (m/s). Each propagate() call is ONE jitted rollout of
+`duration / h` simulator steps (`TaskModel.advance`); the object angle is wrapped there and nowhere else.
+A failed simulator step (e.g. the pusher jamming the object against a wall: the LCP has no solution) marks the
+result invalid by putting the object outside the workspace bounds.
+"""
+
+import math
+
+import numpy as np
+
+from .tasks import TaskError, TaskModel
+
+PLANNERS = ("RRT", "EST", "KPIECE1", "SyclopRRT", "SyclopEST")
+INVALID_X = 1.0e9        # object x written for a state whose propagation failed (outside every workspace)
+
+
+def check_planner(name):
+    if name not in PLANNERS:
+        raise TaskError(f"unknown planner {name!r}; valid planners: {', '.join(PLANNERS)}")
+    return name
+
+
+def read_state(s):
+    o, v, p = s[0], s[1], s[2]
+    vv = v[0:3]
+    pp = p[0:2]
+    return np.array([o.getX(), o.getY(), o.getYaw(), vv[0], vv[1], vv[2], pp[0], pp[1]])
+
+
+def write_state(s, x):
+    s[0].setXY(float(x[0]), float(x[1]))
+    s[0].setYaw(float(x[2]))
+    s[1][0:3] = [float(x[3]), float(x[4]), float(x[5])]
+    s[2][0:2] = [float(x[6]), float(x[7])]
+
+
+class Propagator:
+    """The state propagator (a callable: OMPL 2.0.1 has no StatePropagator trampoline)."""
+
+    def __init__(self, tm: TaskModel):
+        self.tm = tm
+        self.calls = 0
+
+    def __call__(self, start, control, duration, result):
+        x = read_state(start)                    # read all of start before writing result (they may alias)
+        u = (control[0], control[1])
+        n = int(round(duration / self.tm.h))
+        y, ok = self.tm.advance(x, u, n)
+        if not ok:
+            y = x.copy()
+            y[0] = INVALID_X
+        self.calls += 1
+        write_state(result, y)
+
+
+def _goal_class():
+    from ompl import base as ob
+
+    class TaskGoal(ob.GoalSampleableRegion):
+        """The task's goal region (threshold 1 on TaskModel.goal_distance); sampleable, so goal bias works."""
+
+        def __init__(self, si, tm):
+            super().__init__(si)
+            self.tm = tm
+            self.setThreshold(1.0)
+            from ompl import util as ou
+            self.rng = ou.RNG()
+
+        def distanceGoal(self, state):
+            return float(self.tm.goal_distance(read_state(state)))
+
+        def sampleGoal(self, state):
+            write_state(state, self.tm.sample_goal(self.rng.uniformReal))
+
+        def maxSampleCount(self):
+            return 1 << 30
+
+        def couldSample(self):
+            return True
+
+    return TaskGoal
+
+
+def _projection_class():
+    from ompl import base as ob
+
+    class ObjectXY(ob.ProjectionEvaluator):
+        """KPIECE1's projection: the object's position."""
+
+        def __init__(self, space, cell):
+            super().__init__(space)
+            self.cell = cell
+
+        def getDimension(self):
+            return 2
+
+        def defaultCellSizes(self):
+            self.setCellSizes([self.cell, self.cell])
+
+        def project(self, state, out):
+            o = state[0]
+            out[0] = o.getX()
+            out[1] = o.getY()
+
+    return ObjectXY
+
+
+def _decomposition_class():
+    from ompl import control as oc
+
+    class ObjectGrid(oc.GridDecomposition):
+        """Syclop's decomposition: a grid over the object's position."""
+
+        def __init__(self, length, bounds):
+            super().__init__(length, 2, bounds)
+
+        def project(self, s, coord):
+            coord[0] = s[0].getX()
+            coord[1] = s[0].getY()
+
+        def sampleFullState(self, sampler, coord, s):
+            sampler.sampleUniform(s)
+            s[0].setXY(coord[0], coord[1])
+
+    return ObjectGrid
+
+
+class Problem:
+    """An OMPL SimpleSetup for a task with a named planner. Call `ou.RNG.setSeed` before building it."""
+
+    def __init__(self, task, planner="KPIECE1", tm=None):
+        from ompl import base as ob, control as oc
+
+        check_planner(planner)
+        self.tm = tm = tm if tm is not None else TaskModel(task)
+        t = tm.task
+        self.task = t
+        self.planner_name = planner
+        space = ob.CompoundStateSpace()
+        se2 = ob.SE2StateSpace()
+        b = ob.RealVectorBounds(2)
+        (ox0, ox1), (oy0, oy1) = t.object_bounds
+        b.low = [ox0, oy0]
+        b.high = [ox1, oy1]
+        se2.setBounds(b)
+        vel = ob.RealVectorStateSpace(3)
+        vb = ob.RealVectorBounds(3)
+        vb.low = [-t.speed_max, -t.speed_max, -t.omega_max]
+        vb.high = [t.speed_max, t.speed_max, t.omega_max]
+        vel.setBounds(vb)
+        pus = ob.RealVectorStateSpace(2)
+        pb = ob.RealVectorBounds(2)
+        (px0, px1), (py0, py1) = t.pusher_bounds
+        pb.low = [px0, py0]
+        pb.high = [px1, py1]
+        pus.setBounds(pb)
+        space.addSubspace(se2, 1.0)
+        space.addSubspace(vel, 0.05)
+        space.addSubspace(pus, 0.2)
+        cell = 0.02
+        self.projection = _projection_class()(space, cell)
+        space.registerDefaultProjection(self.projection)
+        cspace = oc.RealVectorControlSpace(space, 2)
+        cb = ob.RealVectorBounds(2)
+        cb.setLow(-t.control_max)
+        cb.setHigh(t.control_max)
+        cspace.setBounds(cb)
+        ss = oc.SimpleSetup(cspace)
+        si = ss.getSpaceInformation()
+        self.propagator = Propagator(tm)
+        ss.setStatePropagator(self.propagator)
+
+        def is_valid(state):
+            if not si.satisfiesBounds(state):
+                return False
+            return tm.valid(read_state(state))
+
+        self._is_valid = is_valid
+        ss.setStateValidityChecker(is_valid)
+        si.setPropagationStepSize(t.step_duration)
+        si.setMinMaxControlDuration(t.min_steps, t.max_steps)
+        start = space.allocState()
+        write_state(start, tm.initial_state())
+        ss.setStartState(start)
+        self.goal = _goal_class()(si, tm)
+        ss.setGoal(self.goal)
+        if planner == "RRT":
+            p = oc.RRT(si)
+            p.setGoalBias(0.1)
+        elif planner == "EST":
+            p = oc.EST(si)
+        elif planner == "KPIECE1":
+            p = oc.KPIECE1(si)
+        else:
+            gb = ob.RealVectorBounds(2)
+            gb.low = [ox0, oy0]
+            gb.high = [ox1, oy1]
+            self.decomposition = _decomposition_class()(10, gb)
+            p = (oc.SyclopRRT if planner == "SyclopRRT" else oc.SyclopEST)(si, self.decomposition)
+        ss.setPlanner(p)
+        self.space, self.cspace, self.ss, self.si, self.planner, self._start = space, cspace, ss, si, p, start
+        ss.setup()
+
+    def solve(self, time_limit=None, iterations=None):
+        """Solve with a wall-clock limit or an iteration budget (reproducible); stops at the first exact solution.
+
+        Returns a dict: exact, approximate, solve_time, iterations, propagations, sim_steps."""
+        import time
+
+        from ompl import base as ob
+
+        if (time_limit is None) == (iterations is None):
+            raise TaskError("give exactly one of a time limit and an iteration budget")
+        pdef = self.ss.getProblemDefinition()
+        count = [0]
+        t_end = [None]
+        if iterations is not None:
+            n = int(iterations)
+
+            def limit():
+                count[0] += 1
+                return count[0] > n
+        else:
+            tl = float(time_limit)
+
+            def limit():
+                count[0] += 1
+                return time.perf_counter() > t_end[0]
+        ptc = ob.plannerOrTerminationCondition(ob.PlannerTerminationCondition(limit),
+                                               ob.exactSolnPlannerTerminationCondition(pdef))
+        steps0 = self.tm.nsteps_total
+        calls0 = self.propagator.calls
+        t0 = time.perf_counter()
+        if iterations is None:
+            t_end[0] = t0 + tl
+        self.ss.solve(ptc)
+        dt = time.perf_counter() - t0
+        exact = bool(self.ss.haveExactSolutionPath())
+        approx = (not exact) and bool(self.ss.haveSolutionPath())
+        return dict(exact=exact, approximate=approx, solve_time=dt, iterations=count[0],
+                    propagations=self.propagator.calls - calls0, sim_steps=self.tm.nsteps_total - steps0)
+
+    def solution(self):
+        """(states (n+1, 8), controls (n, 2), steps (n,) propagation steps per control) of the found path."""
+        path = self.ss.getSolutionPath()
+        states = np.array([read_state(s) for s in path.getStates()])
+        controls = np.array([[c[0], c[1]] for c in path.getControls()]).reshape(-1, 2)
+        durs = np.array(path.getControlDurations(), float)
+        steps = np.rint(durs / self.task.step_duration).astype(int)
+        return states, controls, steps

@@ -1,0 +1,199 @@
+"""`planar-lcp plan-bench`: each planner N times (seeds 1..N) on a process pool, an OMPL benchmark log and its
+SQLite database, a summary table and box plots.
+
+Why not `ompl.tools.Benchmark`: it runs every planner in the calling process, one after another, and `solve()`
+holds the GIL; custom columns (simulated steps per second) cannot be added from Python in 2.0.1. So each run is a
+separate `plan_task` in a worker process, and the log is written here in OMPL's benchmark log format
+(doc/markdown/benchmark.md), then loaded with the wheel's `ompl_benchmark_statistics` (`readBenchmarkLog`).
+"""
+
+import json
+import os
+import platform
+import socket
+import subprocess
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+
+STATUS_ENUM = ("status|Unknown status|Invalid start|Invalid goal|Unrecognized goal type|Timeout|"
+               "Approximate solution|Exact solution|Crash|Abort|Infeasible")
+# run properties in the log: (name TYPE, key in the run record)
+RUN_FIELDS = [("time REAL", "solve_time"), ("memory REAL", None), ("status ENUM", "status"),
+              ("solved BOOLEAN", "exact"), ("approximate solution BOOLEAN", "approximate"),
+              ("solution difference REAL", "goal_distance"), ("solution length REAL", "path_duration"),
+              ("solution segments INTEGER", "segments"), ("graph motions INTEGER", "propagations"),
+              ("iterations INTEGER", "iterations"), ("simulated steps INTEGER", "sim_steps"),
+              ("simulated steps per second REAL", "steps_per_second")]
+
+
+def _run_one(task, planner, seed, time_limit):
+    """One planning run in a worker process; returns a flat record."""
+    import gc
+    gc.disable()
+    from .plan import plan_task
+    t0 = time.perf_counter()
+    try:
+        plan = plan_task(task, planner, seed=seed, time_limit=time_limit)
+    except Exception as e:  # noqa: BLE001 - a crashed run is a result (status Crash), not the end of the benchmark
+        return dict(planner=planner, seed=seed, exact=False, approximate=False, solve_time=time.perf_counter() - t0,
+                    status=7, error=repr(e), goal_distance=float("nan"), path_duration=float("nan"), segments=0,
+                    propagations=0, iterations=0, sim_steps=0, steps_per_second=float("nan"))
+    exact, approx = plan["exact"], plan["approximate"]
+    return dict(planner=planner, seed=seed, exact=exact, approximate=approx, solve_time=plan["solve_time"],
+                status=6 if exact else (5 if approx else 4),
+                goal_distance=plan.get("goal", {}).get("goal_distance", float("nan")),
+                path_duration=plan["path_duration"] if (exact or approx) else float("nan"),
+                segments=len(plan["controls"]), propagations=plan["propagations"], iterations=plan["iterations"],
+                sim_steps=plan["sim_steps"], steps_per_second=plan["steps_per_second"])
+
+
+def _fmt(v):
+    if isinstance(v, bool):
+        return "1" if v else "0"
+    if v is None:
+        return ""
+    if isinstance(v, float) and not np.isfinite(v):
+        return "nan"
+    return f"{v}"
+
+
+def write_log(path, task, planners, records, runs, time_limit, total_time):
+    from .tasks import get_task
+    t = get_task(task)
+    try:
+        from importlib.metadata import version
+        ver = version("ompl")
+    except Exception:  # noqa: BLE001
+        ver = "unknown"
+    lines = [f"OMPL version {ver}", f"Experiment {task}", "0 experiment properties",
+             f"Running on {socket.gethostname()}", f"Starting at {datetime.now().strftime('%Y-%m-%d %H:%M:%S')}",
+             "<<<|", f"task {task}: {t.description}; scene {t.scene}; planar_lcp LCP simulator as forward model",
+             "|>>>", "<<<|", f"{platform.processor() or platform.machine()} x {os.cpu_count()}", "|>>>",
+             "0 is the random seed", f"{time_limit} seconds per run", "0 MB per run", f"{runs} runs per planner",
+             f"{total_time} seconds spent to collect the data", "1 enum types", STATUS_ENUM,
+             f"{len(planners)} planners"]
+    for p in planners:
+        rs = sorted([r for r in records if r["planner"] == p], key=lambda r: r["seed"])
+        lines += [f"control_{p}", "0 common properties", f"{len(RUN_FIELDS)} properties for each run"]
+        lines += [name for name, _ in RUN_FIELDS]
+        lines.append(f"{len(rs)} runs")
+        for r in rs:
+            vals = [_fmt(r.get(k)) if k else "0" for _, k in RUN_FIELDS]
+            lines.append("; ".join(vals) + "; ")
+        lines.append(".")
+    Path(path).write_text("\n".join(lines) + "\n")
+
+
+def make_database(log, db):
+    """The SQLite database of the log, with the wheel's ompl_benchmark_statistics (its Python module if the
+    console script is missing)."""
+    if Path(db).exists():
+        Path(db).unlink()
+    exe = Path(sys.executable).parent / "ompl_benchmark_statistics"
+    cmd = [str(exe), str(log), "-d", str(db)] if exe.exists() else \
+        [sys.executable, "-m", "ompl.ompl_benchmark_statistics", str(log), "-d", str(db)]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"ompl_benchmark_statistics failed: {r.stderr.strip()}")
+    return db
+
+
+def summarize(records, planners, time_limit):
+    rows = []
+    for p in planners:
+        rs = [r for r in records if r["planner"] == p]
+        ex = [r for r in rs if r["exact"]]
+        ts = np.array([r["solve_time"] for r in ex])
+        ds = np.array([r["path_duration"] for r in ex])
+        sps = np.array([r["steps_per_second"] for r in rs if np.isfinite(r["steps_per_second"])])
+        q = (lambda a: np.percentile(a, [25, 50, 75]).tolist() if len(a) else [float("nan")] * 3)
+        rows.append(dict(planner=p, runs=len(rs), exact=len(ex), success_rate=len(ex) / max(len(rs), 1),
+                         time_q1_med_q3=q(ts), duration_q1_med_q3=q(ds),
+                         steps_per_second_median=float(np.median(sps)) if len(sps) else float("nan")))
+    return rows
+
+
+def summary_markdown(task, rows, runs, time_limit, jobs):
+    out = [f"Task `{task}`: {runs} runs per planner (seeds 1..{runs}), {time_limit:g} s each, {jobs} worker "
+           "processes.", "",
+           "| planner | exact | time to exact solution [s] median (q1-q3) | path duration [s] median (q1-q3) | "
+           "sim steps/s (median) |", "|---|---|---|---|---|"]
+    for r in rows:
+        t, d = r["time_q1_med_q3"], r["duration_q1_med_q3"]
+        ft = f"{t[1]:.2f} ({t[0]:.2f}-{t[2]:.2f})" if r["exact"] else "-"
+        fd = f"{d[1]:.2f} ({d[0]:.2f}-{d[2]:.2f})" if r["exact"] else "-"
+        out.append(f"| {r['planner']} | {r['exact']}/{r['runs']} | {ft} | {fd} | "
+                   f"{r['steps_per_second_median']:.0f} |")
+    return "\n".join(out) + "\n"
+
+
+def box_plots(records, planners, time_limit, path, task):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10, 3.6), dpi=100)
+    FigureCanvasAgg(fig)
+    axs = fig.subplots(1, 3)
+    # time: unsolved runs count at the time limit (as OMPL's plots do)
+    data_t = [[r["solve_time"] if r["exact"] else time_limit for r in records if r["planner"] == p]
+              for p in planners]
+    data_d = [[r["path_duration"] for r in records if r["planner"] == p and r["exact"]] or [np.nan]
+              for p in planners]
+    data_s = [[r["steps_per_second"] for r in records if r["planner"] == p] for p in planners]
+    for ax, data, lab in ((axs[0], data_t, "time to exact solution [s]\n(unsolved = time limit)"),
+                          (axs[1], data_d, "path duration [s] (exact runs)"),
+                          (axs[2], data_s, "simulated steps per second")):
+        ax.boxplot(data)
+        ax.set_xticks(range(1, len(planners) + 1), planners)
+        ax.set_title(lab, fontsize=9)
+        ax.tick_params(axis="x", labelrotation=30, labelsize=8)
+    fig.suptitle(f"plan-bench {task}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+
+
+def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out="."):
+    import multiprocessing as mp
+
+    from tqdm import tqdm
+
+    out = Path(out)
+    jobs = int(jobs or os.cpu_count() or 1)
+    jobs = max(1, min(jobs, runs * len(planners)))
+    todo = [(task, p, s, float(time_limit)) for s in range(1, runs + 1) for p in planners]
+    t0 = time.perf_counter()
+    records = []
+    ctx = mp.get_context("spawn")      # a fresh interpreter per worker: no fork of numba/ompl state
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as ex:
+        futs = [ex.submit(_run_one, *a) for a in todo]
+        with tqdm(total=len(futs), desc=f"plan-bench {task}", unit="run") as bar:
+            for f in as_completed(futs):
+                r = f.result()
+                records.append(r)
+                bar.set_postfix_str(f"{r['planner']} seed {r['seed']}: {'exact' if r['exact'] else 'no'}")
+                bar.update()
+    total = time.perf_counter() - t0
+    records.sort(key=lambda r: (planners.index(r["planner"]), r["seed"]))
+    log = out / f"{task}.log"
+    write_log(log, task, planners, records, runs, time_limit, total)
+    wrote = [log]
+    try:
+        wrote.append(make_database(log, out / f"{task}.db"))
+    except (RuntimeError, OSError) as e:
+        print(f"warning: no database: {e}", file=sys.stderr)
+    rows = summarize(records, planners, time_limit)
+    md = summary_markdown(task, rows, runs, time_limit, jobs)
+    (out / "summary.md").write_text(md)
+    (out / "summary.json").write_text(json.dumps(dict(task=task, runs=runs, time_limit=time_limit, jobs=jobs,
+                                                      total_time=total, summary=rows, records=records), indent=1))
+    box_plots(records, planners, time_limit, out / "boxplots.png", task)
+    wrote += [out / "summary.md", out / "summary.json", out / "boxplots.png"]
+    print(md)
+    for w in wrote:
+        print(f"wrote {w}")
+    return rows

@@ -1,0 +1,237 @@
+"""Plan a task, save/load plans as JSON, replay them open loop, and draw them.
+
+Only `plan_task` imports ompl (inside the function).
+"""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from planar_lcp.scene import display_source
+
+from .tasks import TaskError, TaskModel, get_task
+
+PLAN_FORMAT = 1
+
+
+def plan_task(task, planner="KPIECE1", seed=1, time_limit=None, iterations=None, tm=None):
+    """Solve `task` with `planner`. Returns the plan as a dict (see `save_plan`); `tm` may reuse a TaskModel."""
+    import gc
+
+    from ompl import util as ou
+
+    from .adapter import Problem, check_planner
+
+    check_planner(planner)
+    if time_limit is None and iterations is None:
+        raise TaskError("give a time limit (--time) or an iteration budget (--iterations)")
+    if time_limit is not None and iterations is not None:
+        raise TaskError("give either a time limit (--time) or an iteration budget (--iterations), not both")
+    if time_limit is not None and not (math.isfinite(time_limit) and time_limit > 0):
+        raise TaskError(f"the time limit must be > 0 s, got {time_limit}")
+    if iterations is not None and int(iterations) < 1:
+        raise TaskError(f"the iteration budget must be >= 1, got {iterations}")
+    seed = int(seed)
+    if seed < 1:
+        raise TaskError(f"the seed must be >= 1, got {seed}")
+    gc.disable()   # ompl 2.0.1: cyclic GC reads freed memory (see docs/planning.md)
+    # re-seeding a worker that planned before logs "Random number generation already started" but does re-seed
+    # (OMPL's RandomNumbers.cpp); keep that out of the output
+    ou.setLogLevel(ou.LOG_NONE)
+    ou.RNG.setSeed(seed)
+    ou.setLogLevel(ou.LOG_ERROR)
+    prob = Problem(task, planner, tm=tm)
+    res = prob.solve(time_limit=time_limit, iterations=iterations)
+    t = prob.task
+    plan = dict(format=PLAN_FORMAT, task=t.name, scene=display_source(prob.tm.scene), planner=planner, seed=seed,
+                time_limit=time_limit, iterations_budget=iterations, solve_time=res["solve_time"],
+                iterations=res["iterations"], exact=res["exact"], approximate=res["approximate"],
+                propagations=res["propagations"], sim_steps=res["sim_steps"],
+                steps_per_second=res["sim_steps"] / max(res["solve_time"], 1e-9),
+                h=prob.tm.h, step_duration=t.step_duration,
+                state_names=["x", "y", "theta", "vx", "vy", "omega", "pusher_x", "pusher_y"],
+                start=prob.tm.initial_state().tolist(), controls=[], steps=[], durations=[], states=[],
+                path_duration=0.0)
+    if res["exact"] or res["approximate"]:
+        states, controls, steps = prob.solution()
+        plan.update(controls=controls.tolist(), steps=steps.tolist(),
+                    durations=(steps * t.step_duration).tolist(), states=states.tolist(),
+                    path_duration=float(steps.sum() * t.step_duration),
+                    goal=prob.tm.goal_report(states[-1]))
+    return plan
+
+
+def save_plan(plan, path):
+    Path(path).write_text(json.dumps(plan, indent=1) + "\n")
+
+
+def load_plan(path):
+    """Read and check a plan file; a TaskError says what is wrong."""
+    p = Path(path)
+    try:
+        plan = json.loads(p.read_text())
+    except FileNotFoundError:
+        raise TaskError(f"{path}: no such plan file") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise TaskError(f"{path}: cannot read: {e}") from None
+    except json.JSONDecodeError as e:
+        raise TaskError(f"{path}: not a JSON plan file ({e})") from None
+    if not isinstance(plan, dict):
+        raise TaskError(f"{path}: a plan file holds a JSON object, got {type(plan).__name__}")
+    for key in ("task", "controls", "steps", "start"):
+        if key not in plan:
+            raise TaskError(f"{path}: missing key {key!r}")
+    get_task(plan["task"])
+    try:
+        u = np.asarray(plan["controls"], float).reshape(-1, 2)
+        k = np.asarray(plan["steps"], float)
+        x0 = np.asarray(plan["start"], float)
+    except (TypeError, ValueError):
+        raise TaskError(f"{path}: controls must be [[vx, vy], ...], steps a list of integers, start 8 numbers")
+    if len(u) != len(k) or x0.shape != (8,) or np.any(k < 1) or np.any(k != np.rint(k)):
+        raise TaskError(f"{path}: need one positive integer step count per control and an 8-number start, got "
+                        f"{len(u)} controls, {len(k)} step counts, start of shape {x0.shape}")
+    if not (np.all(np.isfinite(u)) and np.all(np.isfinite(x0))):
+        raise TaskError(f"{path}: controls and start must be finite")
+    return plan
+
+
+def replay_lcp(plan, tm=None):
+    """Re-simulate the plan's controls open loop with our simulator, exactly as the planner propagated them.
+
+    Returns dict(final state, report, dense states)."""
+    tm = tm if tm is not None else TaskModel(plan["task"])
+    step_duration = float(plan.get("step_duration", tm.task.step_duration))
+    if abs(step_duration - tm.task.step_duration) > 1e-12:
+        raise TaskError(f"the plan's step_duration {step_duration} differs from the task's "
+                        f"{tm.task.step_duration}")
+    bound, dense, ok = tm.execute(plan["start"], plan["controls"], plan["steps"])
+    x = dense[-1]
+    rep = tm.goal_report(x)
+    rep["simulation_ok"] = bool(ok)
+    rep["goal_holds"] = bool(rep["goal_holds"] and ok and tm.in_bounds(x))
+    return dict(final=x, report=rep, dense=dense, bound=bound, tm=tm)
+
+
+def _frame_poses(tm, X):
+    """Body-frame object poses (n, 1, 3) and kinematic poses (n, nkin, 3) of flat states X (n, 8)."""
+    X = np.asarray(X, float)
+    qf = tm.model.com_to_frame(X[:, None, 0:3])
+    qk = np.repeat(tm.qk0[None], len(X), axis=0)
+    qk[:, tm.ipusher, 0:2] = X[:, 6:8]
+    return qf, qk
+
+
+def plot_plan(tm, X, path, title="", goal_state=None):
+    """A strobe of object and pusher along the states X (n, 8) over the scene, with the goal outline."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from planar_lcp.viz import draw_scene
+
+    qf, qk = _frame_poses(tm, X)
+    fig = Figure(figsize=(7, 5.5), dpi=110)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    n = len(X)
+    idx = np.unique(np.linspace(0, n - 1, min(n, 14)).round().astype(int))
+    # fix the view first: the workspace
+    (ox0, ox1), (oy0, oy1) = tm.task.object_bounds
+    (px0, px1), (py0, py1) = tm.task.pusher_bounds
+    x0, x1 = min(ox0, px0), max(ox1, px1)
+    y0, y1 = min(oy0, py0), max(oy1, py1)
+    if tm.scene.world.plane == "vertical":
+        y0 = min(y0, -0.05)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_autoscale_on(False)
+    for j, i in enumerate(idx):
+        a = 0.15 + 0.85 * (j + 1) / len(idx)
+        draw_scene(ax, tm.scene, qf[i], qk[i], alpha=a)
+    ax.plot(X[:, 0], X[:, 1], "-", color="tab:blue", lw=1, label="object COM")
+    ax.plot(X[:, 6], X[:, 7], "-", color="tab:red", lw=1, label="pusher")
+    g = tm.task.goal
+    if g["kind"] in ("pose", "cover"):
+        xs, ys = tm.goal_poly.exterior.xy
+        ax.plot(xs, ys, "--", color="tab:green", lw=1.5, label="goal")
+    elif tm.task.ledge_x is not None:
+        ax.axvline(tm.task.ledge_x, color="tab:green", ls="--", lw=1, label="ledge")
+    ax.legend(loc="upper left", fontsize=8)
+    ax.set_title(title, fontsize=9)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    fig.savefig(path)
+
+
+def animate_plan(tm, X, path, fps=20, max_frames=120):
+    from matplotlib.animation import PillowWriter
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from planar_lcp.viz import draw_scene
+
+    qf, qk = _frame_poses(tm, X)
+    idx = np.unique(np.linspace(0, len(X) - 1, min(len(X), max_frames)).round().astype(int))
+    fig = Figure(figsize=(5, 4), dpi=80)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    (ox0, ox1), (oy0, oy1) = tm.task.object_bounds
+    (px0, px1), (py0, py1) = tm.task.pusher_bounds
+    y0 = min(oy0, py0) if tm.scene.world.plane != "vertical" else min(oy0, py0, -0.05)
+    writer = PillowWriter(fps=fps)
+    with writer.saving(fig, str(path), dpi=80):
+        for i in idx:
+            ax.clear()
+            ax.set_xlim(min(ox0, px0), max(ox1, px1))
+            ax.set_ylim(y0, max(oy1, py1))
+            ax.set_autoscale_on(False)
+            if tm.task.goal["kind"] in ("pose", "cover"):
+                xs, ys = tm.goal_poly.exterior.xy
+                ax.plot(xs, ys, "--", color="tab:green", lw=1.5)
+            draw_scene(ax, tm.scene, qf[i], qk[i])
+            ax.set_title(f"{tm.task.name}  t = {i * tm.task.step_duration:.2f} s", fontsize=9)
+            writer.grab_frame()
+
+
+def replay_pymunk(plan, tm=None):
+    """Re-simulate the plan's controls open loop in pymunk (planar_lcp.pymunk_bridge), from the scene's start.
+
+    The pusher's velocity is set to each control in turn; the space is stepped with the scene's h. Returns the
+    same dict as `replay_lcp` (the goal is judged by the same task test)."""
+    try:
+        from planar_lcp.pymunk_bridge import build_space, read_state
+    except ImportError as e:  # the bridge, or pymunk itself
+        raise ImportError(f"planar_lcp.pymunk_bridge cannot be used ({e})") from None
+    tm = tm if tm is not None else TaskModel(plan["task"])
+    space, hd = build_space(tm.scene, h=tm.h)
+    pusher = hd.bodies[tm.task.pusher]
+    com = tm.model.com_local[0]
+
+    def flat():
+        q, v, qk = read_state(hd)
+        qc = tm.model.frame_to_com(q)[0]
+        c, s = math.cos(q[0, 2]), math.sin(q[0, 2])
+        rx, ry = c * com[0] - s * com[1], s * com[0] + c * com[1]
+        w = v[0, 2]
+        x = np.array([qc[0], qc[1], qc[2], v[0, 0] - w * ry, v[0, 1] + w * rx, w,
+                      qk[hd.kinematic_names.index(tm.task.pusher), 0],
+                      qk[hd.kinematic_names.index(tm.task.pusher), 1]])
+        x[2] = math.atan2(math.sin(x[2]), math.cos(x[2]))
+        return x
+
+    dense = [flat()]
+    for u, k in zip(np.asarray(plan["controls"], float), np.asarray(plan["steps"], int)):
+        pusher.velocity = (float(u[0]), float(u[1]))
+        pusher.angular_velocity = 0.0
+        for _ in range(int(k)):
+            for _ in range(tm.steps_per_prop):
+                space.step(tm.h)
+            dense.append(flat())
+    dense = np.array(dense)
+    x = dense[-1]
+    rep = tm.goal_report(x)
+    rep["simulation_ok"] = bool(np.all(np.isfinite(dense)))
+    rep["goal_holds"] = bool(rep["goal_holds"] and tm.in_bounds(x))
+    return dict(final=x, report=rep, dense=dense, bound=None, tm=tm)

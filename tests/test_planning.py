@@ -1,0 +1,148 @@
+"""Planning with OMPL over the LCP simulator (planners/). Skipped when ompl is not installed.
+
+The OMPL work runs in subprocesses: the 2.0.1 bindings must run with the cyclic GC off (see docs/planning.md), and
+a subprocess keeps that, and nanobind's exit-time leak report, out of the test process."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("ompl")
+pytest.importorskip("shapely")
+
+ROOT = Path(__file__).resolve().parent.parent
+CLI = [sys.executable, "-c", "import sys; from planar_lcp.cli import main; sys.exit(main())"]
+
+
+def run_cli(*args, timeout=120):
+    return subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True, timeout=timeout, cwd=ROOT)
+
+
+@pytest.fixture(scope="module")
+def tip_plan(tmp_path_factory):
+    out = tmp_path_factory.mktemp("tip")
+    r = run_cli("plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--out", out,
+                "--no-gif")
+    return r, out
+
+
+def test_small_problem_solves_and_replays_to_goal(tip_plan):
+    r, out = tip_plan
+    assert r.returncode == 0, r.stdout + r.stderr
+    plan = json.loads((out / "plan.json").read_text())
+    assert plan["exact"] and plan["task"] == "tip_box" and plan["planner"] == "RRT" and plan["seed"] == 1
+    assert len(plan["controls"]) == len(plan["steps"]) == len(plan["durations"]) == len(plan["states"]) - 1
+    assert (out / "plan.png").stat().st_size > 1000
+    rr = run_cli("replay", out / "plan.json", "--out", out)
+    assert rr.returncode == 0, rr.stdout + rr.stderr
+    assert "goal_holds     True" in rr.stdout
+
+
+def test_replay_reproduces_planner_states_exactly(tip_plan):
+    from planners.plan import load_plan, replay_lcp
+    _, out = tip_plan
+    plan = load_plan(out / "plan.json")
+    res = replay_lcp(plan)
+    # the states at the control boundaries are the planner's, bit for bit
+    np.testing.assert_array_equal(res["bound"], np.array(plan["states"]))
+    assert res["report"]["goal_holds"]
+    # and the goal test is not vacuous: the start is far from it
+    assert res["tm"].goal_distance(np.array(plan["start"])) > 5
+
+
+def test_plan_json_round_trips(tip_plan, tmp_path):
+    from planners.plan import load_plan, save_plan
+    _, out = tip_plan
+    plan = load_plan(out / "plan.json")
+    save_plan(plan, tmp_path / "p.json")
+    assert load_plan(tmp_path / "p.json") == plan
+
+
+def test_same_seed_and_iterations_give_the_same_plan(tip_plan, tmp_path):
+    _, out = tip_plan
+    r = run_cli("plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--out", tmp_path,
+                "--no-gif")
+    assert r.returncode == 0, r.stderr
+    a = json.loads((out / "plan.json").read_text())
+    b = json.loads((tmp_path / "plan.json").read_text())
+    for key in ("controls", "steps", "states", "iterations", "sim_steps"):
+        assert a[key] == b[key], key
+    r2 = run_cli("plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "2", "--out",
+                 tmp_path / "s2", "--no-gif")
+    c = json.loads((tmp_path / "s2" / "plan.json").read_text())
+    assert c["controls"] != a["controls"], r2.stderr
+
+
+def test_bad_names_bounds_and_files_give_clear_errors(tmp_path):
+    r = run_cli("plan", "push_sofa", "--iterations", "1")
+    assert r.returncode == 2 and "unknown task 'push_sofa'" in r.stderr and "push_box" in r.stderr
+    r = run_cli("plan", "tip_box", "--planner", "SST", "--iterations", "1")
+    assert r.returncode == 2 and "unknown planner 'SST'" in r.stderr and "KPIECE1" in r.stderr
+    r = run_cli("plan", "tip_box", "--time", "-3")
+    assert r.returncode == 2 and "--time" in r.stderr and "must be > 0" in r.stderr
+    r = run_cli("plan", "tip_box", "--time", "1", "--iterations", "5")
+    assert r.returncode == 2 and "not both" in r.stderr
+    r = run_cli("replay", tmp_path / "missing.json")
+    assert r.returncode == 2 and "no such plan file" in r.stderr
+    (tmp_path / "bad.json").write_text("{not json")
+    r = run_cli("replay", tmp_path / "bad.json")
+    assert r.returncode == 2 and "not a JSON plan file" in r.stderr
+    (tmp_path / "short.json").write_text(json.dumps({"task": "tip_box", "controls": [[0.1, 0]], "steps": [],
+                                                     "start": [0] * 8}))
+    r = run_cli("replay", tmp_path / "short.json")
+    assert r.returncode == 2 and "one positive integer step count per control" in r.stderr
+    r = run_cli("plan-bench", "tip_box", "--planners", "RRT", "PDST")
+    assert r.returncode == 2 and "unknown planner 'PDST'" in r.stderr
+
+
+def test_bad_task_definitions_are_rejected():
+    import dataclasses
+
+    from planners.tasks import TASKS, TaskError, TaskModel, get_task
+    with pytest.raises(TaskError, match="valid tasks: push_box, push_t, tip_box"):
+        get_task("nope")
+    t = TASKS["tip_box"]
+    with pytest.raises(TaskError, match="low < high"):
+        TaskModel(dataclasses.replace(t, object_bounds=((0.3, -0.3), (0.0, 0.25))))
+    with pytest.raises(TaskError, match="start state .* outside the task bounds"):
+        TaskModel(dataclasses.replace(t, object_bounds=((0.1, 0.3), (0.0, 0.25))))
+    with pytest.raises(TaskError, match="multiple of the scene's h"):
+        TaskModel(dataclasses.replace(t, step_duration=0.015))
+    with pytest.raises(TaskError, match="no kinematic body 'hand'"):
+        TaskModel(dataclasses.replace(t, pusher="hand"))
+
+
+def test_goal_and_validity_tests():
+    import math
+
+    from planners.tasks import TaskModel
+    tm = TaskModel("push_box")
+    g = tm.goal_com.copy()
+    x = tm.initial_state()
+    x[0:3] = g
+    assert tm.goal_distance(x) == 0
+    x[0] += 0.011
+    assert tm.goal_distance(x) > 1
+    x[0] -= 0.002
+    x[2] += math.radians(9)
+    assert tm.goal_distance(x) <= 1
+    y = tm.initial_state()
+    y[6:8] = (0.13, -0.03)          # the pusher inside the static block
+    assert not tm.valid(y)
+    tt = TaskModel("push_t")
+    z = tt.initial_state()
+    z[0:3] = tt.goal_com
+    assert tt.cover(z) == pytest.approx(1.0)
+    z[1] += 0.004                    # 4 mm off: the T's bar is 30 mm wide, so the cover drops below 95%
+    assert tt.cover(z) < 0.95 and tt.goal_distance(z) > 1
+
+
+def test_import_planar_lcp_does_not_import_ompl():
+    r = subprocess.run([sys.executable, "-c", "import sys, planar_lcp, planar_lcp.cli; "
+                        "planar_lcp.cli.build_parser(); print('ompl' in sys.modules)"],
+                       capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert r.stdout.strip() == "False", r.stderr
