@@ -34,8 +34,14 @@ MODE_SEPARATED, MODE_STICKING, MODE_SLIDING = 0, 1, 2
 
 # stats vector layout
 ST_LCP_SIZE, ST_LCP_MAX, ST_PIVOTS, ST_LEMKE_STATUS, ST_NCON, ST_NISLAND, ST_FP_ITERS, ST_RESOLVES, \
-    ST_RESIDUAL, ST_FP_CHANGE, ST_PGS_UPDATE, ST_PENETRATION = range(12)
-NSTAT = 12
+    ST_RESIDUAL, ST_FP_CHANGE, ST_PGS_UPDATE, ST_PENETRATION, ST_LEMKE_RETRIES = range(13)
+NSTAT = 13
+
+# Pivot tolerances tried, in order, when Lemke fails on an island: a nearly degenerate contact LCP (a rod lying flat:
+# its two contacts' friction columns differ only by round-off-sized lever arms) can offer a pivot ~1e-7 of its column
+# that blows the tableau up and ends on a false ray. Rejecting such pivots solves it; the answer is still certified by
+# the residual on the original data, so a retry can never make a wrong z "solved".
+RETRY_PIV_TOLS = (1e-6, 1e-4)
 
 StepOptions = namedtuple("StepOptions", [
     "solver", "formulation", "fp_iters", "fp_tol", "pgs_iters", "margin", "pen_tol", "max_resolves",
@@ -150,6 +156,15 @@ def _solve_island(m, w, opt, poses, vk, isl, ncon, h, velocity_form, stats):
         status, piv, res = lemke_kernel(A, w.bvec[:n], 50 * n + 100, opt.piv_tol, opt.ratio_tol, opt.res_tol, T,
                                         w.lbasis, w.lz, w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt,
                                         w.lwalt, w.lprow)
+        for retry_tol in RETRY_PIV_TOLS:
+            if status == STATUS_SOLVED or retry_tol <= opt.piv_tol:
+                continue
+            stats[ST_LEMKE_RETRIES] += 1
+            pivots_before = piv
+            status, piv, res = lemke_kernel(A, w.bvec[:n], 50 * n + 100, retry_tol, opt.ratio_tol, opt.res_tol, T,
+                                            w.lbasis, w.lz, w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt,
+                                            w.lwalt, w.lprow)
+            piv += pivots_before
         stats[ST_LCP_SIZE] += n
         stats[ST_LCP_MAX] = max(stats[ST_LCP_MAX], n)
         stats[ST_PIVOTS] += piv
