@@ -22,7 +22,7 @@ import numpy as np
 
 from .kernels.assemble import apply_impulses, assemble_lcp
 from .kernels.lemke import STATUS_INACCURATE, STATUS_SOLVED
-from .kernels.step import (FORM_VELOCITY, SOLVER_PGS, _solve_island, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_STATUS, ST_RESIDUAL, _problem_sizes,
+from .kernels.step import (FORM_VELOCITY, SOLVER_PGS, _contact_velocities, _solve_island, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_STATUS, ST_RESIDUAL, _problem_sizes,
                            _record_impulses, begin_step, finish_step, integrate_positions, needs_another_solve,
                            prepare_contacts)
 
@@ -110,6 +110,7 @@ def _solve_island_osqp(m, w, opt, vk, isl, ncon, h, velocity_form, stats, osqp_e
     apply_impulses(nforce, w.col_dyn, w.col_g, x, m, w.v_new)
     w.isl_con[:nci] = isl_con
     _record_impulses(m, w, nci, x, False, nci)
+    _contact_velocities(m, w, opt, w.poses, vk, w.isl_con, nci)
     return STATUS_SOLVED
 
 

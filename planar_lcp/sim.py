@@ -181,7 +181,9 @@ class Trajectory:
         re-solved with a stricter pivot tolerance after a failure), status (0 ok, 1 LCP failed,
         2 non-finite); energy (T,) J.
     contacts : dict of per-step contact arrays (count (T-1,), then (T-1, C[, 2]): pair, phi, normal, point, cn, ft,
-        vt, mode with mode 0 separated, 1 sticking, 2 sliding) and `shape_pairs` naming each pair's bodies.
+        vt, mode with mode 0 separated, 1 sticking, 2 sliding) and `shape_pairs` naming each pair's bodies. The
+        rows of a step are the contacts in the order they were found (not matched across steps). vt and mode use the
+        geometry the LCP was solved with (the linearization pose).
     failures : list of (step index, t, cause) recorded with on_failure="record".
     """
 
@@ -277,8 +279,9 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     a = model.arrays
     names = [b.name for b in scene.bodies]
     pairs = [(names[a.shape_body[pa]], names[a.shape_body[pb]]) for pa, pb in zip(a.pair_a, a.pair_b)]
-    contacts = {k[4:]: out[k][:done] for k in ("con_count", "con_pair", "con_phi", "con_n", "con_p", "con_cn",
-                                               "con_ft", "con_vt", "con_mode")}
+    key_names = {"con_n": "normal", "con_p": "point"}
+    contacts = {key_names.get(k, k[4:]): out[k][:done] for k in ("con_count", "con_pair", "con_phi", "con_n", "con_p",
+                                                             "con_cn", "con_ft", "con_vt", "con_mode")}
     contacts["shape_pairs"] = pairs
     return Trajectory(t=np.arange(T) * h, q=model.com_to_frame(q_com), v=_frame_velocity(model, q_com, v_com),
                       q_com=q_com, v_com=v_com, qk=out["qk"][:T], body_names=model.dyn_names,

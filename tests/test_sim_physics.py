@@ -306,3 +306,18 @@ def test_nearly_degenerate_flat_rod_lcp_is_solved_by_the_pivot_tolerance_retry()
     tr = simulate(shift_scene(load_scene("falling_rod"), 0.017148085531751386), h=0.005)   # raises on failure
     assert tr.stats["lemke_retries"][108] >= 1
     assert tr.stats["residual"][108] <= 1e-9 * 40
+
+
+def test_contact_mode_agrees_with_the_lcp_at_impact():
+    """The rod's impact step: the LCP's friction is inside the cone (|f_t| < mu c_n), so the contact sticks; the
+    reported slip is measured with the LCP's own geometry and is zero to round-off."""
+    tr = simulate("falling_rod")
+    c = tr.contacts
+    k = int(np.argmax(c["count"] > 0))
+    assert c["cn"][k, 0] > 0 and abs(c["ft"][k, 0]) < 0.6 * c["cn"][k, 0]
+    assert c["mode"][k, 0] == 1 and abs(c["vt"][k, 0]) < 1e-12
+    assert set(c) >= {"count", "pair", "phi", "normal", "point", "cn", "ft", "vt", "mode", "shape_pairs"}
+    # sliding contacts do slide: the box sliding down the incline
+    inc = simulate("block_on_incline")
+    sliding = inc.contacts["mode"][10:, :2]
+    assert np.all(sliding == 2) and np.all(np.abs(inc.contacts["vt"][10:, :2]) > 1e-3)

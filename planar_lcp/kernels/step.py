@@ -172,6 +172,7 @@ def _solve_island(m, w, opt, poses, vk, isl, ncon, h, velocity_form, stats):
         if status == STATUS_SOLVED:
             apply_impulses(nci + 2 * nf + k * nsi, w.col_dyn, w.col_g, w.lz, m, w.v_new)
             _record_impulses(m, w, nci, w.lz, False, nci)
+            _contact_velocities(m, w, opt, poses, vk, w.isl_con, nci)
             return status
         stats[ST_LEMKE_STATUS] = max(stats[ST_LEMKE_STATUS], status)
     # PGS: asked for, or the fallback when Lemke failed on this island (the failure is returned)
@@ -185,6 +186,7 @@ def _solve_island(m, w, opt, poses, vk, isl, ncon, h, velocity_form, stats):
     stats[ST_LCP_MAX] = max(stats[ST_LCP_MAX], n)
     apply_impulses(n, w.col_dyn, w.col_g, w.zvec, m, w.v_new)
     _record_impulses(m, w, nci, w.zvec, True, 0)
+    _contact_velocities(m, w, opt, poses, vk, w.isl_con, nci)
     return status
 
 
@@ -212,11 +214,14 @@ def _check_end_configuration(m, w, opt, qk_new, stats):
 
 
 @njit(cache=True)
-def _contact_velocities(m, w, opt, vk, ncon, qk_new):
-    """Post-step normal and tangential relative velocity (A minus B) at each contact, and its mode:
-    separated (normal impulse <= impulse_tol), sliding (|tangential velocity| > slip_tol), else sticking."""
-    body_poses(m, w.q_new, qk_new, w.poses)
-    for j in range(ncon):
+def _contact_velocities(m, w, opt, poses, vk, isl_con, nci):
+    """Post-solve normal and tangential relative velocity (A minus B) of an island's contacts, and their mode:
+    separated (normal impulse <= impulse_tol), sliding (|tangential velocity| > slip_tol), else sticking.
+
+    Measured with the geometry the LCP used (lever arms at the linearization pose `poses`), so that a contact the
+    LCP solved as sticking has zero slip here, not the O(h) difference of the end-of-step geometry."""
+    for a in range(nci):
+        j = isl_con[a]
         p = w.con_pair[j]
         nx = w.con_n[j, 0]
         ny = w.con_n[j, 1]
@@ -232,8 +237,8 @@ def _contact_velocities(m, w, opt, vk, ncon, qk_new):
                 vel = w.v_new[m.body_slot[b]]
             else:
                 vel = vk[m.body_slot[b]]
-            rx = w.con_p[j, 0] - w.poses[b, 0]
-            ry = w.con_p[j, 1] - w.poses[b, 1]
+            rx = w.con_p[j, 0] - poses[b, 0]
+            ry = w.con_p[j, 1] - poses[b, 1]
             px = vel[0] - vel[2] * ry
             py = vel[1] + vel[2] * rx
             vn += sgn * (px * nx + py * ny)
@@ -378,7 +383,6 @@ def finish_step(m, w, opt, vk, ncon, qk_out, q_out, v_out, stats, fp_iter, worst
         for p in range(w.set_count.shape[0]):
             w.set_count[p] = 2
         _check_end_configuration(m, w, opt, qk_out, stats)
-    _contact_velocities(m, w, opt, vk, ncon, qk_out)
     stats[ST_NCON] = ncon
     stats[ST_FP_ITERS] = fp_iter
     finite = True

@@ -25,11 +25,8 @@ def step_sizes(quick):
 
 
 def contact_array(contacts, name):
-    """A per-step contact array by its documented name ("normal", "point", ...), whichever key the Trajectory uses."""
-    short = {"normal": "n", "point": "p"}
-    if name in contacts:
-        return contacts[name]
-    return contacts[short[name]]
+    """A per-step contact array of Trajectory.contacts by its documented name ("normal", "point", "cn", ...)."""
+    return contacts[name]
 
 
 def active_contacts(traj, k, min_cn=0.0):
