@@ -143,7 +143,7 @@ def format_lcp_table(rows, compile_times=None):
     return "\n".join(lines)
 
 
-STEP_SCENES = ("falling_rod", "box_push")
+STEP_SCENES = ("falling_rod", "box_push", "box_tip", "push_t")
 
 _STEP_COMPILE_SNIPPET = (
     "import time; t0 = time.perf_counter()\n"
@@ -169,8 +169,23 @@ def measure_step_compile_time():
                 warm_first_simulate_s=out[1][1])
 
 
-def bench_step(scenes=STEP_SCENES, rounds=5):
-    """Microseconds per step of our stepper (one jitted rollout over the scene's duration, warm JIT)."""
+def _time_pymunk_median(scene, n, rounds):
+    """Median seconds for n pymunk steps over `rounds` fresh spaces (the same statistic as ours)."""
+    from .pymunk_bridge import build_space
+    times = []
+    for _ in range(rounds):
+        space, _handles = build_space(scene, h=scene.sim.h)
+        step = space.step
+        t0 = time.perf_counter()
+        for _i in range(n):
+            step(scene.sim.h)
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def bench_step(scenes=STEP_SCENES, rounds=5, pymunk=True):
+    """Microseconds per step of our stepper (one jitted rollout over the scene's duration, warm JIT) and, in the same
+    run, of pymunk on the same scene and h through planar_lcp.pymunk_bridge (10 iterations, its defaults)."""
     from .model import compile_scene
     from .scene import load_scene
     from .sim import SimOptions, Simulator
@@ -188,81 +203,33 @@ def bench_step(scenes=STEP_SCENES, rounds=5):
             out = sim.rollout(q, v, qk, vk[None], n)
             times.append(time.perf_counter() - t0)
         st = out["stats"]
-        rows.append(dict(scene=name, steps=n, h=sc.sim.h, us_per_step=statistics.median(times) / n * 1e6,
-                         mean_lcp_size=float(st[:, 0].mean()), max_lcp_size=int(st[:, 1].max()),
-                         pivots_per_step=float(st[:, 2].mean())))
+        row = dict(scene=name, steps=n, h=sc.sim.h, us_per_step=statistics.median(times) / n * 1e6,
+                   mean_lcp_size=float(st[:, 0].mean()), max_lcp_size=int(st[:, 1].max()),
+                   pivots_per_step=float(st[:, 2].mean()))
+        if pymunk:
+            row["pymunk_us_per_step"] = _time_pymunk_median(sc, n, rounds) / n * 1e6
+            row["ratio"] = row["us_per_step"] / row["pymunk_us_per_step"]
+        rows.append(row)
     return rows
 
 
 def format_step_table(rows, compile_times=None):
-    lines = ["| scene | steps | h (s) | µs / step | mean LCP size | largest LCP | pivots / step |",
-             "|---|---:|---:|---:|---:|---:|---:|"]
+    lines = ["| scene | steps | h (s) | ours µs / step | pymunk µs / step | ratio ours/pymunk | mean LCP size | "
+             "largest LCP | pivots / step |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
-        lines.append(f"| {r['scene']} | {r['steps']} | {r['h']} | {r['us_per_step']:.1f} | {r['mean_lcp_size']:.1f} | "
-                     f"{r['max_lcp_size']} | {r['pivots_per_step']:.1f} |")
+        pm = f"{r['pymunk_us_per_step']:.1f} | {r['ratio']:.1f}" if "ratio" in r else "- | -"
+        lines.append(f"| {r['scene']} | {r['steps']} | {r['h']} | {r['us_per_step']:.1f} | {pm} | "
+                     f"{r['mean_lcp_size']:.1f} | {r['max_lcp_size']} | {r['pivots_per_step']:.1f} |")
+    if any("ratio" in r for r in rows):
+        lines.append("")
+        lines.append("target: ratio <= 1.0 on each scene (pymunk through planar_lcp.pymunk_bridge, 10 iterations)")
     if compile_times:
         lines.append("")
         lines.append(f"first simulate() with a fresh numba cache (compile): {compile_times['cold_first_simulate_s']:.1f} s "
                      f"(import {compile_times['cold_import_s']:.2f} s); with the cache warm: "
-                     f"{compile_times['warm_first_simulate_s']:.2f} s (import {compile_times['warm_import_s']:.2f} s)")
-    return "\n".join(lines)
-
-
-SCALING_SIZES = (1, 2, 4, 8, 16, 32, 64)
-
-
-def _scaling_scene(n, kind):
-    """n boxes (0.2 x 0.1 m, 1 kg) on a table: a tower (one island: every box touches the next) or a row of
-    separate boxes 0.5 m apart (n islands)."""
-    from .scene import parse_scene
-    bodies = []
-    for i in range(n):
-        pos = [0.0, 0.05 + 0.1 * i] if kind == "pile" else [0.5 * i, 0.05]
-        bodies.append({"name": f"b{i}", "type": "dynamic", "mass": 1.0, "position": pos,
-                       "shapes": [{"type": "box", "width": 0.2, "height": 0.1}]})
-    bodies.append({"name": "table", "type": "static",
-                   "shapes": [{"type": "halfplane", "point": [0.0, 0.0], "normal": [0.0, 1.0]}]})
-    return parse_scene({"name": f"{kind}_{n}", "world": {"plane": "vertical", "gravity": [0.0, -9.81],
-                                                           "friction": 0.5},
-                        "sim": {"h": 0.005, "t_end": 0.1}, "bodies": bodies}, source=f"<{kind} of {n}>")
-
-
-def bench_scaling(sizes=SCALING_SIZES, steps=20):
-    """Cost per step of a tower of n boxes (one island, LCP of 8 n unknowns) and of n separate boxes (n islands of
-    8 unknowns), with the growth exponent fitted on log(cost) against log(n) over n >= 4."""
-    from .model import compile_scene
-    from .sim import SimOptions, Simulator
-    rows = []
-    for kind in ("pile", "islands"):
-        for n in sizes:
-            sim = Simulator(compile_scene(_scaling_scene(n, kind)), SimOptions(h=0.005))
-            q, v, qk, vk = sim.initial_state()
-            sim.rollout(q, v, qk, vk[None], 2)
-            reps = max(1, int(200 / n))
-            times = []
-            for _ in range(3):
-                t0 = time.perf_counter()
-                for _ in range(reps):
-                    out = sim.rollout(q, v, qk, vk[None], steps)
-                times.append((time.perf_counter() - t0) / (reps * steps))
-            rows.append(dict(kind=kind, bodies=n, us_per_step=statistics.median(times) * 1e6,
-                             lcp_max=int(out["stats"][:, 1].max()), pivots_per_step=float(out["stats"][:, 2].mean())))
-    fits = {}
-    for kind in ("pile", "islands"):
-        pts = [(r["bodies"], r["us_per_step"]) for r in rows if r["kind"] == kind and r["bodies"] >= 4]
-        x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
-        fits[kind] = float(np.polyfit(x, y, 1)[0])
-    return rows, fits
-
-
-def format_scaling_table(rows, fits):
-    lines = ["| layout | bodies | µs / step | largest LCP | pivots / step |", "|---|---:|---:|---:|---:|"]
-    for r in rows:
-        lines.append(f"| {r['kind']} | {r['bodies']} | {r['us_per_step']:.1f} | {r['lcp_max']} | "
-                     f"{r['pivots_per_step']:.1f} |")
-    lines.append("")
-    lines.append(f"fitted growth exponent (cost ~ n^p over n >= 4): pile p = {fits['pile']:.2f} (one island: "
-                 f"Lemke on a dense tableau), islands p = {fits['islands']:.2f}")
+                     f"{compile_times['warm_first_simulate_s']:.2f} s (import {compile_times['warm_import_s']:.2f} s); "
+                     f"targets <= 20 s and <= 2 s")
     return "\n".join(lines)
 
 
