@@ -233,6 +233,64 @@ def format_step_table(rows, compile_times=None):
     return "\n".join(lines)
 
 
+SCALING_SIZES = (1, 2, 4, 8, 16, 32, 64)
+
+
+def _scaling_scene(n, kind):
+    """n boxes (0.2 x 0.1 m, 1 kg) on a table: a tower (one island: every box touches the next) or a row of
+    separate boxes 0.5 m apart (n islands)."""
+    from .scene import parse_scene
+    bodies = []
+    for i in range(n):
+        pos = [0.0, 0.05 + 0.1 * i] if kind == "pile" else [0.5 * i, 0.05]
+        bodies.append({"name": f"b{i}", "type": "dynamic", "mass": 1.0, "position": pos,
+                       "shapes": [{"type": "box", "width": 0.2, "height": 0.1}]})
+    bodies.append({"name": "table", "type": "static",
+                   "shapes": [{"type": "halfplane", "point": [0.0, 0.0], "normal": [0.0, 1.0]}]})
+    return parse_scene({"name": f"{kind}_{n}", "world": {"plane": "vertical", "gravity": [0.0, -9.81],
+                                                           "friction": 0.5},
+                        "sim": {"h": 0.005, "t_end": 0.1}, "bodies": bodies}, source=f"<{kind} of {n}>")
+
+
+def bench_scaling(sizes=SCALING_SIZES, steps=20):
+    """Cost per step of a tower of n boxes (one island, LCP of 8 n unknowns) and of n separate boxes (n islands of
+    8 unknowns), with the growth exponent fitted on log(cost) against log(n) over n >= 4."""
+    from .model import compile_scene
+    from .sim import SimOptions, Simulator
+    rows = []
+    for kind in ("pile", "islands"):
+        for n in sizes:
+            sim = Simulator(compile_scene(_scaling_scene(n, kind)), SimOptions(h=0.005))
+            q, v, qk, vk = sim.initial_state()
+            sim.rollout(q, v, qk, vk[None], 2)
+            reps = max(1, int(200 / n))
+            times = []
+            for _ in range(3):
+                t0 = time.perf_counter()
+                for _ in range(reps):
+                    out = sim.rollout(q, v, qk, vk[None], steps)
+                times.append((time.perf_counter() - t0) / (reps * steps))
+            rows.append(dict(kind=kind, bodies=n, us_per_step=statistics.median(times) * 1e6,
+                             lcp_max=int(out["stats"][:, 1].max()), pivots_per_step=float(out["stats"][:, 2].mean())))
+    fits = {}
+    for kind in ("pile", "islands"):
+        pts = [(r["bodies"], r["us_per_step"]) for r in rows if r["kind"] == kind and r["bodies"] >= 4]
+        x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+        fits[kind] = float(np.polyfit(x, y, 1)[0])
+    return rows, fits
+
+
+def format_scaling_table(rows, fits):
+    lines = ["| layout | bodies | µs / step | largest LCP | pivots / step |", "|---|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['kind']} | {r['bodies']} | {r['us_per_step']:.1f} | {r['lcp_max']} | "
+                     f"{r['pivots_per_step']:.1f} |")
+    lines.append("")
+    lines.append(f"fitted growth exponent (cost ~ n^p over n >= 4): pile p = {fits['pile']:.2f} (one island: "
+                 f"Lemke on a dense tableau), islands p = {fits['islands']:.2f}")
+    return "\n".join(lines)
+
+
 def run_bench(which, json_path=None):
     report = {}
     if which in ("scaling", "all"):

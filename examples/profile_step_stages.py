@@ -1,0 +1,72 @@
+"""Where the time of one step goes: each stage timed in a jitted loop (no Python dispatch in the measurement).
+
+Used for docs/performance.md:   python examples/profile_step_stages.py
+"""
+
+import time
+
+import numpy as np
+from numba import njit
+
+import planar_lcp.kernels.step as S
+from planar_lcp.model import compile_scene
+from planar_lcp.scene import load_scene
+from planar_lcp.sim import SimOptions, Simulator
+
+
+@njit
+def _full(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st, n):
+    for _ in range(n):
+        S.step_kernel(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st)
+
+
+@njit
+def _contacts(m, q, v, qk, vk, h, opt, w, qko, st, n):
+    for _ in range(n):
+        S.begin_step(m, q, v, qk, vk, h, opt, w, qko, st)
+        S.prepare_contacts(m, w, opt, qko, st)
+
+
+@njit
+def _solve(m, q, v, qk, vk, h, opt, w, qko, st, n):
+    S.begin_step(m, q, v, qk, vk, h, opt, w, qko, st)
+    ncon, nisl = S.prepare_contacts(m, w, opt, qko, st)
+    for _ in range(n):
+        for isl in range(nisl):
+            S._solve_island(m, w, opt, w.poses, vk, isl, ncon, h, False, st)
+
+
+@njit
+def _check(m, q, v, qk, vk, h, opt, w, qko, st, n):
+    for _ in range(n):
+        S._check_end_configuration(m, w, opt, qko, st)
+
+
+def profile(name, at_step, n=20000):
+    sc = load_scene(name)
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
+    q, v, qk, vk = sim.initial_state()
+    out = sim.rollout(q, v, qk, vk[None], at_step)
+    q, v, qk = out["q"][at_step].copy(), out["v"][at_step].copy(), out["qk"][at_step].copy()
+    m, w, opt, h = sim.model.arrays, sim.work, sim.kopt, sim.h
+    qo, vo, qko, st = np.empty_like(q), np.empty_like(v), np.empty_like(qk), np.zeros(S.NSTAT)
+    res = {}
+    for label, f, args in (("whole step", _full, (m, q, v, qk, vk, h, opt, w, qo, vo, qko, st)),
+                           ("contacts + islands", _contacts, (m, q, v, qk, vk, h, opt, w, qko, st)),
+                           ("island solves (assembly + Lemke)", _solve, (m, q, v, qk, vk, h, opt, w, qko, st)),
+                           ("end-of-step check", _check, (m, q, v, qk, vk, h, opt, w, qko, st))):
+        f(*args, 2)
+        t0 = time.perf_counter()
+        f(*args, n)
+        res[label] = (time.perf_counter() - t0) / n * 1e6
+    _full(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st, 1)
+    return res, int(st[S.ST_LCP_SIZE])
+
+
+print("| scene (state) | LCP size | whole step (µs) | contacts + islands | island solves (assembly + Lemke) | "
+      "end-of-step check |")
+print("|---|---:|---:|---:|---:|---:|")
+for name, at in (("falling_rod", 300), ("box_push", 100), ("push_t", 100)):
+    r, n = profile(name, at)
+    print(f"| {name} (step {at}) | {n} | {r['whole step']:.1f} | {r['contacts + islands']:.1f} | "
+          f"{r['island solves (assembly + Lemke)']:.1f} | {r['end-of-step check']:.1f} |")
