@@ -105,17 +105,22 @@ _COMPILE_SNIPPET = (
 )
 
 
-def measure_compile_time():
-    """First-call JIT compile time (fresh NUMBA_CACHE_DIR) and the same call with the cache warm, in subprocesses."""
+def _cold_and_warm(snippet):
+    """Run `snippet` (which prints two timings) in a subprocess twice with one fresh NUMBA_CACHE_DIR: the first run
+    compiles, the second loads the cache. Returns [(t1, t2) cold, (t1, t2) warm]."""
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
         env.pop("NUMBA_DISABLE_JIT", None)
         out = []
         for _ in range(2):
-            p = subprocess.run([sys.executable, "-c", _COMPILE_SNIPPET], env=env, capture_output=True, text=True,
-                               check=True)
-            imp, call = map(float, p.stdout.split())
-            out.append((imp, call))
+            p = subprocess.run([sys.executable, "-c", snippet], env=env, capture_output=True, text=True, check=True)
+            out.append(tuple(map(float, p.stdout.split())))
+    return out
+
+
+def measure_compile_time():
+    """First-call JIT compile time of lemke() (fresh cache) and the same call with the cache warm."""
+    out = _cold_and_warm(_COMPILE_SNIPPET)
     return dict(cold_import_s=out[0][0], cold_first_call_s=out[0][1], warm_import_s=out[1][0],
                 warm_first_call_s=out[1][1])
 
@@ -156,15 +161,8 @@ _STEP_COMPILE_SNIPPET = (
 
 
 def measure_step_compile_time():
-    """First simulate() with a fresh numba cache (compile) and again with the cache warm, in subprocesses."""
-    with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        env.pop("NUMBA_DISABLE_JIT", None)
-        out = []
-        for _ in range(2):
-            p = subprocess.run([sys.executable, "-c", _STEP_COMPILE_SNIPPET], env=env, capture_output=True,
-                               text=True, check=True)
-            out.append(tuple(map(float, p.stdout.split())))
+    """First simulate() with a fresh numba cache (compile) and again with the cache warm."""
+    out = _cold_and_warm(_STEP_COMPILE_SNIPPET)
     return dict(cold_import_s=out[0][0], cold_first_simulate_s=out[0][1], warm_import_s=out[1][0],
                 warm_first_simulate_s=out[1][1])
 
