@@ -15,9 +15,8 @@ import numpy as np
 from .massprops import body_mass_properties, default_support_points
 from .scene import Scene, SceneError
 
-BODY_DYNAMIC, BODY_STATIC, BODY_KINEMATIC = 0, 1, 2
-SHAPE_CORE, SHAPE_HALFPLANE = 0, 1
-PLANE_VERTICAL, PLANE_HORIZONTAL = 0, 1
+from .kernels.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC, PLANE_HORIZONTAL,  # noqa: F401
+                                PLANE_VERTICAL, SHAPE_CORE, SHAPE_HALFPLANE)
 
 #: Arrays handed to the numba kernels (a namedtuple of arrays and scalars, which numba accepts as one argument).
 ModelArrays = namedtuple("ModelArrays", [

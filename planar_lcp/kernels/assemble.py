@@ -13,7 +13,7 @@ Static and kinematic bodies carry no unknowns: their velocity enters the constan
 import numpy as np
 from numba import njit
 
-BODY_DYNAMIC = 0
+from .constants import BODY_DYNAMIC, BODY_KINEMATIC
 
 
 @njit(cache=True)
@@ -129,7 +129,7 @@ def kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, dx, dy):
     s = 0.0
     for side in range(2):
         b = m.shape_body[m.pair_a[p]] if side == 0 else m.shape_body[m.pair_b[p]]
-        if m.body_kind[b] == 2:
+        if m.body_kind[b] == BODY_KINEMATIC:
             k = m.body_slot[b]
             vx, vy = _point_velocity(poses, vk[k], b, con_p[j, 0], con_p[j, 1])
             sgn = 1.0 if side == 0 else -1.0

@@ -7,9 +7,7 @@ import numpy as np
 from numba import njit
 
 from .collision import contact_core_core, contact_core_halfplane
-
-BODY_DYNAMIC, BODY_STATIC, BODY_KINEMATIC = 0, 1, 2
-SHAPE_CORE, SHAPE_HALFPLANE = 0, 1
+from .constants import BODY_DYNAMIC, BODY_KINEMATIC, SHAPE_CORE, SHAPE_HALFPLANE
 
 
 @njit(cache=True)

@@ -6,7 +6,7 @@ table friction) is integrated without one.
 
 from numba import njit
 
-BODY_DYNAMIC = 0
+from .constants import BODY_DYNAMIC
 
 
 @njit(cache=True)

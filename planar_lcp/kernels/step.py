@@ -18,6 +18,7 @@ import numpy as np
 from numba import njit
 
 from .assemble import apply_impulses, assemble_lcp, contact_column, delassus
+from .constants import BODY_DYNAMIC, BODY_STATIC
 from .contacts import body_poses, find_contacts, world_vertices
 from .islands import contact_island, find_islands
 from .lemke import STATUS_SOLVED, lemke_kernel
@@ -55,7 +56,7 @@ StepWork = namedtuple("StepWork", [
     "parent", "island", "isl_con", "isl_sup", "col_dyn", "col_g", "Abuf", "bvec", "zvec",
     "lT", "lbasis", "lz", "lw", "lcand", "llu", "lrhs", "lperm", "lzb", "lzalt", "lwalt", "lprow",
     "v_tilde", "v_hat", "q_hat", "v_new", "q_new",
-    "con_cn", "con_ft", "con_vn", "con_vt", "con_mode",
+    "con_cn", "con_ft", "con_vt", "con_mode",
 ])
 
 
@@ -84,7 +85,7 @@ def make_step_work(model):
         lwalt=np.zeros(U), lprow=np.zeros(2 * U + 2),
         v_tilde=np.zeros((nd, 3)), v_hat=np.zeros((nd, 3)), q_hat=np.zeros((nd, 3)), v_new=np.zeros((nd, 3)),
         q_new=np.zeros((nd, 3)),
-        con_cn=np.zeros(C), con_ft=np.zeros(C), con_vn=np.zeros(C), con_vt=np.zeros(C), con_mode=np.zeros(C, i),
+        con_cn=np.zeros(C), con_ft=np.zeros(C), con_vt=np.zeros(C), con_mode=np.zeros(C, i),
     )
 
 
@@ -215,7 +216,7 @@ def _check_end_configuration(m, w, opt, qk_new, stats):
 
 @njit(cache=True)
 def _contact_velocities(m, w, opt, poses, vk, isl_con, nci):
-    """Post-solve normal and tangential relative velocity (A minus B) of an island's contacts, and their mode:
+    """Post-solve tangential relative velocity (A minus B) of an island's contacts, and their mode:
     separated (normal impulse <= impulse_tol), sliding (|tangential velocity| > slip_tol), else sticking.
 
     Measured with the geometry the LCP used (lever arms at the linearization pose `poses`), so that a contact the
@@ -225,15 +226,14 @@ def _contact_velocities(m, w, opt, poses, vk, isl_con, nci):
         p = w.con_pair[j]
         nx = w.con_n[j, 0]
         ny = w.con_n[j, 1]
-        vn = 0.0
         vt = 0.0
         for side in range(2):
             b = m.shape_body[m.pair_a[p]] if side == 0 else m.shape_body[m.pair_b[p]]
             sgn = 1.0 if side == 0 else -1.0
             kind = m.body_kind[b]
-            if kind == 1:
+            if kind == BODY_STATIC:
                 continue
-            if kind == 0:
+            if kind == BODY_DYNAMIC:
                 vel = w.v_new[m.body_slot[b]]
             else:
                 vel = vk[m.body_slot[b]]
@@ -241,9 +241,7 @@ def _contact_velocities(m, w, opt, poses, vk, isl_con, nci):
             ry = w.con_p[j, 1] - poses[b, 1]
             px = vel[0] - vel[2] * ry
             py = vel[1] + vel[2] * rx
-            vn += sgn * (px * nx + py * ny)
             vt += sgn * (-px * ny + py * nx)
-        w.con_vn[j] = vn
         w.con_vt[j] = vt
         if w.con_cn[j] <= opt.impulse_tol:
             w.con_mode[j] = MODE_SEPARATED

@@ -1,0 +1,5 @@
+"""Codes shared by the model compiler and the kernels (numba freezes module globals: these never change)."""
+
+BODY_DYNAMIC, BODY_STATIC, BODY_KINEMATIC = 0, 1, 2
+SHAPE_CORE, SHAPE_HALFPLANE = 0, 1
+PLANE_VERTICAL, PLANE_HORIZONTAL = 0, 1
