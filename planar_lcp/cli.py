@@ -67,7 +67,7 @@ class _InputError(Exception):
     """Bad user input found after parsing: one line on stderr, exit status 2."""
 
 
-def _finite(kind, minimum, strict):
+def finite_number(kind, minimum, strict):
     """An argparse type: a finite number of `kind` (float or int) that is > (strict) or >= `minimum`."""
     def conv(text):
         try:
@@ -84,7 +84,7 @@ def _finite(kind, minimum, strict):
     return conv
 
 
-def _one_line_errors(parser):
+def one_line_errors(parser):
     """Argument errors of this subcommand as one line on stderr (no usage block), exit status 2."""
     def error(message):
         parser.exit(2, f"{parser.prog}: error: {message}\n")
@@ -218,19 +218,19 @@ def build_parser():
     b.add_argument("--json", metavar="FILE", help="also write the measurements as JSON")
     b.set_defaults(func=_cmd_bench)
 
-    s = _one_line_errors(sub.add_parser(
+    s = one_line_errors(sub.add_parser(
         "simulate", help="simulate a scene; print a summary, optionally write CSV, a plot and an animation",
         description="Simulate a scene (a shipped name, see `planar-lcp scenes`, or a path to a .toml file). "
                     "Options override the scene's [sim] table."))
     s.add_argument("scene", metavar="SCENE", help="a shipped scene name or a path to a .toml scene file")
-    s.add_argument("--h", type=_finite(float, 0, True), metavar="H", help="time step [s]")
-    s.add_argument("--t-end", type=_finite(float, 0, True), metavar="T", help="duration [s]")
+    s.add_argument("--h", type=finite_number(float, 0, True), metavar="H", help="time step [s]")
+    s.add_argument("--t-end", type=finite_number(float, 0, True), metavar="T", help="duration [s]")
     s.add_argument("--solver", choices=["lemke", "pgs", "osqp"], help="LCP solver")
     s.add_argument("--formulation", choices=["position", "fixed_point", "velocity"],
                    help="position (Stewart-Trinkle), fixed_point (re-linearized), velocity (Anitescu-Potra)")
-    s.add_argument("--fixed-point-iterations", type=_finite(int, 1, False), metavar="N",
+    s.add_argument("--fixed-point-iterations", type=finite_number(int, 1, False), metavar="N",
                    help="iterations of the fixed_point formulation")
-    s.add_argument("--friction-directions", type=_finite(int, 3, False), metavar="K",
+    s.add_argument("--friction-directions", type=finite_number(int, 3, False), metavar="K",
                    help="friction directions per support point (horizontal plane)")
     s.add_argument("--on-failure", choices=["raise", "record"], default="raise",
                    help="raise (default): stop with exit status 1 at the first failed step; record: continue and "
@@ -240,7 +240,7 @@ def build_parser():
     s.add_argument("--animate", metavar="FILE.gif", help="write an animation (GIF)")
     s.set_defaults(func=_cmd_simulate)
 
-    sc = _one_line_errors(sub.add_parser("scenes", help="list the shipped scenes with their descriptions"))
+    sc = one_line_errors(sub.add_parser("scenes", help="list the shipped scenes with their descriptions"))
     sc.set_defaults(func=_cmd_scenes)
     for module in COMMAND_MODULES:
         importlib.import_module(module).register(sub)

@@ -375,19 +375,19 @@ def _cmd_compare(args):
 
 
 def register(subparsers):
-    from .cli import _finite, _one_line_errors
+    from .cli import finite_number, one_line_errors
 
-    c = _one_line_errors(subparsers.add_parser(
+    c = one_line_errors(subparsers.add_parser(
         "compare", help="run a scene in planar_lcp and in pymunk with the same time step; plots, GIF, report",
         description="Run a scene (a shipped name or a .toml path) in planar_lcp and in pymunk (Chipmunk2D) with the "
                     "same time step; write overlaid trajectories, frames, a side-by-side GIF and report.md/.csv."))
     c.add_argument("scene", metavar="SCENE", help="a shipped scene name or a path to a .toml scene file")
     c.add_argument("--out", required=True, metavar="DIR", help="directory for the files (created if missing)")
-    c.add_argument("--h", type=_finite(float, 0, True), metavar="H", help="time step [s] (default: the scene's)")
-    c.add_argument("--t-end", type=_finite(float, 0, True), metavar="T", help="duration [s] (default: the scene's)")
-    c.add_argument("--iterations", type=_finite(int, 1, False), metavar="N",
+    c.add_argument("--h", type=finite_number(float, 0, True), metavar="H", help="time step [s] (default: the scene's)")
+    c.add_argument("--t-end", type=finite_number(float, 0, True), metavar="T", help="duration [s] (default: the scene's)")
+    c.add_argument("--iterations", type=finite_number(int, 1, False), metavar="N",
                    help="pymunk solver iterations per step (default 10, pymunk's)")
-    c.add_argument("--collision-slop", type=_finite(float, 0, False), metavar="M",
+    c.add_argument("--collision-slop", type=finite_number(float, 0, False), metavar="M",
                    help="pymunk allowed overlap [m] (default 1e-4)")
     c.add_argument("--no-gif", action="store_true", help="skip the side-by-side GIF")
     c.set_defaults(func=_cmd_compare)
