@@ -162,10 +162,13 @@ class Problem:
         pb.low = [px0, py0]
         pb.high = [px1, py1]
         pus.setBounds(pb)
-        space.addSubspace(se2, 1.0)
-        space.addSubspace(vel, 0.05)
-        space.addSubspace(pus, 0.2)
-        cell = 0.02
+        w_pos, w_ang, w_vel, w_pus = t.weights
+        # SE2 is itself compound (R^2 weight 1, SO2 weight 0.5): scale it by w_pos, set the angle's own weight
+        se2.setSubspaceWeight(1, w_ang / w_pos)
+        space.addSubspace(se2, w_pos)
+        space.addSubspace(vel, w_vel)
+        space.addSubspace(pus, w_pus)
+        cell = t.kpiece_cell
         self.projection = _projection_class()(space, cell)
         space.registerDefaultProjection(self.projection)
         cspace = oc.RealVectorControlSpace(space, 2)
@@ -194,7 +197,7 @@ class Problem:
         ss.setGoal(self.goal)
         if planner == "RRT":
             p = oc.RRT(si)
-            p.setGoalBias(0.1)
+            p.setGoalBias(t.goal_bias)
         elif planner == "EST":
             p = oc.EST(si)
         elif planner == "KPIECE1":

@@ -53,9 +53,18 @@ class Task:
     goal : dict
         kind "pose" (x, y, theta_deg of the object's body frame, pos_tol m, ang_tol_deg),
         kind "cover" (pose of the goal, min_cover fraction of the goal's area covered),
-        kind "tip" (angle_deg, ang_tol_deg, rest_height m of the COM, height_tol, speed_tol, omega_tol).
+        kind "tip" (angle_deg, ang_tol_deg, rest_height m of the COM, height_tol, speed_tol, omega_tol; with
+        signed=True the angle's sign, i.e. the tipping direction, is required, otherwise +-angle_deg both count).
     ledge_x : float or None
         No part of the object may pass this x (the table's edge) - vertical tasks.
+    weights : (position, angle, velocity, pusher)
+        OMPL distance weights: the object's position (per m), its angle (per rad), its velocity (per m/s and
+        rad/s) and the pusher's position (per m). Nearest-neighbour search (RRT) and goal distances in the tree use
+        them; velocities should weigh little (pushing is nearly quasi-static), the object's pose most.
+    goal_bias : float
+        RRT's goal bias (the fraction of samples drawn from the goal region).
+    kpiece_cell : float
+        KPIECE1's cell size on the projection (the object's position), m.
     """
 
     name: str
@@ -72,6 +81,9 @@ class Task:
     omega_max: float
     goal: dict = field(default_factory=dict)
     ledge_x: float = None
+    weights: tuple = (1.0, 0.5, 0.05, 0.2)
+    goal_bias: float = 0.1
+    kpiece_cell: float = 0.02
     description: str = ""
 
     def load_scene(self):
@@ -85,27 +97,28 @@ class Task:
 TASKS = {
     "push_box": Task(
         name="push_box", scene="push_box_task", object="box", pusher="pusher",
-        control_max=0.15, step_duration=0.05, min_steps=1, max_steps=10,
+        control_max=0.15, step_duration=0.1, min_steps=1, max_steps=10,
         object_bounds=((-0.15, 0.40), (-0.20, 0.30)), pusher_bounds=((-0.25, 0.50), (-0.30, 0.40)),
-        speed_max=1.0, omega_max=10.0,
+        speed_max=1.0, omega_max=10.0, weights=(1.0, 0.06, 0.002, 0.1),
         goal=dict(kind="pose", x=0.25, y=0.08, theta_deg=0.0, pos_tol=0.01, ang_tol_deg=10.0),
         description="push the box around a static block to (0.25, 0.08, 0 deg) within 1 cm and 10 deg"),
     "push_t": Task(
         name="push_t", scene="push_t", object="T", pusher="pusher",
-        control_max=0.15, step_duration=0.05, min_steps=1, max_steps=10,
+        control_max=0.15, step_duration=0.1, min_steps=1, max_steps=10,
         object_bounds=((-0.20, 0.25), (-0.20, 0.25)), pusher_bounds=((-0.30, 0.35), (-0.30, 0.35)),
-        speed_max=1.0, omega_max=10.0,
+        speed_max=1.0, omega_max=10.0, weights=(1.0, 0.06, 0.002, 0.1),
         goal=dict(kind="cover", x=0.06, y=0.08, theta_deg=30.0, min_cover=0.95),
         description="push the T block until it covers >= 95% of the goal T at (0.06, 0.08, 30 deg)"),
     "tip_box": Task(
         name="tip_box", scene="tip_box_task", object="box", pusher="finger",
-        control_max=0.2, step_duration=0.05, min_steps=1, max_steps=10,
+        control_max=0.2, step_duration=0.1, min_steps=1, max_steps=10,
         object_bounds=((-0.30, 0.30), (0.0, 0.25)), pusher_bounds=((-0.30, 0.40), (0.0, 0.35)),
-        speed_max=2.0, omega_max=20.0,
-        goal=dict(kind="tip", angle_deg=90.0, ang_tol_deg=10.0, rest_height=0.05, height_tol=0.005,
-                  speed_tol=0.02, omega_tol=0.2),
-        ledge_x=0.30,
-        description="tip the standing box onto its side (90 +- 10 deg, at rest) without passing the ledge"),
+        speed_max=2.0, omega_max=20.0, weights=(1.0, 0.1, 0.005, 0.1),
+        goal=dict(kind="tip", angle_deg=-90.0, signed=True, ang_tol_deg=10.0, rest_height=0.05,
+                  height_tol=0.005, speed_tol=0.02, omega_tol=0.2),
+        ledge_x=0.27,
+        description="tip the standing box onto its right side, towards the ledge (-90 +- 10 deg, at rest), "
+                    "without any part of it passing the ledge"),
 }
 
 
@@ -196,6 +209,8 @@ class TaskModel:
         if self.forbidden is not None:
             shapely.prepare(self.forbidden)
         self.com_local = self.model.com_local[0].copy()
+        hull = np.asarray(self.object_poly_body.convex_hull.exterior.coords)
+        self.object_radius = float(np.max(np.hypot(hull[:, 0] - self.com_local[0], hull[:, 1] - self.com_local[1])))
         g = self.task.goal
         if g.get("kind") in ("pose", "cover"):
             qf = np.array([[g["x"], g["y"], math.radians(g["theta_deg"])]])
@@ -298,7 +313,10 @@ class TaskModel:
             miss = 1.0 - self.cover(x)
             return miss / (1.0 - g["min_cover"])
         if kind == "tip":
-            ae = abs(abs(x[2]) - math.radians(g["angle_deg"]))
+            if g.get("signed", False):      # the tipping direction is part of the goal
+                ae = abs(wrap_angle(x[2] - math.radians(g["angle_deg"])))
+            else:
+                ae = abs(abs(x[2]) - math.radians(g["angle_deg"]))
             he = abs(x[1] - g["rest_height"])
             return max(ae / math.radians(g["ang_tol_deg"]), he / g["height_tol"],
                        math.hypot(x[3], x[4]) / g["speed_tol"], abs(x[5]) / g["omega_tol"])
@@ -342,13 +360,22 @@ class TaskModel:
                 x[1] += rng(-r, r) / math.sqrt(2)
                 x[2] = wrap_angle(x[2] + math.radians(rng(-0.7, 0.7) * g["ang_tol_deg"]))
         else:
-            sgn = 1.0 if rng(-1.0, 1.0) > 0 else -1.0
+            sgn = 1.0 if (g.get("signed", False) or rng(-1.0, 1.0) > 0) else -1.0
             x[2] = wrap_angle(sgn * math.radians(g["angle_deg"] + rng(-0.7, 0.7) * g["ang_tol_deg"]))
             (ox0, ox1), _ = self.task.object_bounds
             x[0] = rng(ox0, ox1)
             x[1] = g["rest_height"]
         (px0, px1), (py0, py1) = self.task.pusher_bounds
-        x[6], x[7] = rng(px0, px1), rng(py0, py1)
+        if kind in ("pose", "cover"):
+            # the pusher next to the object (a ring around its centre of mass), where a plan that just pushed the
+            # object there leaves it; a pusher anywhere in the workspace would make the nearest tree state to a
+            # goal sample mostly a matter of the pusher's position
+            a = rng(-math.pi, math.pi)
+            r = rng(0.8, 1.0) * self.object_radius + self.pusher_radius
+            x[6] = min(max(x[0] + r * math.cos(a), px0), px1)
+            x[7] = min(max(x[1] + r * math.sin(a), py0), py1)
+        else:
+            x[6], x[7] = rng(px0, px1), rng(py0, py1)
         return x
 
 
