@@ -3,57 +3,34 @@
 `register()` imports nothing heavy: ompl, matplotlib and pymunk are imported inside the commands.
 """
 
-import argparse
-import math
 import sys
 from pathlib import Path
+
+from planar_lcp.cli import finite_number, one_line_errors
 
 from .adapter import PLANNERS
 from .tasks import TASKS, TaskError
 
 
-def _pos(kind, strict=True):
-    def conv(text):
-        try:
-            x = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be {'an integer' if kind is int else 'a number'}, "
-                                             f"got {text!r}") from None
-        if kind is float and not math.isfinite(x):
-            raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
-        if not (x > 0 if strict else x >= 0):
-            raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
-        return x
-    conv.__name__ = kind.__name__
-    return conv
-
-
-def _one_line(parser):
-    def error(message):
-        parser.exit(2, f"{parser.prog}: error: {message}\n")
-    parser.error = error
-    return parser
-
-
 def register(sub):
     tasks = ", ".join(sorted(TASKS))
-    p = _one_line(sub.add_parser(
+    p = one_line_errors(sub.add_parser(
         "plan", help="plan pusher motions for a task with OMPL (our simulator as the forward model)",
         description=f"Plan a task ({tasks}) with an OMPL kinodynamic planner. Writes plan.json, plan.png and "
                     "plan.gif into --out. Exit status 0 only for an exact solution."))
     p.add_argument("task", metavar="TASK", help=f"one of: {tasks}")
     p.add_argument("--planner", default=None, metavar="NAME",
                    help=f"one of {', '.join(PLANNERS)} (default: the task's best, see docs/planning.md)")
-    p.add_argument("--time", type=_pos(float), default=None, metavar="SECONDS",
+    p.add_argument("--time", type=finite_number(float, 0, True), default=None, metavar="SECONDS",
                    help="wall-clock limit (default 60 s unless --iterations is given)")
-    p.add_argument("--iterations", type=_pos(int), default=None, metavar="N",
+    p.add_argument("--iterations", type=finite_number(int, 0, True), default=None, metavar="N",
                    help="iteration budget instead of a time limit: with --seed the plan is reproducible")
-    p.add_argument("--seed", type=_pos(int), default=1, metavar="N", help="OMPL random seed (>= 1, default 1)")
+    p.add_argument("--seed", type=finite_number(int, 0, True), default=1, metavar="N", help="OMPL random seed (>= 1, default 1)")
     p.add_argument("--out", default="plan_out", metavar="DIR", help="output directory (default ./plan_out)")
     p.add_argument("--no-gif", action="store_true", help="skip plan.gif")
     p.set_defaults(func=cmd_plan)
 
-    r = _one_line(sub.add_parser(
+    r = one_line_errors(sub.add_parser(
         "replay", help="re-simulate a plan's controls open loop and check the goal",
         description="Re-simulate the controls of PLAN.json open loop (our LCP simulator, or pymunk through "
                     "planar_lcp.pymunk_bridge), report the final goal error, write replay.png. Exit status 0 "
@@ -63,16 +40,16 @@ def register(sub):
     r.add_argument("--out", default=None, metavar="DIR", help="where to write replay.png (default: the plan's dir)")
     r.set_defaults(func=cmd_replay)
 
-    b = _one_line(sub.add_parser(
+    b = one_line_errors(sub.add_parser(
         "plan-bench", help="benchmark planners on a task (process pool, OMPL benchmark log and database)",
         description="Run each planner --runs times with seeds 1..N on a process pool; write an OMPL benchmark "
                     "log, its SQLite database, summary.md / summary.json and box plots into --out."))
     b.add_argument("task", metavar="TASK", help=f"one of: {tasks}")
     b.add_argument("--planners", nargs="+", default=list(PLANNERS), metavar="NAME",
                    help=f"planners to compare (default: all of {', '.join(PLANNERS)})")
-    b.add_argument("--runs", type=_pos(int), default=10, metavar="N", help="runs per planner, seeds 1..N")
-    b.add_argument("--time", type=_pos(float), default=60.0, metavar="T", help="seconds per run (default 60)")
-    b.add_argument("--jobs", type=_pos(int), default=None, metavar="J", help="worker processes (default: CPUs)")
+    b.add_argument("--runs", type=finite_number(int, 0, True), default=10, metavar="N", help="runs per planner, seeds 1..N")
+    b.add_argument("--time", type=finite_number(float, 0, True), default=60.0, metavar="T", help="seconds per run (default 60)")
+    b.add_argument("--jobs", type=finite_number(int, 0, True), default=None, metavar="J", help="worker processes (default: CPUs)")
     b.add_argument("--out", default=None, metavar="DIR", help="output directory (default ./bench_TASK)")
     b.set_defaults(func=cmd_bench)
 
