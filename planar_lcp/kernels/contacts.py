@@ -51,25 +51,24 @@ def world_vertices(m, poses, out):
 
 
 @njit(cache=True)
+def _bounds(vw, a0, n):
+    """(xmin, ymin, xmax, ymax) of the core vertices vw[a0:a0 + n]."""
+    xmin = np.inf
+    xmax = -np.inf
+    ymin = np.inf
+    ymax = -np.inf
+    for k in range(a0, a0 + n):
+        xmin = min(xmin, vw[k, 0])
+        xmax = max(xmax, vw[k, 0])
+        ymin = min(ymin, vw[k, 1])
+        ymax = max(ymax, vw[k, 1])
+    return xmin, ymin, xmax, ymax
+
+
+@njit(cache=True)
 def _aabb_overlap(vw, a0, na, ra, b0, nb, rb, margin):
-    axmin = np.inf
-    axmax = -np.inf
-    aymin = np.inf
-    aymax = -np.inf
-    for k in range(a0, a0 + na):
-        axmin = min(axmin, vw[k, 0])
-        axmax = max(axmax, vw[k, 0])
-        aymin = min(aymin, vw[k, 1])
-        aymax = max(aymax, vw[k, 1])
-    bxmin = np.inf
-    bxmax = -np.inf
-    bymin = np.inf
-    bymax = -np.inf
-    for k in range(b0, b0 + nb):
-        bxmin = min(bxmin, vw[k, 0])
-        bxmax = max(bxmax, vw[k, 0])
-        bymin = min(bymin, vw[k, 1])
-        bymax = max(bymax, vw[k, 1])
+    axmin, aymin, axmax, aymax = _bounds(vw, a0, na)
+    bxmin, bymin, bxmax, bymax = _bounds(vw, b0, nb)
     pad = ra + rb + margin
     return not (axmin > bxmax + pad or bxmin > axmax + pad or aymin > bymax + pad or bymin > aymax + pad)
 

@@ -293,3 +293,11 @@ def phase_md(rows, h_ref, t_end):
     return text + md_table(PHASE_COLUMNS, rows, head,
                            spec=dict(h="g", vel_err_mean=".4f", vel_err_max=".4f", pos_err_mean=".4f",
                                      pos_err_max=".4f", order_vel=".2f", order_pos=".2f")) + "\n"
+
+
+def print_phase_table_and_files(res, out):
+    """The summary lines both studies end with: the phase-averaged convergence rows and the files written."""
+    for r in res["phase"]:
+        print(f"  h = {r['h']:<8g} phase-averaged vel. error {r['vel_err_mean']:.4f}  pos. error "
+              f"{r['pos_err_mean']:.4f}  order {fmt(r['order_vel'], '.2f')}")
+    print(f"wrote {len(res['files'])} files in {out}: {', '.join(res['files'])}")

@@ -257,10 +257,7 @@ def print_summary(res, out):
         if math.isfinite(r["vel_err"]):
             print(f"  h = {r['h']:<8g} vel. error {r['vel_err']:.4f}  pos. error {r['pos_err']:.4f}  "
                   f"order {common.fmt(r['order_vel'], '.2f')}")
-    for r in res["phase"]:
-        print(f"  h = {r['h']:<8g} phase-averaged vel. error {r['vel_err_mean']:.4f}  pos. error "
-              f"{r['pos_err_mean']:.4f}  order {common.fmt(r['order_vel'], '.2f')}")
-    print(f"wrote {len(res['files'])} files in {out}: {', '.join(res['files'])}")
+    common.print_phase_table_and_files(res, out)
 
 
 def cmd(args):

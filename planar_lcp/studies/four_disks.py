@@ -256,10 +256,7 @@ def print_summary(res, out):
     for e in res["events"]:
         print(f"  h = {e['h']:<8g} ground {e['t_ground']:.4f}  first disk contact {e['t_first_disk_contact']:.4f}  "
               f"active: {e['active_disk_disk']} disk-disk + {e['active_table']} table")
-    for r in res["phase"]:
-        print(f"  h = {r['h']:<8g} phase-averaged vel. error {r['vel_err_mean']:.4f}  pos. error "
-              f"{r['pos_err_mean']:.4f}  order {common.fmt(r['order_vel'], '.2f')}")
-    print(f"wrote {len(res['files'])} files in {out}: {', '.join(res['files'])}")
+    common.print_phase_table_and_files(res, out)
 
 
 def cmd(args):
