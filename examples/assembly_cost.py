@@ -22,10 +22,10 @@ sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
 q, v, qk, vk = sim.initial_state()
 out = sim.rollout(q, v, qk, vk[None], 300)
 q, v, qk = out["q"][300].copy(), out["v"][300].copy(), out["qk"][300].copy()
-m, w, opt, h = sim.model.arrays, sim.work, sim.kopt, sim.h
+m, w, kw, opt, h = sim.kmodel, sim.work, sim.kwork, sim.kopt, sim.h  # kernels take the structs; Python reads w
 st = np.zeros(S.NSTAT)
-S.begin_step(m, q, v, qk, vk, h, opt, w, qk.copy(), st)
-ncon, nisl = S.prepare_contacts(m, w, opt, qk, st)
+S.begin_step(m, q, v, qk, vk, h, opt, kw, qk.copy(), st)
+ncon, nisl = S.prepare_contacts(m, kw, opt, qk, st)
 isl = np.arange(ncon)
 n = 4 * ncon
 A, b = np.zeros((n, n)), np.zeros(n)

@@ -48,7 +48,7 @@ def profile(name, at_step, n=20000):
     q, v, qk, vk = sim.initial_state()
     out = sim.rollout(q, v, qk, vk[None], at_step)
     q, v, qk = out["q"][at_step].copy(), out["v"][at_step].copy(), out["qk"][at_step].copy()
-    m, w, opt, h = sim.model.arrays, sim.work, sim.kopt, sim.h
+    m, w, opt, h = sim.kmodel, sim.kwork, sim.kopt, sim.h
     qo, vo, qko, st = np.empty_like(q), np.empty_like(v), np.empty_like(qk), np.zeros(S.NSTAT)
     res = {}
     for label, f, args in (("whole step", _full, (m, q, v, qk, vk, h, opt, w, qo, vo, qko, st)),

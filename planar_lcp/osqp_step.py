@@ -41,7 +41,9 @@ def _quiet_c_stdout():
         os.close(saved)
 
 
-def _solve_island_osqp(m, w, opt, vk, isl, ncon, h, velocity_form, stats, osqp_eps):
+def _solve_island_osqp(m, km, w, kw, opt, vk, isl, ncon, h, velocity_form, stats, osqp_eps):
+    """One island by OSQP. m, w: the namedtuples (read here in Python); km, kw: the kernels' structs over the same
+    buffers (passed to the jitted stages)."""
     import osqp
     from scipy import sparse
 
@@ -53,11 +55,11 @@ def _solve_island_osqp(m, w, opt, vk, isl, ncon, h, velocity_form, stats, osqp_e
     nci, nsi = len(isl_con), len(isl_sup)
     if nci == 0 and nsi == 0:
         return STATUS_SOLVED
-    n, nf, _ = _problem_sizes(m, isl_con, nci, nsi, w.con_pair)
+    n, nf, _ = _problem_sizes(km, isl_con, nci, nsi, w.con_pair)
     k = m.fric_dirs.shape[0]
     A = np.zeros((n, n))
     b = np.zeros(n)
-    assemble_lcp(m, w.poses, vk, isl_con, nci, isl_sup, nsi, w.con_pair, w.con_phi, w.con_n, w.con_p, w.v_tilde,
+    assemble_lcp(km, w.poses, vk, isl_con, nci, isl_sup, nsi, w.con_pair, w.con_phi, w.con_n, w.con_p, w.v_tilde,
                  w.v_hat, h, velocity_form, w.col_dyn, w.col_g, A, b)
     nforce = nci + 2 * nf + k * nsi
     P = A[:nforce, :nforce]
@@ -102,35 +104,37 @@ def _solve_island_osqp(m, w, opt, vk, isl, ncon, h, velocity_form, stats, osqp_e
         # the same recorded fallback as a Lemke failure: this island is solved by PGS, the step reports it
         stats[ST_LEMKE_STATUS] = max(stats[ST_LEMKE_STATUS], STATUS_INACCURATE)
         stats[ST_RESIDUAL] = np.inf
-        _solve_island(m, w, opt._replace(solver=SOLVER_PGS), w.poses, vk, isl, ncon, h, velocity_form, stats)
+        _solve_island(km, kw, opt._replace(solver=SOLVER_PGS), w.poses, vk, isl, ncon, h, velocity_form, stats)
         return STATUS_INACCURATE
     # the QP's own primal residual, for the step diagnostics
     stats[ST_RESIDUAL] = max(stats[ST_RESIDUAL], float(res.info.prim_res))
     x = np.ascontiguousarray(np.maximum(x, 0.0))  # OSQP's answer is feasible to eps: remove the -eps entries
-    apply_impulses(nforce, w.col_dyn, w.col_g, x, m, w.v_new)
+    apply_impulses(nforce, w.col_dyn, w.col_g, x, km, w.v_new)
     w.isl_con[:nci] = isl_con
-    _record_impulses(m, w, nci, x, False, nci)
-    _contact_velocities(m, w, opt, w.poses, vk, w.isl_con, nci)
+    _record_impulses(km, kw, nci, x, False, nci)
+    _contact_velocities(km, kw, opt, w.poses, vk, w.isl_con, nci)
     return STATUS_SOLVED
 
 
-def osqp_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats, osqp_eps=1e-9):
-    """`step_kernel` with each island solved by OSQP instead of Lemke/PGS (same stages, same outputs)."""
-    begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats)
+def osqp_step(m, km, q, v, qk, vk, h, opt, w, kw, q_out, v_out, qk_out, stats, osqp_eps=1e-9):
+    """`step_kernel` with each island solved by OSQP instead of Lemke/PGS (same stages, same outputs).
+
+    m, w: ModelArrays and StepWork namedtuples; km, kw: their kernel structs (kernels/structs.py)."""
+    begin_step(km, q, v, qk, vk, h, opt, kw, qk_out, stats)
     velocity_form = opt.formulation == FORM_VELOCITY
     qk_lin = qk if velocity_form else qk_out
     fp_iter = 0
     while True:
-        ncon, nisl = prepare_contacts(m, w, opt, qk_lin, stats)
+        ncon, nisl = prepare_contacts(km, kw, opt, qk_lin, stats)
         worst = STATUS_SOLVED
         for isl in range(nisl):
-            st = _solve_island_osqp(m, w, opt, vk, isl, ncon, h, velocity_form, stats, osqp_eps)
+            st = _solve_island_osqp(m, km, w, kw, opt, vk, isl, ncon, h, velocity_form, stats, osqp_eps)
             if st != STATUS_SOLVED:
                 worst = st
-        integrate_positions(q, h, w)
-        again, it = needs_another_solve(m, w, opt, q, h, qk_out, fp_iter, stats)
+        integrate_positions(q, h, kw)
+        again, it = needs_another_solve(km, kw, opt, q, h, qk_out, fp_iter, stats)
         if it >= 0:
             fp_iter = it
         if not again:
             break
-    return int(finish_step(m, w, opt, vk, ncon, qk_out, q_out, v_out, stats, fp_iter, worst))
+    return int(finish_step(km, kw, opt, vk, ncon, qk_out, q_out, v_out, stats, fp_iter, worst))

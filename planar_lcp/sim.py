@@ -12,6 +12,7 @@ import numpy as np
 
 from .kernels.lemke import STATUS_NAMES
 from .kernels.rollout import rollout_kernel
+from .kernels.structs import model_struct, work_struct
 from .kernels.step import (FORM_FIXED_POINT, FORM_POSITION, FORM_VELOCITY, NSTAT, SOLVER_LEMKE, SOLVER_PGS,
                            ST_FP_CHANGE, ST_FP_ITERS, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_RETRIES, ST_LEMKE_STATUS,
                            ST_NCON, ST_NISLAND, ST_PENETRATION, ST_PGS_UPDATE, ST_PIVOTS, ST_RESIDUAL, ST_RESOLVES,
@@ -90,6 +91,9 @@ class Simulator:
         self.options = options
         self.kopt = options.kernel_options()
         self.work = make_step_work(model)
+        # the kernels' views of model.arrays and self.work (same buffers): see kernels/structs.py
+        self.kmodel = model_struct(model.arrays)
+        self.kwork = work_struct(self.work)
         self.stats = np.zeros(NSTAT)
 
     @property
@@ -103,10 +107,9 @@ class Simulator:
     def _step_into(self, q, v, qk, vk, q_out, v_out, qk_out, stats):
         if self.kopt.solver == SOLVER_OSQP:
             from .osqp_step import osqp_step
-            return osqp_step(self.model.arrays, q, v, qk, vk, self.h, self.kopt, self.work, q_out, v_out, qk_out,
-                             stats)
-        return int(step_kernel(self.model.arrays, q, v, qk, vk, self.h, self.kopt, self.work, q_out, v_out, qk_out,
-                               stats))
+            return osqp_step(self.model.arrays, self.kmodel, q, v, qk, vk, self.h, self.kopt, self.work, self.kwork,
+                             q_out, v_out, qk_out, stats)
+        return int(step_kernel(self.kmodel, q, v, qk, vk, self.h, self.kopt, self.kwork, q_out, v_out, qk_out, stats))
 
     def step(self, q, v, qk, vk):
         """One step. Returns (q+, v+, qk+, status code); self.stats holds the step's diagnostics."""
@@ -138,9 +141,9 @@ class Simulator:
         if self.kopt.solver == SOLVER_OSQP:
             out["steps_done"] = self._rollout_python(out, q, v, qk, vk_seq, nsteps, stop_on_failure, C)
             return out
-        done = rollout_kernel(m.arrays, np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(v, dtype=float),
+        done = rollout_kernel(self.kmodel, np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(v, dtype=float),
                               np.ascontiguousarray(qk, dtype=float), vk_seq, int(nsteps), self.h, self.kopt,
-                              self.work, out["q"], out["v"], out["qk"], out["stats"], out["status"],
+                              self.kwork, out["q"], out["v"], out["qk"], out["stats"], out["status"],
                               out["con_count"], out["con_pair"], out["con_phi"], out["con_n"], out["con_p"],
                               out["con_cn"], out["con_ft"], out["con_vt"], out["con_mode"], bool(stop_on_failure))
         out["steps_done"] = int(done)
@@ -272,7 +275,7 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     T = done + 1
     q_com, v_com = out["q"][:T], out["v"][:T]
     st = out["stats"][:done]
-    en = np.array([energy(model.arrays, q_com[i], v_com[i]) for i in range(T)])
+    en = np.array([energy(simr.kmodel, q_com[i], v_com[i]) for i in range(T)])
     stats = dict(lcp_size=st[:, ST_LCP_SIZE].astype(int), lcp_max=st[:, ST_LCP_MAX].astype(int),
                  pivots=st[:, ST_PIVOTS].astype(int), n_contacts=st[:, ST_NCON].astype(int),
                  n_islands=st[:, ST_NISLAND].astype(int), fp_iterations=st[:, ST_FP_ITERS].astype(int),
