@@ -37,8 +37,10 @@ def _pose_gaps(model, q_com, qk):
     q_com (T, ndyn, 3) centre-of-mass poses, qk (T, nkin, 3). Returns (T,); +inf when the scene has no pairs.
     """
     from .kernels.contacts import body_poses, find_contacts, world_vertices
+    from .kernels.structs import model_struct
 
     a = model.arrays
+    km = model_struct(a)
     T = q_com.shape[0]
     npair = a.pair_a.shape[0]
     out = np.full(T, np.inf)
@@ -52,9 +54,9 @@ def _pose_gaps(model, q_com, qk):
     force = np.ones(npair, np.bool_)
     tmp = (np.zeros(2), np.zeros((2, 2)), np.zeros((2, 2)))
     for i in range(T):
-        body_poses(a, np.ascontiguousarray(q_com[i]), np.ascontiguousarray(qk[i]), poses)
-        world_vertices(a, poses, vw)
-        n = find_contacts(a, vw, np.inf, force, con_pair, con_phi, con_n, con_p, *tmp)
+        body_poses(km, np.ascontiguousarray(q_com[i]), np.ascontiguousarray(qk[i]), poses)
+        world_vertices(km, poses, vw)
+        n = find_contacts(km, vw, np.inf, force, con_pair, con_phi, con_n, con_p, *tmp)
         if n:
             out[i] = float(np.min(con_phi[:n]))
     return out
