@@ -14,7 +14,7 @@ from .kernels.lemke import STATUS_NAMES
 from .kernels.rollout import rollout_kernel
 from .kernels.structs import model_struct, work_struct
 from .kernels.step import (FORM_FIXED_POINT, FORM_POSITION, FORM_VELOCITY, NSTAT, SOLVER_LEMKE, SOLVER_PGS,
-                           ST_FP_CHANGE, ST_FP_ITERS, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_RETRIES, ST_LEMKE_STATUS,
+                           ST_FP_CHANGE, ST_FP_ITERS, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_RETRIES, ST_LEMKE_STATUS, ST_WARM_STARTS,
                            ST_NCON, ST_NISLAND, ST_PENETRATION, ST_PGS_UPDATE, ST_PIVOTS, ST_RESIDUAL, ST_RESOLVES,
                            STEP_LCP_FAILED, STEP_NONFINITE, STEP_OK, StepOptions, energy, make_step_work,
                            step_kernel)
@@ -49,6 +49,7 @@ class SimOptions:
     res_tol: float = 1e-9
     slip_tol: float = 1e-6                 # m/s: a loaded contact slipping faster than this is "sliding"
     impulse_tol: float = 1e-12             # N s: a contact with a smaller normal impulse is "separated"
+    warm_start: bool = True                # try the previous step's LCP basis first (certified, else a cold solve)
 
     def kernel_options(self):
         if self.solver not in SOLVERS:
@@ -66,7 +67,8 @@ class SimOptions:
             fp_iters=int(self.fixed_point_iterations), fp_tol=float(self.fixed_point_tol),
             pgs_iters=int(self.pgs_iterations), margin=float(self.contact_margin), pen_tol=float(self.penetration_tol),
             max_resolves=int(self.max_resolves), piv_tol=float(self.piv_tol), ratio_tol=float(self.ratio_tol),
-            res_tol=float(self.res_tol), slip_tol=float(self.slip_tol), impulse_tol=float(self.impulse_tol))
+            res_tol=float(self.res_tol), slip_tol=float(self.slip_tol), impulse_tol=float(self.impulse_tol),
+            warm_start=bool(self.warm_start))
 
 
 def _cause(status, stats):
@@ -95,6 +97,7 @@ class Simulator:
         self.kmodel = model_struct(model.arrays)
         self.kwork = work_struct(self.work)
         self.stats = np.zeros(NSTAT)
+        self._last_step_out = None  # (q, v, qk) returned by the last `step`, for its warm start
 
     @property
     def h(self):
@@ -111,10 +114,25 @@ class Simulator:
                              q_out, v_out, qk_out, stats)
         return int(step_kernel(self.kmodel, q, v, qk, vk, self.h, self.kopt, self.kwork, q_out, v_out, qk_out, stats))
 
+    def reset_warm_start(self):
+        """Forget the LCP bases kept for warm starts: the next `step` starts cold."""
+        self.work.ws_n[:] = -1
+        self._last_step_out = None
+
     def step(self, q, v, qk, vk):
-        """One step. Returns (q+, v+, qk+, status code); self.stats holds the step's diagnostics."""
+        """One step. Returns (q+, v+, qk+, status code); self.stats holds the step's diagnostics.
+
+        Warm start (SimOptions.warm_start): when (q, v, qk) is bitwise the state the previous `step` returned, each
+        island's LCP is first tried on that step's final basis, kept only if certified as accurate as a cold solve;
+        any other state starts cold, as every `rollout` does. So a loop of `step` started on a fresh simulator, after
+        a rollout or after `reset_warm_start()`, equals `rollout` bit for bit."""
+        last = self._last_step_out
+        if last is None or not (np.array_equal(q, last[0]) and np.array_equal(v, last[1])
+                                and np.array_equal(qk, last[2])):
+            self.work.ws_n[:] = -1
         q_out, v_out, qk_out = np.empty_like(q), np.empty_like(v), np.empty_like(qk)
         st = self._step_into(q, v, qk, vk, q_out, v_out, qk_out, self.stats)
+        self._last_step_out = (q_out.copy(), v_out.copy(), qk_out.copy())
         return q_out, v_out, qk_out, st
 
     def rollout(self, q, v, qk, vk_seq, nsteps, stop_on_failure=True, record_contacts=False):
@@ -130,6 +148,7 @@ class Simulator:
         else:
             vk_seq = vk_seq.reshape(-1, nk, 3)
         vk_seq = np.ascontiguousarray(vk_seq)
+        self._last_step_out = None  # the rollout starts cold and leaves no state for `step` to continue
         C = m.max_contacts() if record_contacts else 0
         out = dict(q=np.zeros((nsteps + 1, nd, 3)), v=np.zeros((nsteps + 1, nd, 3)),
                    qk=np.zeros((nsteps + 1, nk, 3)), stats=np.zeros((nsteps, NSTAT)),
@@ -182,7 +201,8 @@ class Trajectory:
     body_names : names of the dynamic bodies (columns of q and v).
     stats : dict of (T-1,) arrays per step: lcp_size, lcp_max, pivots, n_contacts, n_islands, fp_iterations,
         resolves, residual, penetration (deepest overlap at the end of the step, m), lemke_retries (islands
-        re-solved with a stricter pivot tolerance after a failure), fp_change (the fixed point's last change of the
+        re-solved with a stricter pivot tolerance after a failure), warm_starts (islands solved on the previous step's
+        LCP basis, no pivots), fp_change (the fixed point's last change of the
         linearization pose), pgs_update (PGS's largest impulse change in its last sweep: its convergence), status
         (0 ok, 1 LCP failed,
         2 non-finite); energy (T,) J.
@@ -281,6 +301,7 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
                  n_islands=st[:, ST_NISLAND].astype(int), fp_iterations=st[:, ST_FP_ITERS].astype(int),
                  resolves=st[:, ST_RESOLVES].astype(int), residual=st[:, ST_RESIDUAL].copy(),
                  penetration=st[:, ST_PENETRATION].copy(), lemke_retries=st[:, ST_LEMKE_RETRIES].astype(int),
+                 warm_starts=st[:, ST_WARM_STARTS].astype(int),
                  fp_change=st[:, ST_FP_CHANGE].copy(), pgs_update=st[:, ST_PGS_UPDATE].copy(),
                  status=out["status"][:done].copy(), energy=en)
     a = model.arrays

@@ -14,6 +14,9 @@ def rollout_kernel(m, q0, v0, qk0, vk_seq, nsteps, h, opt, w, q_traj, v_traj, qk
     capacity columns (pass zero-column arrays to skip recording contacts). Returns the number of steps done
     (fewer than nsteps only when stop_on_failure and a step failed)."""
     ndyn = q0.shape[0]
+    # a rollout starts cold (no warm-start basis from earlier calls): its result depends on its inputs only
+    for i in range(w.ws_n.shape[0]):
+        w.ws_n[i] = -1
     for d in range(ndyn):
         for c in range(3):
             q_traj[0, d, c] = q0[d, c]

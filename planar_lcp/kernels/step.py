@@ -21,7 +21,7 @@ from .assemble import apply_impulses, assemble_lcp, contact_column, delassus
 from .constants import BODY_DYNAMIC, BODY_STATIC
 from .contacts import body_poses, find_contacts, world_vertices
 from .islands import contact_island, find_islands
-from .lemke import STATUS_SOLVED, lemke_kernel
+from .lemke import STATUS_SOLVED, lemke_from_basis, lemke_kernel
 from .pgs import assemble_pgs, solve_pgs
 
 # Compile time: the stages below are inline='always' into step_kernel. Every separately compiled numba function links
@@ -40,8 +40,8 @@ MODE_SEPARATED, MODE_STICKING, MODE_SLIDING = 0, 1, 2
 
 # stats vector layout
 ST_LCP_SIZE, ST_LCP_MAX, ST_PIVOTS, ST_LEMKE_STATUS, ST_NCON, ST_NISLAND, ST_FP_ITERS, ST_RESOLVES, \
-    ST_RESIDUAL, ST_FP_CHANGE, ST_PGS_UPDATE, ST_PENETRATION, ST_LEMKE_RETRIES = range(13)
-NSTAT = 13
+    ST_RESIDUAL, ST_FP_CHANGE, ST_PGS_UPDATE, ST_PENETRATION, ST_LEMKE_RETRIES, ST_WARM_STARTS = range(14)
+NSTAT = 14
 
 # Pivot tolerances tried, in order, when Lemke fails on an island: a nearly degenerate contact LCP (a rod lying flat:
 # its two contacts' friction columns differ only by round-off-sized lever arms) can offer a pivot ~1e-7 of its column
@@ -51,7 +51,7 @@ RETRY_PIV_TOLS = (1e-6, 1e-4)
 
 StepOptions = namedtuple("StepOptions", [
     "solver", "formulation", "fp_iters", "fp_tol", "pgs_iters", "margin", "pen_tol", "max_resolves",
-    "piv_tol", "ratio_tol", "res_tol", "slip_tol", "impulse_tol",
+    "piv_tol", "ratio_tol", "res_tol", "slip_tol", "impulse_tol", "warm_start",
 ])
 
 StepWork = namedtuple("StepWork", [
@@ -62,6 +62,7 @@ StepWork = namedtuple("StepWork", [
     "lT", "lbasis", "lz", "lw", "lcand", "llu", "lrhs", "lperm", "lzb", "lzalt", "lwalt", "lprow",
     "v_tilde", "v_hat", "q_hat", "v_new", "q_new",
     "con_cn", "con_ft", "con_vt", "con_mode",
+    "ws_n", "ws_zmask",
 ])
 
 
@@ -91,6 +92,8 @@ def make_step_work(model):
         v_tilde=np.zeros((nd, 3)), v_hat=np.zeros((nd, 3)), q_hat=np.zeros((nd, 3)), v_new=np.zeros((nd, 3)),
         q_new=np.zeros((nd, 3)),
         con_cn=np.zeros(C), con_ft=np.zeros(C), con_vt=np.zeros(C), con_mode=np.zeros(C, i),
+        # warm start, per island index: the size of the last LCP solved (-1: none) and which z were basic
+        ws_n=np.full(nd, -1, i), ws_zmask=np.zeros((nd, U), np.bool_),
     )
 
 
@@ -159,9 +162,18 @@ def _solve_island(m, w, opt, poses, vk, isl, ncon, h, velocity_form, stats):
         assemble_lcp(m, poses, vk, w.isl_con, nci, w.isl_sup, nsi, w.con_pair, w.con_phi, w.con_n, w.con_p,
                      w.v_tilde, w.v_hat, h, velocity_form, w.col_dyn, w.col_g, A, w.bvec)
         T = w.lT[:n * (2 * n + 2)].reshape((n, 2 * n + 2))
-        status, piv, res = lemke_kernel(A, w.bvec[:n], 50 * n + 100, opt.piv_tol, opt.ratio_tol, opt.res_tol, T,
-                                        w.lbasis, w.lz, w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt,
-                                        w.lwalt, w.lprow)
+        warm = False
+        if opt.warm_start and w.ws_n[isl] == n:
+            # the previous step's basis for this island: contact modes rarely change from one step to the next
+            warm, res = lemke_from_basis(A, w.bvec[:n], w.ws_zmask[isl], opt.res_tol, w.lz, w.lw, w.llu, w.lrhs,
+                                         w.lperm, w.lzb)
+        if warm:
+            status, piv = STATUS_SOLVED, 0
+            stats[ST_WARM_STARTS] += 1
+        else:
+            status, piv, res = lemke_kernel(A, w.bvec[:n], 50 * n + 100, opt.piv_tol, opt.ratio_tol, opt.res_tol, T,
+                                            w.lbasis, w.lz, w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt,
+                                            w.lwalt, w.lprow)
         for retry_tol in RETRY_PIV_TOLS:
             if status == STATUS_SOLVED or retry_tol <= opt.piv_tol:
                 continue
@@ -176,11 +188,22 @@ def _solve_island(m, w, opt, poses, vk, isl, ncon, h, velocity_form, stats):
         stats[ST_PIVOTS] += piv
         stats[ST_RESIDUAL] = max(stats[ST_RESIDUAL], res)
         if status == STATUS_SOLVED:
+            if not warm:
+                # remember the final basis (z_i basic) for the next step's warm start
+                w.ws_n[isl] = n
+                for i in range(n):
+                    w.ws_zmask[isl, i] = False
+                if piv > 0:  # with no pivot (q >= 0: z = 0) lemke_kernel leaves lbasis as it was
+                    for i in range(n):
+                        kb = w.lbasis[i]
+                        if kb >= n and kb < 2 * n:
+                            w.ws_zmask[isl, kb - n] = True
             apply_impulses(nci + 2 * nf + k * nsi, w.col_dyn, w.col_g, w.lz, m, w.v_new)
             _record_impulses(m, w, nci, w.lz, False, nci)
             _contact_velocities(m, w, opt, poses, vk, w.isl_con, nci)
             return status
         stats[ST_LEMKE_STATUS] = max(stats[ST_LEMKE_STATUS], status)
+        w.ws_n[isl] = -1
     # PGS: asked for, or the fallback when Lemke failed on this island (the failure is returned)
     n = n_pgs
     W = w.Abuf[:n * n].reshape((n, n))

@@ -17,7 +17,7 @@ from numba.experimental import structref
 
 F1, F2, F3 = types.float64[::1], types.float64[:, ::1], types.float64[:, :, ::1]
 I1, I2 = types.int64[::1], types.int64[:, ::1]
-B1 = types.boolean[::1]
+B1, B2 = types.boolean[::1], types.boolean[:, ::1]
 INT = types.int64
 
 #: field name -> numba type, in the order of the namedtuple's fields
@@ -96,6 +96,8 @@ WORK_FIELDS = (
     ("con_ft", F1),
     ("con_vt", F1),
     ("con_mode", I1),
+    ("ws_n", I1),
+    ("ws_zmask", B2),
 )
 
 
@@ -205,6 +207,8 @@ def _new_work_struct(a):
     s.con_ft = a.con_ft
     s.con_vt = a.con_vt
     s.con_mode = a.con_mode
+    s.ws_n = a.ws_n
+    s.ws_zmask = a.ws_zmask
     return s
 
 
