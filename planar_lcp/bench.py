@@ -187,23 +187,30 @@ def bench_step(scenes=STEP_SCENES, rounds=5, pymunk=True):
     from .model import compile_scene
     from .scene import load_scene
     from .sim import SimOptions, Simulator
+    from .kernels.step import ST_WARM_STARTS
     rows = []
     for name in scenes:
         sc = load_scene(name)
-        sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, solver=sc.sim.solver,
-                                                      formulation=sc.sim.formulation))
-        q, v, qk, vk = sim.initial_state()
         n = int(round(sc.sim.t_end / sc.sim.h))
-        sim.rollout(q, v, qk, vk[None], 5)  # warm
-        times = []
-        for _ in range(rounds):
-            t0 = time.perf_counter()
-            out = sim.rollout(q, v, qk, vk[None], n)
-            times.append(time.perf_counter() - t0)
-        st = out["stats"]
-        row = dict(scene=name, steps=n, h=sc.sim.h, us_per_step=statistics.median(times) / n * 1e6,
+        us = {}
+        for warm in (True, False):
+            sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, solver=sc.sim.solver,
+                                                          formulation=sc.sim.formulation, warm_start=warm))
+            q, v, qk, vk = sim.initial_state()
+            sim.rollout(q, v, qk, vk[None], 5)  # warm JIT
+            times = []
+            for _ in range(rounds):
+                t0 = time.perf_counter()
+                out = sim.rollout(q, v, qk, vk[None], n)
+                times.append(time.perf_counter() - t0)
+            us[warm] = statistics.median(times) / n * 1e6
+            if warm:
+                st = out["stats"]
+        with_lcp = st[:, 0] > 0
+        row = dict(scene=name, steps=n, h=sc.sim.h, us_per_step=us[True], cold_us_per_step=us[False],
                    mean_lcp_size=float(st[:, 0].mean()), max_lcp_size=int(st[:, 1].max()),
-                   pivots_per_step=float(st[:, 2].mean()))
+                   pivots_per_step=float(st[:, 2].mean()),
+                   warm_start_share=float(st[with_lcp, ST_WARM_STARTS].mean()) if with_lcp.any() else 0.0)
         if pymunk:
             row["pymunk_us_per_step"] = _time_pymunk_median(sc, n, rounds) / n * 1e6
             row["ratio"] = row["us_per_step"] / row["pymunk_us_per_step"]
@@ -213,12 +220,13 @@ def bench_step(scenes=STEP_SCENES, rounds=5, pymunk=True):
 
 def format_step_table(rows, compile_times=None):
     lines = ["| scene | steps | h (s) | ours µs / step | pymunk µs / step | ratio ours/pymunk | mean LCP size | "
-             "largest LCP | pivots / step |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "largest LCP | pivots / step | warm-started LCPs | ours, cold LCPs µs / step |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         pm = f"{r['pymunk_us_per_step']:.1f} | {r['ratio']:.1f}" if "ratio" in r else "- | -"
         lines.append(f"| {r['scene']} | {r['steps']} | {r['h']} | {r['us_per_step']:.1f} | {pm} | "
-                     f"{r['mean_lcp_size']:.1f} | {r['max_lcp_size']} | {r['pivots_per_step']:.1f} |")
+                     f"{r['mean_lcp_size']:.1f} | {r['max_lcp_size']} | {r['pivots_per_step']:.1f} | "
+                     f"{100 * r['warm_start_share']:.0f} % | {r['cold_us_per_step']:.1f} |")
     if any("ratio" in r for r in rows):
         lines.append("")
         lines.append("target: ratio <= 1.0 on each scene (pymunk through planar_lcp.pymunk_bridge, 10 iterations)")
