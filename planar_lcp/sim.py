@@ -49,7 +49,10 @@ class SimOptions:
     res_tol: float = 1e-9
     slip_tol: float = 1e-6                 # m/s: a loaded contact slipping faster than this is "sliding"
     impulse_tol: float = 1e-12             # N s: a contact with a smaller normal impulse is "separated"
-    warm_start: bool = True                # try the previous step's LCP basis first (certified, else a cold solve)
+    # Try each island's previous LCP basis before Lemke (certified, else a cold solve). Off by default: where the
+    # LCP has several solutions the warm start can keep a different one than Lemke's (docs/method.md, "Warm start"),
+    # so the default is the method as published; the planners turn it on for speed.
+    warm_start: bool = False
 
     def kernel_options(self):
         if self.solver not in SOLVERS:

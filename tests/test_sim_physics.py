@@ -300,15 +300,15 @@ def test_seed_friction_arm_puts_the_friction_moment_arm_at_the_end_cap_centre():
 def test_nearly_degenerate_flat_rod_lcp_is_solved_by_the_pivot_tolerance_retry():
     """Regression: the rod lying flat has two contacts whose friction columns differ only by round-off-sized lever
     arms. In this phase-shifted run Lemke (piv_tol 1e-9) pivoted on a 3e-7 entry and ended on a false ray at step
-    108; the retry with a stricter pivot tolerance solves it, certified by the residual. Cold solves only: the warm
-    start from the previous step's basis happens to solve this LCP without Lemke (checked below)."""
+    108; the retry with a stricter pivot tolerance solves it, certified by the residual. With the (optional) warm
+    start, the previous step's basis happens to solve this LCP without Lemke (checked below)."""
     from planar_lcp.scene import load_scene
     from planar_lcp.studies.common import shift_scene
     sc = shift_scene(load_scene("falling_rod"), 0.017148085531751386)
-    tr = simulate(sc, h=0.005, warm_start=False)   # raises on failure
+    tr = simulate(sc, h=0.005)   # raises on failure
     assert tr.stats["lemke_retries"][108] >= 1
     assert tr.stats["residual"][108] <= 1e-9 * 40
-    tr = simulate(sc, h=0.005)
+    tr = simulate(sc, h=0.005, warm_start=True)
     assert tr.stats["warm_starts"][108] >= 1 and tr.stats["lemke_retries"][108] == 0
     assert tr.stats["residual"][108] <= 1e-9 * 40
 
