@@ -12,12 +12,12 @@ import numpy as np
 
 from .kernels.lemke import STATUS_NAMES
 from .kernels.rollout import rollout_kernel
-from .kernels.structs import model_struct, work_struct
 from .kernels.step import (FORM_FIXED_POINT, FORM_POSITION, FORM_VELOCITY, NSTAT, SOLVER_LEMKE, SOLVER_PGS,
-                           ST_FP_CHANGE, ST_FP_ITERS, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_RETRIES, ST_LEMKE_STATUS, ST_WARM_STARTS,
+                           ST_FP_CHANGE, ST_FP_ITERS, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_RETRIES, ST_LEMKE_STATUS,
                            ST_NCON, ST_NISLAND, ST_PENETRATION, ST_PGS_UPDATE, ST_PIVOTS, ST_RESIDUAL, ST_RESOLVES,
-                           STEP_LCP_FAILED, STEP_NONFINITE, STEP_OK, StepOptions, energy, make_step_work,
-                           step_kernel)
+                           ST_WARM_STARTS, STEP_LCP_FAILED, STEP_NONFINITE, STEP_OK, StepOptions, energy,
+                           make_step_work, step_kernel)
+from .kernels.structs import model_struct, work_struct
 from .model import Model, compile_scene
 from .scene import Scene, load_scene
 
@@ -204,11 +204,10 @@ class Trajectory:
     body_names : names of the dynamic bodies (columns of q and v).
     stats : dict of (T-1,) arrays per step: lcp_size, lcp_max, pivots, n_contacts, n_islands, fp_iterations,
         resolves, residual, penetration (deepest overlap at the end of the step, m), lemke_retries (islands
-        re-solved with a stricter pivot tolerance after a failure), warm_starts (islands solved on the previous step's
-        LCP basis, no pivots), fp_change (the fixed point's last change of the
-        linearization pose), pgs_update (PGS's largest impulse change in its last sweep: its convergence), status
-        (0 ok, 1 LCP failed,
-        2 non-finite); energy (T,) J.
+        re-solved with a stricter pivot tolerance after a failure), warm_starts (islands solved on the previous
+        step's LCP basis with SimOptions(warm_start=True), no pivots), fp_change (the fixed point's last change of
+        the linearization pose), pgs_update (PGS's largest impulse change in its last sweep: its convergence),
+        status (0 ok, 1 LCP failed, 2 non-finite); energy (T,) J.
     contacts : dict of per-step contact arrays (count (T-1,), then (T-1, C[, 2]): pair, phi, normal, point, cn, ft,
         vt, mode with mode 0 separated, 1 sticking, 2 sliding) and `shape_pairs` naming each pair's bodies. The
         rows of a step are the contacts in the order they were found (not matched across steps). vt and mode use the
