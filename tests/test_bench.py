@@ -1,9 +1,13 @@
 """The benchmark commands run and report what they promise (functional checks, never timing assertions)."""
 
 import numpy as np
+import pytest
 
 from planar_lcp.bench import (bench_lcp, bench_scaling, bench_step, format_lcp_table, format_scaling_table,
                               format_step_table)
+
+# they time compiled code; without the JIT QuantEcon's Lemke alone runs for hours on the cycling instances
+pytestmark = pytest.mark.slow
 
 
 def test_bench_step_measures_ours_and_pymunk():
