@@ -11,12 +11,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .kernels.lemke import STATUS_NAMES
-from .kernels.rollout import rollout_kernel
+from .kernels.rollout import rollout_kernel, rollout_kernel_lemke
 from .kernels.step import (FORM_FIXED_POINT, FORM_POSITION, FORM_VELOCITY, NSTAT, SOLVER_LEMKE, SOLVER_PGS,
                            ST_FP_CHANGE, ST_FP_ITERS, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_RETRIES, ST_LEMKE_STATUS,
                            ST_NCON, ST_NISLAND, ST_PENETRATION, ST_PGS_UPDATE, ST_PIVOTS, ST_RESIDUAL, ST_RESOLVES,
-                           ST_WARM_STARTS, STEP_LCP_FAILED, STEP_NONFINITE, STEP_OK, StepOptions, energy,
-                           make_step_work, step_kernel)
+                           ST_WARM_STARTS, STEP_LCP_FAILED, STEP_NEEDS_FALLBACK, STEP_NONFINITE, STEP_OK,
+                           StepOptions, make_step_work, step_kernel, step_kernel_lemke)
 from .kernels.structs import model_struct, work_struct
 from .model import Model, compile_scene
 from .scene import Scene, load_scene
@@ -115,6 +115,12 @@ class Simulator:
             from .osqp_step import osqp_step
             return osqp_step(self.model.arrays, self.kmodel, q, v, qk, vk, self.h, self.kopt, self.work, self.kwork,
                              q_out, v_out, qk_out, stats)
+        if self.kopt.solver == SOLVER_LEMKE:
+            # Lemke-only kernel first: the PGS fallback is compiled (and run) only when Lemke fails (docs/performance.md)
+            st = step_kernel_lemke(self.kmodel, q, v, qk, vk, self.h, self.kopt, self.kwork, q_out, v_out, qk_out,
+                                   stats)
+            if st != STEP_NEEDS_FALLBACK:
+                return int(st)
         return int(step_kernel(self.kmodel, q, v, qk, vk, self.h, self.kopt, self.kwork, q_out, v_out, qk_out, stats))
 
     def reset_warm_start(self):
@@ -160,8 +166,12 @@ class Simulator:
                    con_n=np.zeros((nsteps, C, 2)), con_p=np.zeros((nsteps, C, 2)), con_cn=np.zeros((nsteps, C)),
                    con_ft=np.zeros((nsteps, C)), con_vt=np.zeros((nsteps, C)),
                    con_mode=np.zeros((nsteps, C), np.int64))
+        q, v, qk = (np.ascontiguousarray(a, dtype=float) for a in (q, v, qk))
         if self.kopt.solver == SOLVER_OSQP:
             out["steps_done"] = self._rollout_python(out, q, v, qk, vk_seq, nsteps, stop_on_failure, C)
+            return out
+        if self.kopt.solver == SOLVER_LEMKE:
+            out["steps_done"] = self._rollout_lemke(out, q, v, qk, vk_seq, int(nsteps), bool(stop_on_failure), C)
             return out
         done = rollout_kernel(self.kmodel, np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(v, dtype=float),
                               np.ascontiguousarray(qk, dtype=float), vk_seq, int(nsteps), self.h, self.kopt,
@@ -171,21 +181,51 @@ class Simulator:
         out["steps_done"] = int(done)
         return out
 
+    def _rollout_lemke(self, out, q, v, qk, vk_seq, nsteps, stop_on_failure, C):
+        """Solver lemke: `rollout_kernel_lemke` (no PGS compiled in), and a step on which Lemke fails run by
+        `step_kernel` from Python, then resumed. The same outputs as `rollout_kernel`, bit for bit: each step is
+        computed by the same code from the same inputs and the same warm-start memory."""
+        keys = ("q", "v", "qk", "stats", "status", "con_count", "con_pair", "con_phi", "con_n", "con_p", "con_cn",
+                "con_ft", "con_vt", "con_mode")
+        start = 0
+        while True:
+            view = [out[k][start:] for k in keys]
+            done = start + int(rollout_kernel_lemke(
+                self.kmodel, out["q"][start] if start else q, out["v"][start] if start else v,
+                out["qk"][start] if start else qk, vk_seq, start, nsteps - start, self.h, self.kopt, self.kwork,
+                *view, stop_on_failure, start == 0))
+            if done == nsteps or out["status"][done] != STEP_NEEDS_FALLBACK:
+                return done
+            # Lemke failed on an island in step `done`: that step with the PGS fallback
+            i = done
+            st = int(step_kernel(self.kmodel, out["q"][i], out["v"][i], out["qk"][i], vk_seq[min(i, len(vk_seq) - 1)],
+                                 self.h, self.kopt, self.kwork, out["q"][i + 1], out["v"][i + 1], out["qk"][i + 1],
+                                 out["stats"][i]))
+            out["status"][i] = st
+            self._record_contacts(out, i, C)
+            if (st != STEP_OK and stop_on_failure) or i + 1 == nsteps:
+                return i + 1
+            start = i + 1
+
+    def _record_contacts(self, out, i, C):
+        if not C:
+            return
+        w = self.work
+        nc = int(out["stats"][i, ST_NCON])
+        out["con_count"][i] = nc
+        for key, src in (("con_pair", w.con_pair), ("con_phi", w.con_phi), ("con_n", w.con_n),
+                         ("con_p", w.con_p), ("con_cn", w.con_cn), ("con_ft", w.con_ft),
+                         ("con_vt", w.con_vt), ("con_mode", w.con_mode)):
+            out[key][i, :min(nc, C)] = src[:min(nc, C)]
+
     def _rollout_python(self, out, q, v, qk, vk_seq, nsteps, stop_on_failure, C):
         """The rollout loop for solvers that cannot run inside numba (osqp); same outputs as rollout_kernel."""
-        w = self.work
         out["q"][0], out["v"][0], out["qk"][0] = q, v, qk
         for i in range(nsteps):
             st = self._step_into(out["q"][i], out["v"][i], out["qk"][i], vk_seq[min(i, len(vk_seq) - 1)],
                                  out["q"][i + 1], out["v"][i + 1], out["qk"][i + 1], out["stats"][i])
             out["status"][i] = st
-            if C:
-                nc = int(out["stats"][i, ST_NCON])
-                out["con_count"][i] = nc
-                for key, src in (("con_pair", w.con_pair), ("con_phi", w.con_phi), ("con_n", w.con_n),
-                                 ("con_p", w.con_p), ("con_cn", w.con_cn), ("con_ft", w.con_ft),
-                                 ("con_vt", w.con_vt), ("con_mode", w.con_mode)):
-                    out[key][i, :nc] = src[:nc]
+            self._record_contacts(out, i, C)
             if st != STEP_OK and stop_on_failure:
                 return i + 1
         return nsteps
@@ -255,6 +295,15 @@ def _frame_velocity(model, q_com, v_com):
     return v
 
 
+def _energy(model, q_com, v_com):
+    """Kinetic + potential energy of the dynamic bodies (J) per row of (T, ndyn, 3) COM poses and velocities; the
+    potential is -m g.x (vertical plane; g = 0 in the horizontal plane)."""
+    a = model.arrays
+    m, J, g = a.dyn_mass, a.dyn_inertia, a.gravity
+    kinetic = 0.5 * m * (v_com[..., 0] ** 2 + v_com[..., 1] ** 2) + 0.5 * J * v_com[..., 2] ** 2
+    return (kinetic - m * (g[0] * q_com[..., 0] + g[1] * q_com[..., 1])).sum(axis=1)
+
+
 def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_point_iterations=None,
              friction_directions=None, pgs_iterations=None, on_failure="raise", record_contacts=True,
              seed_friction_arm=False, **options) -> Trajectory:
@@ -297,7 +346,7 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     T = done + 1
     q_com, v_com = out["q"][:T], out["v"][:T]
     st = out["stats"][:done]
-    en = np.array([energy(simr.kmodel, q_com[i], v_com[i]) for i in range(T)])
+    en = _energy(model, q_com, v_com)
     stats = dict(lcp_size=st[:, ST_LCP_SIZE].astype(int), lcp_max=st[:, ST_LCP_MAX].astype(int),
                  pivots=st[:, ST_PIVOTS].astype(int), n_contacts=st[:, ST_NCON].astype(int),
                  n_islands=st[:, ST_NISLAND].astype(int), fp_iterations=st[:, ST_FP_ITERS].astype(int),

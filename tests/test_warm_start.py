@@ -171,3 +171,34 @@ def test_planner_propagation_warm_starts():
     from planners.tasks import TaskModel
     tm = TaskModel("push_box")
     assert tm.sim.options.warm_start is True
+
+
+@pytest.mark.parametrize("warm", [False, True])
+def test_lemke_rollout_with_python_fallback_equals_the_full_kernel_bit_for_bit(warm):
+    """Solver lemke runs `rollout_kernel_lemke` (no PGS compiled in) and hands a step on which Lemke fails to
+    `step_kernel` from Python. res_tol = 0 makes Lemke 'fail' on many steps (a controlled failure), so the stitched
+    rollout is compared with the one-kernel `rollout_kernel` on every output, and with a loop of `step`."""
+    from planar_lcp.kernels.rollout import rollout_kernel
+    sc = load_scene("falling_rod")
+    opts = SimOptions(h=sc.sim.h, res_tol=0.0, warm_start=warm)
+    sim, ref = Simulator(compile_scene(sc), opts), Simulator(compile_scene(sc), opts)
+    q, v, qk, vk = sim.initial_state()
+    n = 300
+    out = sim.rollout(q, v, qk, vk[None], n, stop_on_failure=False, record_contacts=True)
+    failed = np.flatnonzero(out["status"] != 0)
+    assert len(failed) >= 3 and out["steps_done"] == n
+    C = ref.model.max_contacts()
+    z = {k: np.zeros_like(out[k]) for k in ("q", "v", "qk", "stats", "status", "con_count", "con_pair", "con_phi",
+                                             "con_n", "con_p", "con_cn", "con_ft", "con_vt", "con_mode")}
+    assert C > 0
+    done = rollout_kernel(ref.kmodel, q, v, qk, vk[None], n, ref.h, ref.kopt, ref.kwork, z["q"], z["v"], z["qk"],
+                          z["stats"], z["status"], z["con_count"], z["con_pair"], z["con_phi"], z["con_n"], z["con_p"],
+                          z["con_cn"], z["con_ft"], z["con_vt"], z["con_mode"], False)
+    assert done == n
+    for k, a in z.items():
+        assert np.array_equal(out[k], a), k
+    # and a loop of step, which takes the same path
+    loop = Simulator(compile_scene(sc), opts)
+    for i in range(n):
+        q, v, qk, st = loop.step(q, v, qk, vk)
+        assert st == out["status"][i] and np.array_equal(q, out["q"][i + 1]) and np.array_equal(v, out["v"][i + 1])

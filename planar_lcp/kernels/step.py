@@ -35,6 +35,7 @@ FORM_POSITION, FORM_FIXED_POINT, FORM_VELOCITY = 0, 1, 2
 STEP_OK = 0
 STEP_LCP_FAILED = 1      # Lemke did not solve an island; PGS was used for it (recorded, never silent)
 STEP_NONFINITE = 2       # the new state is not finite
+STEP_NEEDS_FALLBACK = 3  # step_kernel_lemke only: Lemke failed on an island; nothing was written, run step_kernel
 
 MODE_SEPARATED, MODE_STICKING, MODE_SLIDING = 0, 1, 2
 
@@ -62,7 +63,7 @@ StepWork = namedtuple("StepWork", [
     "lT", "lbasis", "lz", "lw", "lcand", "llu", "lrhs", "lperm", "lzb", "lzalt", "lwalt", "lprow",
     "v_tilde", "v_hat", "q_hat", "v_new", "q_new",
     "con_cn", "con_ft", "con_vt", "con_mode",
-    "ws_n", "ws_zmask",
+    "ws_n", "ws_zmask", "ws_n_saved", "ws_zmask_saved",
 ])
 
 
@@ -94,6 +95,7 @@ def make_step_work(model):
         con_cn=np.zeros(C), con_ft=np.zeros(C), con_vt=np.zeros(C), con_mode=np.zeros(C, i),
         # warm start, per island index: the size of the last LCP solved (-1: none) and which z were basic
         ws_n=np.full(nd, -1, i), ws_zmask=np.zeros((nd, U), np.bool_),
+        ws_n_saved=np.full(nd, -1, i), ws_zmask_saved=np.zeros((nd, U), np.bool_),
     )
 
 
@@ -136,11 +138,8 @@ def _record_impulses(m, w, nci, z, friction_pairs_interleaved, nf_offset):
 
 
 @njit(cache=True, inline='always')
-def _solve_island(m, w, opt, poses, vk, isl, ncon, h, velocity_form, stats):
-    """Assemble and solve one island's problem, add its impulses to w.v_new, record contact impulses.
-
-    Returns the Lemke status (STATUS_SOLVED when PGS was asked for). When Lemke fails the island is solved by PGS
-    instead and the failure is returned, so that the step reports it."""
+def _island_members(m, w, isl, ncon):
+    """Fill w.isl_con / w.isl_sup with the contacts and support points of island isl; returns their counts."""
     nci = 0
     for j in range(ncon):
         if contact_island(m, w.island, w.con_pair, j) == isl:
@@ -151,61 +150,68 @@ def _solve_island(m, w, opt, poses, vk, isl, ncon, h, velocity_form, stats):
         if w.island[m.sup_dyn[s]] == isl:
             w.isl_sup[nsi] = s
             nsi += 1
-    if nci == 0 and nsi == 0:
-        return STATUS_SOLVED
-    n_lcp, nf, n_pgs = _problem_sizes(m, w.isl_con, nci, nsi, w.con_pair)
+    return nci, nsi
+
+
+@njit(cache=True, inline='always')
+def _solve_island_lemke(m, w, opt, poses, vk, isl, nci, nsi, h, velocity_form, stats):
+    """The island's LCP by Lemke (warm start and stricter-pivot retries included). When solved, its impulses are
+    added to w.v_new and recorded; returns the Lemke status (a failure leaves w.v_new unchanged)."""
+    n, nf, _ = _problem_sizes(m, w.isl_con, nci, nsi, w.con_pair)
     k = m.fric_dirs.shape[0]
-    status = STATUS_SOLVED
-    if opt.solver == SOLVER_LEMKE:
-        n = n_lcp
-        A = w.Abuf[:n * n].reshape((n, n))
-        assemble_lcp(m, poses, vk, w.isl_con, nci, w.isl_sup, nsi, w.con_pair, w.con_phi, w.con_n, w.con_p,
-                     w.v_tilde, w.v_hat, h, velocity_form, w.col_dyn, w.col_g, A, w.bvec)
-        T = w.lT[:n * (2 * n + 2)].reshape((n, 2 * n + 2))
-        warm = False
-        if opt.warm_start and w.ws_n[isl] == n:
-            # the previous step's basis for this island: contact modes rarely change from one step to the next
-            warm, res = lemke_from_basis(A, w.bvec[:n], w.ws_zmask[isl], opt.res_tol, w.lz, w.lw, w.llu, w.lrhs,
-                                         w.lperm, w.lzb)
-        if warm:
-            status, piv = STATUS_SOLVED, 0
-            stats[ST_WARM_STARTS] += 1
-        else:
-            status, piv, res = lemke_kernel(A, w.bvec[:n], 50 * n + 100, opt.piv_tol, opt.ratio_tol, opt.res_tol, T,
-                                            w.lbasis, w.lz, w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt,
-                                            w.lwalt, w.lprow)
-        for retry_tol in RETRY_PIV_TOLS:
-            if status == STATUS_SOLVED or retry_tol <= opt.piv_tol:
-                continue
-            stats[ST_LEMKE_RETRIES] += 1
-            pivots_before = piv
-            status, piv, res = lemke_kernel(A, w.bvec[:n], 50 * n + 100, retry_tol, opt.ratio_tol, opt.res_tol, T,
-                                            w.lbasis, w.lz, w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt,
-                                            w.lwalt, w.lprow)
-            piv += pivots_before
-        stats[ST_LCP_SIZE] += n
-        stats[ST_LCP_MAX] = max(stats[ST_LCP_MAX], n)
-        stats[ST_PIVOTS] += piv
-        stats[ST_RESIDUAL] = max(stats[ST_RESIDUAL], res)
-        if status == STATUS_SOLVED:
-            if not warm:
-                # remember the final basis (z_i basic) for the next step's warm start
-                w.ws_n[isl] = n
-                for i in range(n):
-                    w.ws_zmask[isl, i] = False
-                if piv > 0:  # with no pivot (q >= 0: z = 0) lemke_kernel leaves lbasis as it was
-                    for i in range(n):
-                        kb = w.lbasis[i]
-                        if kb >= n and kb < 2 * n:
-                            w.ws_zmask[isl, kb - n] = True
-            apply_impulses(nci + 2 * nf + k * nsi, w.col_dyn, w.col_g, w.lz, m, w.v_new)
-            _record_impulses(m, w, nci, w.lz, False, nci)
-            _contact_velocities(m, w, opt, poses, vk, w.isl_con, nci)
-            return status
+    A = w.Abuf[:n * n].reshape((n, n))
+    assemble_lcp(m, poses, vk, w.isl_con, nci, w.isl_sup, nsi, w.con_pair, w.con_phi, w.con_n, w.con_p,
+                 w.v_tilde, w.v_hat, h, velocity_form, w.col_dyn, w.col_g, A, w.bvec)
+    T = w.lT[:n * (2 * n + 2)].reshape((n, 2 * n + 2))
+    warm = False
+    if opt.warm_start and w.ws_n[isl] == n:
+        # the previous step's basis for this island: contact modes rarely change from one step to the next
+        warm, res = lemke_from_basis(A, w.bvec[:n], w.ws_zmask[isl], opt.res_tol, w.lz, w.lw, w.llu, w.lrhs,
+                                     w.lperm, w.lzb)
+    if warm:
+        status, piv = STATUS_SOLVED, 0
+        stats[ST_WARM_STARTS] += 1
+    else:
+        status, piv, res = lemke_kernel(A, w.bvec[:n], 50 * n + 100, opt.piv_tol, opt.ratio_tol, opt.res_tol, T,
+                                        w.lbasis, w.lz, w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt,
+                                        w.lwalt, w.lprow)
+    for retry_tol in RETRY_PIV_TOLS:
+        if status == STATUS_SOLVED or retry_tol <= opt.piv_tol:
+            continue
+        stats[ST_LEMKE_RETRIES] += 1
+        pivots_before = piv
+        status, piv, res = lemke_kernel(A, w.bvec[:n], 50 * n + 100, retry_tol, opt.ratio_tol, opt.res_tol, T,
+                                        w.lbasis, w.lz, w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt,
+                                        w.lwalt, w.lprow)
+        piv += pivots_before
+    stats[ST_LCP_SIZE] += n
+    stats[ST_LCP_MAX] = max(stats[ST_LCP_MAX], n)
+    stats[ST_PIVOTS] += piv
+    stats[ST_RESIDUAL] = max(stats[ST_RESIDUAL], res)
+    if status != STATUS_SOLVED:
         stats[ST_LEMKE_STATUS] = max(stats[ST_LEMKE_STATUS], status)
         w.ws_n[isl] = -1
-    # PGS: asked for, or the fallback when Lemke failed on this island (the failure is returned)
-    n = n_pgs
+        return status
+    if not warm:
+        # remember the final basis (z_i basic) for the next step's warm start
+        w.ws_n[isl] = n
+        for i in range(n):
+            w.ws_zmask[isl, i] = False
+        if piv > 0:  # with no pivot (q >= 0: z = 0) lemke_kernel leaves lbasis as it was
+            for i in range(n):
+                kb = w.lbasis[i]
+                if kb >= n and kb < 2 * n:
+                    w.ws_zmask[isl, kb - n] = True
+    apply_impulses(nci + 2 * nf + k * nsi, w.col_dyn, w.col_g, w.lz, m, w.v_new)
+    _record_impulses(m, w, nci, w.lz, False, nci)
+    _contact_velocities(m, w, opt, poses, vk, w.isl_con, nci)
+    return status
+
+
+@njit(cache=True, inline='always')
+def _solve_island_pgs(m, w, opt, poses, vk, isl, nci, nsi, h, velocity_form, stats):
+    """The island's impulses by projected Gauss-Seidel, added to w.v_new and recorded."""
+    _, _, n = _problem_sizes(m, w.isl_con, nci, nsi, w.con_pair)
     W = w.Abuf[:n * n].reshape((n, n))
     assemble_pgs(m, poses, vk, w.isl_con, nci, w.isl_sup, nsi, w.con_pair, w.con_phi, w.con_n, w.con_p,
                  w.v_tilde, w.v_hat, h, velocity_form, w.col_dyn, w.col_g, W, w.bvec)
@@ -216,7 +222,34 @@ def _solve_island(m, w, opt, poses, vk, isl, ncon, h, velocity_form, stats):
     apply_impulses(n, w.col_dyn, w.col_g, w.zvec, m, w.v_new)
     _record_impulses(m, w, nci, w.zvec, True, 0)
     _contact_velocities(m, w, opt, poses, vk, w.isl_con, nci)
+
+
+@njit(cache=True, inline='always')
+def _solve_island(m, w, opt, poses, vk, isl, ncon, h, velocity_form, stats):
+    """Assemble and solve one island's problem, add its impulses to w.v_new, record contact impulses.
+
+    Returns the Lemke status (STATUS_SOLVED when PGS was asked for). When Lemke fails the island is solved by PGS
+    instead and the failure is returned, so that the step reports it."""
+    nci, nsi = _island_members(m, w, isl, ncon)
+    if nci == 0 and nsi == 0:
+        return STATUS_SOLVED
+    status = STATUS_SOLVED
+    if opt.solver == SOLVER_LEMKE:
+        status = _solve_island_lemke(m, w, opt, poses, vk, isl, nci, nsi, h, velocity_form, stats)
+        if status == STATUS_SOLVED:
+            return status
+    # PGS: asked for, or the fallback when Lemke failed on this island (the failure is returned)
+    _solve_island_pgs(m, w, opt, poses, vk, isl, nci, nsi, h, velocity_form, stats)
     return status
+
+
+@njit(cache=True, inline='always')
+def _solve_island_lemke_only(m, w, opt, poses, vk, isl, ncon, h, velocity_form, stats):
+    """`_solve_island` without the PGS fallback (for step_kernel_lemke): returns the Lemke status."""
+    nci, nsi = _island_members(m, w, isl, ncon)
+    if nci == 0 and nsi == 0:
+        return STATUS_SOLVED
+    return _solve_island_lemke(m, w, opt, poses, vk, isl, nci, nsi, h, velocity_form, stats)
 
 
 @njit(cache=True, inline='always')
@@ -317,17 +350,6 @@ def _project_positions(m, w, opt, qk_new, stats):
     for d in range(ndyn):
         for c in range(3):
             w.q_new[d, c] += w.v_hat[d, c]
-
-
-@njit(cache=True)
-def energy(m, q, v):
-    """Kinetic + potential energy of the dynamic bodies (J); the potential is -m g.x (vertical plane)."""
-    e = 0.0
-    for d in range(q.shape[0]):
-        ms = m.dyn_mass[d]
-        e += 0.5 * ms * (v[d, 0] ** 2 + v[d, 1] ** 2) + 0.5 * m.dyn_inertia[d] * v[d, 2] ** 2
-        e -= ms * (m.gravity[0] * q[d, 0] + m.gravity[1] * q[d, 1])
-    return e
 
 
 @njit(cache=True, inline='always')
@@ -452,3 +474,40 @@ def step_kernel(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
         if not again:
             break
     return finish_step(m, w, opt, vk, ncon, qk_out, q_out, v_out, stats, fp_iter, worst)
+
+
+@njit(cache=True)
+def step_kernel_lemke(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """`step_kernel` for solver lemke without the PGS fallback compiled in, so that the first call compiles less
+    (docs/performance.md). When Lemke fails on an island it returns STEP_NEEDS_FALLBACK at once, with the warm-start
+    memory as it was before the step and nothing written: run `step_kernel` on the same inputs, which does exactly
+    what this kernel would have done up to the failure and then solves the island by PGS."""
+    if opt.solver != SOLVER_LEMKE:
+        return STEP_NEEDS_FALLBACK
+    if opt.warm_start:
+        for i in range(w.ws_n.shape[0]):
+            w.ws_n_saved[i] = w.ws_n[i]
+            for c in range(w.ws_zmask.shape[1]):
+                w.ws_zmask_saved[i, c] = w.ws_zmask[i, c]
+    begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats)
+    velocity_form = opt.formulation == FORM_VELOCITY
+    qk_lin = qk if velocity_form else qk_out
+    fp_iter = 0
+    while True:
+        ncon, nisl = prepare_contacts(m, w, opt, qk_lin, stats)
+        for isl in range(nisl):
+            st = _solve_island_lemke_only(m, w, opt, w.poses, vk, isl, ncon, h, velocity_form, stats)
+            if st != STATUS_SOLVED:
+                if opt.warm_start:
+                    for i in range(w.ws_n.shape[0]):
+                        w.ws_n[i] = w.ws_n_saved[i]
+                        for c in range(w.ws_zmask.shape[1]):
+                            w.ws_zmask[i, c] = w.ws_zmask_saved[i, c]
+                return STEP_NEEDS_FALLBACK
+        integrate_positions(q, h, w)
+        again, it = needs_another_solve(m, w, opt, q, h, qk_out, fp_iter, stats)
+        if it >= 0:
+            fp_iter = it
+        if not again:
+            break
+    return finish_step(m, w, opt, vk, ncon, qk_out, q_out, v_out, stats, fp_iter, STATUS_SOLVED)

@@ -98,6 +98,8 @@ WORK_FIELDS = (
     ("con_mode", I1),
     ("ws_n", I1),
     ("ws_zmask", B2),
+    ("ws_n_saved", I1),
+    ("ws_zmask_saved", B2),
 )
 
 
@@ -209,6 +211,8 @@ def _new_work_struct(a):
     s.con_mode = a.con_mode
     s.ws_n = a.ws_n
     s.ws_zmask = a.ws_zmask
+    s.ws_n_saved = a.ws_n_saved
+    s.ws_zmask_saved = a.ws_zmask_saved
     return s
 
 
