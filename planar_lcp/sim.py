@@ -101,6 +101,8 @@ class Simulator:
         self.kwork = work_struct(self.work)
         self.stats = np.zeros(NSTAT)
         self._last_step_out = None  # (q, v, qk) returned by the last `step`, for its warm start
+        # solver lemke with a position form: the kernels without PGS and the velocity projection (compiled on demand)
+        self._fast_kernel = self.kopt.solver == SOLVER_LEMKE and self.kopt.formulation != FORM_VELOCITY
 
     @property
     def h(self):
@@ -115,7 +117,7 @@ class Simulator:
             from .osqp_step import osqp_step
             return osqp_step(self.model.arrays, self.kmodel, q, v, qk, vk, self.h, self.kopt, self.work, self.kwork,
                              q_out, v_out, qk_out, stats)
-        if self.kopt.solver == SOLVER_LEMKE:
+        if self._fast_kernel:
             # Lemke-only kernel first: the PGS fallback is compiled (and run) only when Lemke fails (docs/performance.md)
             st = step_kernel_lemke(self.kmodel, q, v, qk, vk, self.h, self.kopt, self.kwork, q_out, v_out, qk_out,
                                    stats)
@@ -170,7 +172,7 @@ class Simulator:
         if self.kopt.solver == SOLVER_OSQP:
             out["steps_done"] = self._rollout_python(out, q, v, qk, vk_seq, nsteps, stop_on_failure, C)
             return out
-        if self.kopt.solver == SOLVER_LEMKE:
+        if self._fast_kernel:
             out["steps_done"] = self._rollout_lemke(out, q, v, qk, vk_seq, int(nsteps), bool(stop_on_failure), C)
             return out
         done = rollout_kernel(self.kmodel, np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(v, dtype=float),

@@ -431,6 +431,12 @@ def finish_step(m, w, opt, vk, ncon, qk_out, q_out, v_out, stats, fp_iter, worst
         for p in range(w.set_count.shape[0]):
             w.set_count[p] = 2
         _check_end_configuration(m, w, opt, qk_out, stats)
+    return _write_outputs(w, ncon, q_out, v_out, stats, fp_iter, worst)
+
+
+@njit(cache=True, inline='always')
+def _write_outputs(w, ncon, q_out, v_out, stats, fp_iter, worst):
+    """The step's outputs and status (finish_step without the velocity form's projection)."""
     stats[ST_NCON] = ncon
     stats[ST_FP_ITERS] = fp_iter
     finite = True
@@ -478,11 +484,12 @@ def step_kernel(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
 
 @njit(cache=True)
 def step_kernel_lemke(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """`step_kernel` for solver lemke without the PGS fallback compiled in, so that the first call compiles less
-    (docs/performance.md). When Lemke fails on an island it returns STEP_NEEDS_FALLBACK at once, with the warm-start
-    memory as it was before the step and nothing written: run `step_kernel` on the same inputs, which does exactly
-    what this kernel would have done up to the failure and then solves the island by PGS."""
-    if opt.solver != SOLVER_LEMKE:
+    """`step_kernel` for solver lemke and the position forms, without the PGS fallback and the velocity form's
+    projection compiled in, so that the first call compiles less (docs/performance.md). When Lemke fails on an
+    island it returns STEP_NEEDS_FALLBACK at once, with the warm-start memory as it was before the step and nothing
+    written: run `step_kernel` on the same inputs, which does exactly what this kernel would have done up to the
+    failure and then solves the island by PGS. Other solvers and the velocity form: STEP_NEEDS_FALLBACK."""
+    if opt.solver != SOLVER_LEMKE or opt.formulation == FORM_VELOCITY:
         return STEP_NEEDS_FALLBACK
     if opt.warm_start:
         for i in range(w.ws_n.shape[0]):
@@ -510,4 +517,4 @@ def step_kernel_lemke(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
             fp_iter = it
         if not again:
             break
-    return finish_step(m, w, opt, vk, ncon, qk_out, q_out, v_out, stats, fp_iter, STATUS_SOLVED)
+    return _write_outputs(w, ncon, q_out, v_out, stats, fp_iter, STATUS_SOLVED)
