@@ -164,6 +164,7 @@ def test_fast_disk_against_a_thin_segment(speed):
 
 # --- a tall stack ----------------------------------------------------------------------------------------------
 
+@pytest.mark.slow  # minutes without the JIT (NUMBA_DISABLE_JIT=1)
 def test_stack_of_10_boxes_rests_for_1e4_steps():
     boxes = [box(f"b{i}", 1.0, 0.0, 0.05 + 0.1 * i) for i in range(10)]
     tr = simulate(scene(boxes + [table()], h=0.005, t_end=50.0), record_contacts=False)

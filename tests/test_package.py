@@ -3,6 +3,8 @@
 import subprocess
 import sys
 
+import pytest
+
 import planar_lcp
 
 
@@ -36,6 +38,7 @@ def test_numba_cache_is_keyed_on_the_kernel_sources(tmp_path):
     assert h1 != h2
 
 
+@pytest.mark.slow  # minutes without the JIT (NUMBA_DISABLE_JIT=1)
 def test_demo_writes_its_files(tmp_path, capsys):
     from planar_lcp.cli import main
     assert main(["demo", "--out", str(tmp_path / "d")]) == 0

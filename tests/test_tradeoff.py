@@ -3,6 +3,7 @@
 import csv
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -34,6 +35,7 @@ def test_errors_vanish_against_itself_and_shrink_with_h():
     assert v_err[-1] < 0.05 * v_err[0]
 
 
+@pytest.mark.slow  # minutes without the JIT (NUMBA_DISABLE_JIT=1)
 def test_quick_sweep_writes_csv_and_plots(tmp_path, capsys):
     assert main(["tradeoff", "--quick", "--no-progress", "--scenes", "falling_rod", "box_push",
                  "--out", str(tmp_path)]) == 0
