@@ -202,3 +202,24 @@ def test_lemke_rollout_with_python_fallback_equals_the_full_kernel_bit_for_bit(w
     for i in range(n):
         q, v, qk, st = loop.step(q, v, qk, vk)
         assert st == out["status"][i] and np.array_equal(q, out["q"][i + 1]) and np.array_equal(v, out["v"][i + 1])
+
+
+def test_lemke_rollout_stops_at_the_first_failure_like_the_full_kernel():
+    """stop_on_failure: the stitched rollout stops after the same step, with the same states and statuses."""
+    from planar_lcp.kernels.rollout import rollout_kernel
+    sc = load_scene("falling_rod")
+    opts = SimOptions(h=sc.sim.h, res_tol=0.0)
+    sim, ref = Simulator(compile_scene(sc), opts), Simulator(compile_scene(sc), opts)
+    q, v, qk, vk = sim.initial_state()
+    n = 300
+    out = sim.rollout(q, v, qk, vk[None], n, stop_on_failure=True)
+    done = out["steps_done"]
+    assert 0 < done < n and out["status"][done - 1] != 0 and np.all(out["status"][:done - 1] == 0)
+    z = {k: np.zeros_like(out[k]) for k in ("q", "v", "qk", "stats", "status", "con_count", "con_pair", "con_phi",
+                                             "con_n", "con_p", "con_cn", "con_ft", "con_vt", "con_mode")}
+    d = rollout_kernel(ref.kmodel, q, v, qk, vk[None], n, ref.h, ref.kopt, ref.kwork, z["q"], z["v"], z["qk"],
+                       z["stats"], z["status"], z["con_count"], z["con_pair"], z["con_phi"], z["con_n"], z["con_p"],
+                       z["con_cn"], z["con_ft"], z["con_vt"], z["con_mode"], True)
+    assert d == done
+    for k in ("q", "v", "stats", "status"):
+        assert np.array_equal(out[k], z[k]), k
