@@ -482,6 +482,15 @@ def step_kernel(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     return finish_step(m, w, opt, vk, ncon, qk_out, q_out, v_out, stats, fp_iter, worst)
 
 
+@njit(cache=True, inline='always')
+def _copy_warm_start(n_from, zmask_from, n_to, zmask_to):
+    """Copy the warm-start memory (per island: LCP size and basic-z mask)."""
+    for i in range(n_from.shape[0]):
+        n_to[i] = n_from[i]
+        for c in range(zmask_from.shape[1]):
+            zmask_to[i, c] = zmask_from[i, c]
+
+
 @njit(cache=True)
 def step_kernel_lemke(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     """`step_kernel` for solver lemke and the position forms, without the PGS fallback and the velocity form's
@@ -492,10 +501,7 @@ def step_kernel_lemke(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     if opt.solver != SOLVER_LEMKE or opt.formulation == FORM_VELOCITY:
         return STEP_NEEDS_FALLBACK
     if opt.warm_start:
-        for i in range(w.ws_n.shape[0]):
-            w.ws_n_saved[i] = w.ws_n[i]
-            for c in range(w.ws_zmask.shape[1]):
-                w.ws_zmask_saved[i, c] = w.ws_zmask[i, c]
+        _copy_warm_start(w.ws_n, w.ws_zmask, w.ws_n_saved, w.ws_zmask_saved)
     begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats)
     velocity_form = opt.formulation == FORM_VELOCITY
     qk_lin = qk if velocity_form else qk_out
@@ -506,10 +512,7 @@ def step_kernel_lemke(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
             st = _solve_island_lemke_only(m, w, opt, w.poses, vk, isl, ncon, h, velocity_form, stats)
             if st != STATUS_SOLVED:
                 if opt.warm_start:
-                    for i in range(w.ws_n.shape[0]):
-                        w.ws_n[i] = w.ws_n_saved[i]
-                        for c in range(w.ws_zmask.shape[1]):
-                            w.ws_zmask[i, c] = w.ws_zmask_saved[i, c]
+                    _copy_warm_start(w.ws_n_saved, w.ws_zmask_saved, w.ws_n, w.ws_zmask)
                 return STEP_NEEDS_FALLBACK
         integrate_positions(q, h, w)
         again, it = needs_another_solve(m, w, opt, q, h, qk_out, fp_iter, stats)
