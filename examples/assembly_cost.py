@@ -38,7 +38,7 @@ work = make_lemke_work(n)
 @njit
 def loop_lemke(A, b, work, N):
     for _ in range(N):
-        lemke_kernel(A, b, 500, 1e-9, 1e-12, 1e-9, *work)
+        lemke_kernel(A, b, 500, 1e-9, 1e-12, 1e-9, True, *work)
 
 
 @njit

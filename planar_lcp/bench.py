@@ -41,7 +41,7 @@ class _OurKernel:
 
     def __call__(self):
         return lemke_kernel(self.M, self.q, self.max_pivots, DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL,
-                            *self.args)
+                            True, *self.args)
 
 
 class _QuantEcon:

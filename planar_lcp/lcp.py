@@ -71,7 +71,7 @@ def default_max_pivots(n: int) -> int:
 
 
 def lemke(M, q, *, max_pivots=None, piv_tol=DEFAULT_PIV_TOL, ratio_tol=DEFAULT_RATIO_TOL,
-          res_tol=DEFAULT_RES_TOL) -> LCPResult:
+          res_tol=DEFAULT_RES_TOL, equilibrate=False) -> LCPResult:
     """Solve the LCP (M, q) by Lemke's algorithm with covering vector e and lexicographic degeneracy resolution.
 
     Parameters
@@ -85,7 +85,13 @@ def lemke(M, q, *, max_pivots=None, piv_tol=DEFAULT_PIV_TOL, ratio_tol=DEFAULT_R
     ratio_tol : float
         Two ratios within ratio_tol * max(1, |min ratio|) of each other are a tie, broken lexicographically.
     res_tol : float
-        "solved" requires residual <= res_tol * max(1, max|M|, max|q|).
+        "solved" requires residual <= res_tol * max(1, max|M|, max|q|), whatever ended the pivoting (a point where
+        the artificial variable is still basic at round-off zero is a solution, and reported as one).
+    equilibrate : bool
+        Pivot on D M D, D q with D a power-of-two diagonal scaling that brings every row's largest entry to about 1
+        (exact in floating point; the solution is z = D z'), with covering vector e in the scaled problem: another
+        pivot path, on which rows of very different magnitude weigh the same (the time-stepper's first try on contact
+        LCPs). Off by default: the classic algorithm, covering vector e on (M, q) (docs/lcp.md).
 
     Raises
     ------
@@ -101,6 +107,7 @@ def lemke(M, q, *, max_pivots=None, piv_tol=DEFAULT_PIV_TOL, ratio_tol=DEFAULT_R
     for name, val in (("piv_tol", piv_tol), ("ratio_tol", ratio_tol), ("res_tol", res_tol)):
         if not (np.isfinite(val) and val >= 0.0):
             raise ValueError(f"lemke: {name} must be a finite number >= 0, got {val}")
-    z, w, status, pivots, res = lemke_solve(M, q, int(max_pivots), float(piv_tol), float(ratio_tol), float(res_tol))
+    z, w, status, pivots, res = lemke_solve(M, q, int(max_pivots), float(piv_tol), float(ratio_tol), float(res_tol),
+                                            bool(equilibrate))
     return LCPResult(z=z, w=w, status=STATUS_NAMES[status], pivots=int(pivots), residual=float(res),
                      tolerance=float(res_tol * lcp_scale(M, q)))

@@ -15,7 +15,8 @@ from .kernels.rollout import rollout_kernel, rollout_kernel_lemke
 from .kernels.step import (FORM_FIXED_POINT, FORM_POSITION, FORM_VELOCITY, NSTAT, SOLVER_LEMKE, SOLVER_PGS,
                            ST_FP_CHANGE, ST_FP_ITERS, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_RETRIES, ST_LEMKE_STATUS,
                            ST_NCON, ST_NISLAND, ST_PENETRATION, ST_PGS_UPDATE, ST_PIVOTS, ST_RESIDUAL, ST_RESOLVES,
-                           ST_WARM_STARTS, STEP_LCP_FAILED, STEP_NEEDS_FALLBACK, STEP_NONFINITE, STEP_OK,
+                           ST_WARM_STARTS, ST_BY_LEMKE, ST_BY_UNSCALED, ST_BY_STRICT, ST_BY_VELOCITY, ST_BY_PGS,
+                           STEP_LCP_FAILED, STEP_NEEDS_FALLBACK, STEP_NONFINITE, STEP_OK,
                            StepOptions, make_step_work, step_kernel, step_kernel_lemke)
 from .kernels.structs import model_struct, work_struct
 from .model import Model, compile_scene
@@ -245,9 +246,13 @@ class Trajectory:
     qk : (T, nkin, 3) kinematic body poses.
     body_names : names of the dynamic bodies (columns of q and v).
     stats : dict of (T-1,) arrays per step: lcp_size, lcp_max, pivots, n_contacts, n_islands, fp_iterations,
-        resolves, residual, penetration (deepest overlap at the end of the step, m), lemke_retries (islands
-        re-solved with a stricter pivot tolerance after a failure), warm_starts (islands solved on the previous
-        step's LCP basis with SimOptions(warm_start=True), no pivots), fp_change (the fixed point's last change of
+        resolves, residual, penetration (deepest overlap at the end of the step, m), lemke_retries (further Lemke
+        solves after the first failed on an island), and how each island's LCP was solved, one count per island,
+        every answer certified by its residual on the island's LCP: warm_starts (on the previous step's LCP basis,
+        with SimOptions(warm_start=True), no pivots), solved_lemke (Lemke on the equilibrated LCP: the default path),
+        solved_unscaled (Lemke on the LCP as assembled), solved_strict (equilibrated, stricter pivot tolerances),
+        solved_velocity (position forms: the island's normal rows in the velocity form, so that step neither
+        corrects penetration nor linearizes about q + h v; docs/method.md), pgs_uncertified (no method solved the island; PGS's answer was used and the step is a failure); fp_change (the fixed point's last change of
         the linearization pose), pgs_update (PGS's largest impulse change in its last sweep: its convergence),
         status (0 ok, 1 LCP failed, 2 non-finite); energy (T,) J.
     contacts : dict of per-step contact arrays (count (T-1,), then (T-1, C[, 2]): pair, phi, normal, point, cn, ft,
@@ -355,6 +360,9 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
                  resolves=st[:, ST_RESOLVES].astype(int), residual=st[:, ST_RESIDUAL].copy(),
                  penetration=st[:, ST_PENETRATION].copy(), lemke_retries=st[:, ST_LEMKE_RETRIES].astype(int),
                  warm_starts=st[:, ST_WARM_STARTS].astype(int),
+                 solved_lemke=st[:, ST_BY_LEMKE].astype(int), solved_unscaled=st[:, ST_BY_UNSCALED].astype(int),
+                 solved_strict=st[:, ST_BY_STRICT].astype(int), solved_velocity=st[:, ST_BY_VELOCITY].astype(int),
+                 pgs_uncertified=st[:, ST_BY_PGS].astype(int),
                  fp_change=st[:, ST_FP_CHANGE].copy(), pgs_update=st[:, ST_PGS_UPDATE].copy(),
                  status=out["status"][:done].copy(), energy=en)
     a = model.arrays

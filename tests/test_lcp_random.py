@@ -131,7 +131,7 @@ def test_input_validation_names_the_argument():
 def test_kernel_reports_invalid_input_instead_of_raising():
     """The stepper calls the kernel directly: non-finite data must come back as a status, not an exception."""
     from planar_lcp.kernels.lemke import STATUS_INVALID, lemke_solve
-    z, w, status, pivots, res = lemke_solve(np.array([[np.nan]]), np.array([-1.0]), 10, 1e-12, 1e-12, 1e-9)
+    z, w, status, pivots, res = lemke_solve(np.array([[np.nan]]), np.array([-1.0]), 10, 1e-12, 1e-12, 1e-9, False)
     assert status == STATUS_INVALID and pivots == 0
 
 
@@ -153,13 +153,14 @@ def test_basis_refinement_matches_numpy_solve_on_the_support(seed, n):
     M = A @ A.T + 0.1 * np.eye(n) + (S - S.T)
     q = rng.normal(size=n)
     work = make_lemke_work(n)
-    T, basis, z, w, cand, lu, rhs, perm, zb, zalt, walt, prow = work
-    status, pivots, res = lemke_kernel(M, q, 1000, 1e-12, 1e-12, 1e-9, *work)
+    T, basis, z, w, cand, lu, rhs, perm, zb, zalt, walt, prow, d = work
+    status, pivots, res = lemke_kernel(M, q, 1000, 1e-12, 1e-12, 1e-9, True, *work)
     assert status == 0
     out = np.empty(n)
     if pivots == 0:
         return
-    assert _refine_from_basis(M, q, basis, n, out, lu, rhs, perm, zb)
+    ok, _ = _refine_from_basis(M, q, basis, n, out, lu, rhs, perm, zb, cand)
+    assert ok
     support = [basis[i] - n for i in range(n) if n <= basis[i] < 2 * n]
     expect = np.zeros(n)
     if support:

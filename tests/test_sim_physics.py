@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from planar_lcp.scene import parse_scene
-from planar_lcp.sim import SimulationError, simulate
+from planar_lcp.model import compile_scene
+from planar_lcp.sim import SimOptions, SimulationError, Simulator, simulate
 
 G = 9.81
 
@@ -297,17 +298,31 @@ def test_seed_friction_arm_puts_the_friction_moment_arm_at_the_end_cap_centre():
         assert w.col_g[nci, 0, 2] == pytest.approx(-arm_y, rel=1e-9, abs=1e-12)
 
 
-def test_nearly_degenerate_flat_rod_lcp_is_solved_by_the_pivot_tolerance_retry():
+def test_nearly_degenerate_flat_rod_lcp_false_ray_and_its_certified_solutions():
     """Regression: the rod lying flat has two contacts whose friction columns differ only by round-off-sized lever
-    arms. In this phase-shifted run Lemke (piv_tol 1e-9) pivoted on a 3e-7 entry and ended on a false ray at step
-    108; the retry with a stricter pivot tolerance solves it, certified by the residual. With the (optional) warm
-    start, the previous step's basis happens to solve this LCP without Lemke (checked below)."""
+    arms. In this phase-shifted run the unscaled Lemke (piv_tol 1e-9) pivots on a 3e-7 entry of step 108's LCP and
+    ends on a false ray (residual 0.36); Lemke on the equilibrated problem (the time-stepper's first try) solves it, as
+    does the stricter pivot tolerance of the chain's third method. The LCP is the kernel's own assembly of that step.
+    With the (optional) warm start, the previous step's basis solves it without Lemke."""
+    from planar_lcp import lemke
+    from planar_lcp.kernels.step import ST_LCP_SIZE
     from planar_lcp.scene import load_scene
     from planar_lcp.studies.common import shift_scene
     sc = shift_scene(load_scene("falling_rod"), 0.017148085531751386)
     tr = simulate(sc, h=0.005)   # raises on failure
-    assert tr.stats["lemke_retries"][108] >= 1
+    assert tr.stats["solved_lemke"][108] == 1 and tr.stats["lemke_retries"][108] == 0
     assert tr.stats["residual"][108] <= 1e-9 * 40
+    sim = Simulator(compile_scene(sc), SimOptions(h=0.005))
+    q, v, qk, vk = sim.initial_state()
+    out = sim.rollout(q, v, qk, vk[None], 108)
+    sim.step(out["q"][108], out["v"][108], out["qk"][108], vk)
+    n = int(sim.stats[ST_LCP_SIZE])
+    A, b = sim.work.Abuf[:n * n].reshape(n, n).copy(), sim.work.bvec[:n].copy()
+    assert lemke(A, b).status == "ray_termination"
+    for r in (lemke(A, b, equilibrate=True), lemke(A, b, piv_tol=1e-6)):
+        assert r.status == "solved"
+        w = A @ r.z + b
+        assert r.z.min() >= 0 and w.min() >= -1e-12 and np.abs(r.z * w).max() <= 1e-12
     tr = simulate(sc, h=0.005, warm_start=True)
     assert tr.stats["warm_starts"][108] >= 1 and tr.stats["lemke_retries"][108] == 0
     assert tr.stats["residual"][108] <= 1e-9 * 40

@@ -22,15 +22,17 @@ from planar_lcp.sim import SimOptions, Simulator
 
 def _from_basis(M, q, mask):
     n = len(q)
-    T, basis, z, w, cand, lu, rhs, perm, zb, zalt, walt, prow = make_lemke_work(n)
+    T, basis, z, w, cand, lu, rhs, perm, zb, zalt, walt, prow, d = make_lemke_work(n)
     ok, res = lemke_from_basis(M, q, np.asarray(mask, np.bool_), DEFAULT_RES_TOL, z, w, lu, rhs, perm, zb)
     return ok, res, z.copy()
 
 
-def _cold(M, q):
+def _cold(M, q, equilibrate=True):
+    """Lemke from scratch as the time-stepper's first try does it (equilibrated), or on the unscaled problem."""
     n = len(q)
     work = make_lemke_work(n)
-    status, piv, res = lemke_kernel(M, q, 50 * n + 100, DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, *work)
+    status, piv, res = lemke_kernel(M, q, 50 * n + 100, DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, equilibrate,
+                                    *work)
     basis = work[1]
     mask = np.zeros(n, np.bool_)
     for k in basis[:n]:
@@ -81,20 +83,22 @@ def test_on_a_non_unique_lcp_the_warm_start_can_keep_another_solution():
     """Why the warm start is off by default. The falling rod's LCP one step before impact at h = 0.0003125 (fixed
     point, t = 0.3856 s; printed by the step kernel's own assembly, rounded here): the gap is 47 um and open at the
     end of the step without an impulse. It has two solutions: free flight (z = lambda only, what the previous step's
-    basis gives) and a 0.26 N s impulse with sticking friction that brings the gap to exactly 0 (Lemke's). Both are
-    checked against the LCP conditions here."""
+    basis gives) and a 0.26 N s impulse with sticking friction that brings the gap to exactly 0. Which one Lemke
+    reaches depends on its pivot path: on the unscaled problem (covering vector e) the impulse, on the equilibrated
+    one (the time-stepper's first try) free flight. All are checked against the LCP conditions here."""
     M = np.array([[8.059624, -16.040113, 16.040113, 0.0],
                   [-16.040113, 37.444606, -37.444606, 1.0],
                   [16.040113, -37.444606, 37.444606, 1.0],
                   [0.6, -1.0, -1.0, 0.0]])
     q = np.array([0.149081, -1.07992, 1.07992, 0.0])
-    status, z_cold, _ = _cold(M, q)
+    status, z_cold, _ = _cold(M, q, equilibrate=False)
+    status_eq, z_eq, _ = _cold(M, q)
     ok, _, z_warm = _from_basis(M, q, [False, True, False, True])
-    assert status == 0 and ok
-    for z in (z_cold, z_warm):
+    assert status == 0 and status_eq == 0 and ok
+    for z in (z_cold, z_eq, z_warm):
         w = M @ z + q
         assert z.min() >= -1e-12 and w.min() >= -1e-12 and np.abs(z * w).max() <= 1e-12
-    assert z_cold[0] > 0.25 and z_warm[0] == 0.0        # an impulse against none
+    assert z_cold[0] > 0.25 and z_warm[0] == 0.0 and z_eq[0] == 0.0       # an impulse against none
 
 
 def test_the_default_is_cold():

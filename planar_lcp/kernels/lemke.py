@@ -221,53 +221,11 @@ def _lu_solve_inplace(A, b, m, perm):
 
 
 @njit(cache=True)
-def _refine_from_basis(M, q, basis, n, z, lu, rhs, perm, zb):
-    """Recompute the basic solution of the final complementary basis from the original M and q.
+def _solve_basic_z(M, q, zmask, z, lu, rhs, perm, zb):
+    """z_i for zmask[i] from M[Z, Z] z_Z = -q[Z] (w_i = 0 where z_i is basic), z_i = 0 elsewhere; the ORIGINAL data.
 
-    The basic z's (index set Z) solve  M[W0, Z] z_Z = -q[W0]  where W0 are the rows whose w is nonbasic
-    (w = 0 there). For a complementary basis |W0| == |Z|. Writes the result into z; False if not solvable.
-    """
-    m = 0
-    for i in range(n):
-        k = basis[i]
-        if k >= n and k < 2 * n:
-            zb[m] = k - n
-            m += 1
-    # rows with nonbasic w: complement of the basic w's
-    for i in range(n):
-        perm[i] = 1
-    for i in range(n):
-        if basis[i] < n:
-            perm[basis[i]] = 0
-    r = 0
-    for i in range(n):
-        if perm[i] == 1:
-            if r >= m:
-                return False
-            for c in range(m):
-                lu[r, c] = M[i, zb[c]]
-            rhs[r] = -q[i]
-            r += 1
-    if r != m:
-        return False
-    if not _lu_solve_inplace(lu, rhs, m, perm):
-        return False
-    for i in range(n):
-        z[i] = 0.0
-    for c in range(m):
-        z[zb[c]] = rhs[c]
-    return True
-
-
-@njit(cache=True)
-def lemke_from_basis(M, q, zmask, res_tol, z, w, lu, rhs, perm, zb):
-    """Try a guessed complementary basis: z_i basic (w_i = 0) where zmask[i], else z_i = 0 (w_i basic).
-
-    Solves M[Z, Z] z_Z = -q[Z] from the original data and certifies the answer by the residual on (M, q), with the
-    margin under which `lemke_kernel` skips its own refinement (1e-3 res_tol, relative): an accepted guess is as
-    accurate as a cold solve. Used as a warm start with the basis of the previous time step, where contact modes
-    rarely change. Returns (accepted, residual); z, w hold the answer only when accepted.
-    """
+    A tiny negative z_i from round-off is set to 0 (as in lemke_kernel's answer); a real one fails the residual.
+    Returns (solvable, most negative z_i before clipping, <= 0)."""
     n = q.shape[0]
     m = 0
     for i in range(n):
@@ -279,36 +237,124 @@ def lemke_from_basis(M, q, zmask, res_tol, z, w, lu, rhs, perm, zb):
             lu[r, c] = M[zb[r], zb[c]]
         rhs[r] = -q[zb[r]]
     if not _lu_solve_inplace(lu, rhs, m, perm):
-        return False, np.inf
+        return False, 0.0
+    neg = 0.0
     for i in range(n):
         z[i] = 0.0
     for c in range(m):
-        # a tiny negative from round-off is zero, as in lemke_kernel's answer; a real one fails the residual
         z[zb[c]] = rhs[c] if rhs[c] > 0.0 else 0.0
-    res = lcp_residual(M, q, z, w)
-    for c in range(m):
-        if rhs[c] < 0.0:
-            res = max(res, -rhs[c])
+        neg = min(neg, rhs[c])
+    return True, neg
+
+
+@njit(cache=True)
+def _refine_from_basis(M, q, basis, n, z, lu, rhs, perm, zb, zmask):
+    """Recompute the basic z of the final basis from the original M and q: the z_i that are basic solve
+    M[Z, Z] z_Z = -q[Z]. For a complementary basis the rows with w_i = 0 are exactly Z; while the artificial variable
+    is still basic one index has neither z_i nor w_i basic: z_i = 0 there and its w_i is left free, so a basis that
+    ended with the artificial variable at (nearly) zero refines to the LCP's solution as well. Writes z (clipped at
+    0); returns (solvable, most negative basic z before clipping) as `_solve_basic_z`. zmask: (>=n,) int64 work."""
+    for i in range(n):
+        zmask[i] = 0
+    for i in range(n):
+        k = basis[i]
+        if k >= n and k < 2 * n:
+            zmask[k - n] = 1
+    return _solve_basic_z(M, q, zmask[:n], z, lu, rhs, perm, zb)
+
+
+@njit(cache=True)
+def lemke_from_basis(M, q, zmask, res_tol, z, w, lu, rhs, perm, zb):
+    """Try a guessed complementary basis: z_i basic (w_i = 0) where zmask[i], else z_i = 0 (w_i basic).
+
+    Solves M[Z, Z] z_Z = -q[Z] from the original data and certifies the answer by the residual on (M, q), with the
+    margin under which `lemke_kernel` skips its own refinement (1e-3 res_tol, relative): an accepted guess is as
+    accurate as a cold solve. Used as a warm start with the basis of the previous time step, where contact modes
+    rarely change. Returns (accepted, residual); z, w hold the answer only when accepted.
+    """
+    ok, neg = _solve_basic_z(M, q, zmask, z, lu, rhs, perm, zb)
+    if not ok:
+        return False, np.inf
+    res = max(lcp_residual(M, q, z, w), -neg)
     return res <= 1e-3 * res_tol * lcp_scale(M, q), res
 
 
 @njit(cache=True)
-def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, T, basis, z, w, cand, lu, rhs, perm, zb, zalt, walt,
-                 prow):
+def _equilibrate(M, n, d, r):
+    """Symmetric diagonal scaling d (powers of two) so that every row and column of D M D has its largest magnitude
+    in [1/2, 2] (Ruiz's iteration; rows that are all zero keep d = 1).
+
+    Contact LCPs mix bodies of very different mass: with masses 1e-3 and 1e3 kg the Delassus entries span 1e6 and
+    more, and the friction-slack rows hold O(1) entries beside them. Lemke's pivot threshold and tie tolerances are
+    relative to a column's largest entry, so an unscaled tableau lets the heavy body's rows decide every comparison
+    and round-off of the large entries swamp the small ones. Powers of two make the scaling exact: D M D carries
+    the same digits as M. The LCP (D M D, D q) has the solutions z = D z' of (M, q)."""
+    for i in range(n):
+        d[i] = 1.0
+    for _ in range(8):
+        for i in range(n):
+            big = 0.0
+            for k in range(n):
+                a = abs(M[i, k]) * d[k]
+                if a > big:
+                    big = a
+            r[i] = big * d[i]
+        for i in range(n):
+            if r[i] > 0.0:
+                d[i] /= np.sqrt(r[i])
+    for i in range(n):
+        d[i] = 2.0 ** np.round(np.log2(d[i]))
+
+
+@njit(cache=True)
+def _certify(M, q, T, basis, n, d, z, w, res_tol, scale, zalt, walt, lu, rhs, perm, zb, cand):
+    """The LCP answer at the current basis, certified on the ORIGINAL (M, q): the basic z of the tableau (unscaled
+    by d), and, unless that is already well inside the tolerance, the basic z recomputed from (M, q) for the same
+    basis. Writes the better one into z (w = M z + q) and returns its residual. Valid whether or not the artificial
+    variable is still basic: the residual, not the pivoting, decides whether the answer is a solution."""
+    rhs_col = 2 * n + 1
+    for i in range(n):
+        z[i] = 0.0
+    for i in range(n):
+        k = basis[i]
+        if k >= n and k < 2 * n:
+            z[k - n] = max(T[i, rhs_col], 0.0) * d[k - n]
+    res = lcp_residual(M, q, z, w)
+    # Refine from the original data: the tableau accumulates round-off over the pivots, the basis does not.
+    # Skipped when the tableau's answer is already well inside the tolerance (it then costs more than it gains).
+    if res > 1e-3 * res_tol * scale:
+        ok, neg = _refine_from_basis(M, q, basis, n, zalt, lu, rhs, perm, zb, cand)
+        if ok:
+            res2 = max(lcp_residual(M, q, zalt, walt), -neg)
+            if res2 < res:
+                res = res2
+                for i in range(n):
+                    z[i] = zalt[i]
+                    w[i] = walt[i]
+    return res
+
+
+@njit(cache=True)
+def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, basis, z, w, cand, lu, rhs, perm,
+                 zb, zalt, walt, prow, d):
     """Solve the LCP (M, q) in place. Never raises, never allocates.
 
     Parameters
     ----------
     M : (n, n) float64;  q : (n,) float64 -- not modified.
     max_pivots : int; piv_tol, ratio_tol, res_tol : float (res_tol relative to lcp_scale(M, q)).
+    equilibrate : bool -- pivot on the symmetrically equilibrated problem (D M D, D q) (see `_equilibrate`).
     T : (>=n, >=2n+2) float64 tableau work;  basis, cand, perm, zb : (>=n,) int64 work;
-    lu : (>=n, >=n) float64 work;  rhs, zalt, walt : (>=n,) float64 work;  prow : (>=2n+2,) float64 work.
+    lu : (>=n, >=n) float64 work;  rhs, zalt, walt, d : (>=n,) float64 work;  prow : (>=2n+2,) float64 work.
     `make_lemke_work(n)` allocates all of them in this order.
     z, w : (>=n,) float64 outputs (the first n entries are written).
 
     Returns
     -------
     (status, pivots, residual) -- status one of the STATUS_* codes; residual on the original M and q.
+    STATUS_SOLVED means the residual passes res_tol * lcp_scale(M, q), whatever ended the pivoting: Lemke's path can
+    reach a solution with the artificial variable still basic at (round-off) zero, where a degenerate step then ends
+    on a ray that exact arithmetic would not take; that point is a solution and is certified as one.
     """
     n = q.shape[0]
     if n == 0:
@@ -322,21 +368,31 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, T, basis, z, w, 
     for i in range(n):
         z[i] = 0.0
     scale = lcp_scale(M, q)
+    if equilibrate:
+        _equilibrate(M, n, d, rhs)
+    else:
+        for i in range(n):
+            d[i] = 1.0
 
     rhs_scale = 0.0
     for i in range(n):
-        rhs_scale = max(rhs_scale, abs(q[i]))
+        rhs_scale = max(rhs_scale, abs(d[i] * q[i]))
     qmin = 0.0
     r = -1
     for i in range(n):
         # ties: the LAST index keeps the initial tableau lexicographically positive
-        if q[i] <= qmin and q[i] < 0.0:
-            qmin = q[i]
+        qi = d[i] * q[i]
+        if qi <= qmin and qi < 0.0:
+            qmin = qi
             r = i
     if r < 0:
         res = lcp_residual(M, q, z, w)
         return STATUS_SOLVED, 0, res
 
+    # The scaled system D w = (D M D) z' + D q + e z0 with z = D z', covering vector e in the SCALED problem (D^-1 e
+    # in the original one): every row weighs the same in the path, whatever its body's mass. A different covering
+    # vector is a different pivot path; for the copositive contact LCPs any positive one reaches a solution in exact
+    # arithmetic, for other matrices it can decide whether Lemke succeeds (Murty's examples: docs/lcp.md).
     rhs_col = 2 * n + 1
     z0 = 2 * n
     for i in range(n):
@@ -344,14 +400,15 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, T, basis, z, w, 
             T[i, c] = 0.0
         T[i, i] = 1.0
         for k in range(n):
-            T[i, n + k] = -M[i, k]
+            T[i, n + k] = -d[i] * M[i, k] * d[k]
         T[i, z0] = -1.0
-        T[i, rhs_col] = q[i]
+        T[i, rhs_col] = d[i] * q[i]
         basis[i] = i
 
     _pivot(T, n, r, z0, prow)
     leaving = basis[r]
     basis[r] = z0
+    z0_row = r
     pivots = 1
     status = STATUS_MAX_PIVOTS
     while pivots < max_pivots:
@@ -371,39 +428,31 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, T, basis, z, w, 
         if leaving == z0:
             status = STATUS_SOLVED
             break
+        if basis[z0_row] != z0:
+            for i in range(n):
+                if basis[i] == z0:
+                    z0_row = i
+        # The artificial variable at zero while still basic: the basic z already solves the LCP (w = M z + q + e z0
+        # with z0 = 0). Exact arithmetic would now let z0 leave on a tie; round-off can instead offer no pivot in
+        # its row and end on a ray. Certify the point as it is (rare: only then is the O(n^2) residual computed).
+        if T[z0_row, rhs_col] <= res_tol * scale:
+            if _certify(M, q, T, basis, n, d, z, w, res_tol, scale, zalt, walt, lu, rhs, perm, zb,
+                        cand) <= res_tol * scale:
+                status = STATUS_SOLVED
+                break
 
-    if status != STATUS_SOLVED:
-        # report the current basic z (useful for diagnosis) but never as solved
-        for i in range(n):
-            k = basis[i]
-            if k >= n and k < 2 * n:
-                z[k - n] = T[i, rhs_col]
-        res = lcp_residual(M, q, z, w)
-        return status, pivots, res
-
-    for i in range(n):
-        k = basis[i]
-        if k >= n and k < 2 * n:
-            z[k - n] = max(T[i, rhs_col], 0.0)
-    res = lcp_residual(M, q, z, w)
-    # Refine from the original data: the tableau accumulates round-off over the pivots, the basis does not.
-    # Skipped when the tableau's answer is already well inside the tolerance (it then costs more than it gains).
-    if res > 1e-3 * res_tol * scale:
-        if _refine_from_basis(M, q, basis, n, zalt, lu, rhs, perm, zb):
-            res2 = lcp_residual(M, q, zalt, walt)
-            if res2 < res:
-                res = res2
-                for i in range(n):
-                    z[i] = zalt[i]
-                    w[i] = walt[i]
+    res = _certify(M, q, T, basis, n, d, z, w, res_tol, scale, zalt, walt, lu, rhs, perm, zb, cand)
     if res <= res_tol * scale:
         return STATUS_SOLVED, pivots, res
-    return STATUS_INACCURATE, pivots, res
+    if status == STATUS_SOLVED:
+        return STATUS_INACCURATE, pivots, res
+    # report the basic z the pivoting stopped at (useful for diagnosis), never as solved
+    return status, pivots, res
 
 
 def make_lemke_work(n):
     """Work arrays for `lemke_kernel` for problems up to size n: (T, basis, z, w, cand, lu, rhs, perm, zb, zalt,
-    walt, prow). Plain Python so callers outside numba (bench, tests) share one definition with `lemke_solve`."""
+    walt, prow, d). Plain Python so callers outside numba (bench, tests) share one definition with `lemke_solve`."""
     return _make_work(n)
 
 
@@ -411,14 +460,14 @@ def make_lemke_work(n):
 def _make_work(n):
     return (np.empty((n, 2 * n + 2)), np.empty(n, np.int64), np.zeros(n), np.zeros(n), np.empty(n, np.int64),
             np.empty((n, n)), np.empty(n), np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n), np.empty(n),
-            np.empty(2 * n + 2))
+            np.empty(2 * n + 2), np.empty(n))
 
 
 @njit(cache=True)
-def lemke_solve(M, q, max_pivots, piv_tol, ratio_tol, res_tol):
+def lemke_solve(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate):
     """Allocate the work arrays and call `lemke_kernel`. Returns (z, w, status, pivots, residual)."""
     n = q.shape[0]
-    T, basis, z, w, cand, lu, rhs, perm, zb, zalt, walt, prow = _make_work(n)
-    status, pivots, res = lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, T, basis, z, w, cand, lu, rhs,
-                                       perm, zb, zalt, walt, prow)
+    T, basis, z, w, cand, lu, rhs, perm, zb, zalt, walt, prow, d = _make_work(n)
+    status, pivots, res = lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, basis, z, w,
+                                       cand, lu, rhs, perm, zb, zalt, walt, prow, d)
     return z, w, status, pivots, res

@@ -17,7 +17,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from .assemble import apply_impulses, assemble_lcp, contact_column, delassus
+from .assemble import apply_impulses, assemble_lcp, contact_column, delassus, normal_rhs
 from .constants import BODY_DYNAMIC, BODY_STATIC
 from .contacts import body_poses, find_contacts, world_vertices
 from .islands import contact_island, find_islands
@@ -33,7 +33,7 @@ SOLVER_LEMKE, SOLVER_PGS = 0, 1
 FORM_POSITION, FORM_FIXED_POINT, FORM_VELOCITY = 0, 1, 2
 
 STEP_OK = 0
-STEP_LCP_FAILED = 1      # Lemke did not solve an island; PGS was used for it (recorded, never silent)
+STEP_LCP_FAILED = 1      # no method gave a certified answer for an island; PGS's uncertified answer was used
 STEP_NONFINITE = 2       # the new state is not finite
 STEP_NEEDS_FALLBACK = 3  # step_kernel_lemke only: Lemke failed on an island; nothing was written, run step_kernel
 
@@ -41,14 +41,25 @@ MODE_SEPARATED, MODE_STICKING, MODE_SLIDING = 0, 1, 2
 
 # stats vector layout
 ST_LCP_SIZE, ST_LCP_MAX, ST_PIVOTS, ST_LEMKE_STATUS, ST_NCON, ST_NISLAND, ST_FP_ITERS, ST_RESOLVES, \
-    ST_RESIDUAL, ST_FP_CHANGE, ST_PGS_UPDATE, ST_PENETRATION, ST_LEMKE_RETRIES, ST_WARM_STARTS = range(14)
-NSTAT = 14
+    ST_RESIDUAL, ST_FP_CHANGE, ST_PGS_UPDATE, ST_PENETRATION, ST_LEMKE_RETRIES, ST_WARM_STARTS, \
+    ST_BY_LEMKE, ST_BY_UNSCALED, ST_BY_STRICT, ST_BY_VELOCITY, ST_BY_PGS = range(19)
+NSTAT = 19
 
-# Pivot tolerances tried, in order, when Lemke fails on an island: a nearly degenerate contact LCP (a rod lying flat:
-# its two contacts' friction columns differ only by round-off-sized lever arms) can offer a pivot ~1e-7 of its column
-# that blows the tableau up and ends on a false ray. Rejecting such pivots solves it; the answer is still certified by
-# the residual on the original data, so a retry can never make a wrong z "solved".
+# How an island's LCP was solved, in the order tried (stats ST_BY_*, one count per island; ST_WARM_STARTS counts the
+# warm start). Every answer is certified by its residual on the island's original LCP before it is accepted.
+#   lemke     Lemke on the equilibrated problem (the default path)
+#   unscaled  Lemke on the problem as assembled: another pivot path to the same solution set
+#   strict    equilibrated, with the stricter pivot tolerances RETRY_PIV_TOLS: a nearly degenerate contact LCP (a rod
+#             lying flat: two friction columns that differ by round-off-sized lever arms) can offer a pivot ~1e-7 of
+#             its column that blows the tableau up and ends on a false ray; rejecting such pivots solves it
+#   velocity  position forms only: the same island (same contacts, same geometry) with the velocity form's normal
+#             rows, n.v+ >= -max(phi, 0)/h: no drift correction in this step and no linearization about v_hat.
+#             With no kinematic body in the island, Lemke processes this LCP (Anitescu & Potra 1997; the seed's
+#             section 3.3; docs/method.md), while the position form's need not have a solution (a body pressed
+#             into a corner it cannot leave in one step) or can end Lemke on a secondary ray
+#   pgs       uncertified: only with on_failure="record", the step is then reported as failed
 RETRY_PIV_TOLS = (1e-6, 1e-4)
+METHOD_NAMES = ("lemke", "unscaled", "strict", "velocity", "pgs")
 
 StepOptions = namedtuple("StepOptions", [
     "solver", "formulation", "fp_iters", "fp_tol", "pgs_iters", "margin", "pen_tol", "max_resolves",
@@ -60,7 +71,7 @@ StepWork = namedtuple("StepWork", [
     "con_pair", "con_phi", "con_n", "con_p", "tmp_phi", "tmp_n", "tmp_p",
     "chk_pair", "chk_phi", "chk_n", "chk_p",
     "parent", "island", "isl_con", "isl_sup", "col_dyn", "col_g", "Abuf", "bvec", "zvec",
-    "lT", "lbasis", "lz", "lw", "lcand", "llu", "lrhs", "lperm", "lzb", "lzalt", "lwalt", "lprow",
+    "lT", "lbasis", "lz", "lw", "lcand", "llu", "lrhs", "lperm", "lzb", "lzalt", "lwalt", "lprow", "ld",
     "v_tilde", "v_hat", "q_hat", "v_new", "q_new",
     "con_cn", "con_ft", "con_vt", "con_mode",
     "ws_n", "ws_zmask", "ws_n_saved", "ws_zmask_saved",
@@ -89,7 +100,7 @@ def make_step_work(model):
         zvec=np.zeros(U),
         lT=np.zeros(U * (2 * U + 2)), lbasis=np.zeros(U, i), lz=np.zeros(U), lw=np.zeros(U), lcand=np.zeros(U, i),
         llu=np.zeros((U, U)), lrhs=np.zeros(U), lperm=np.zeros(U, i), lzb=np.zeros(U, i), lzalt=np.zeros(U),
-        lwalt=np.zeros(U), lprow=np.zeros(2 * U + 2),
+        lwalt=np.zeros(U), lprow=np.zeros(2 * U + 2), ld=np.zeros(U),
         v_tilde=np.zeros((nd, 3)), v_hat=np.zeros((nd, 3)), q_hat=np.zeros((nd, 3)), v_new=np.zeros((nd, 3)),
         q_new=np.zeros((nd, 3)),
         con_cn=np.zeros(C), con_ft=np.zeros(C), con_vt=np.zeros(C), con_mode=np.zeros(C, i),
@@ -154,36 +165,56 @@ def _island_members(m, w, isl, ncon):
 
 
 @njit(cache=True, inline='always')
+def _lemke(w, A, bvec, n, opt, piv_tol, equilibrate):
+    T = w.lT[:n * (2 * n + 2)].reshape((n, 2 * n + 2))
+    return lemke_kernel(A, bvec, 50 * n + 100, piv_tol, opt.ratio_tol, opt.res_tol, equilibrate, T, w.lbasis, w.lz,
+                        w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt, w.lwalt, w.lprow, w.ld)
+
+
+@njit(cache=True, inline='always')
 def _solve_island_lemke(m, w, opt, poses, vk, isl, nci, nsi, h, velocity_form, stats):
-    """The island's LCP by Lemke (warm start and stricter-pivot retries included). When solved, its impulses are
-    added to w.v_new and recorded; returns the Lemke status (a failure leaves w.v_new unchanged)."""
+    """The island's LCP by Lemke: the warm start, then the certified chain of ST_BY_* methods. When solved, its
+    impulses are added to w.v_new and recorded; returns the Lemke status (a failure leaves w.v_new unchanged)."""
     n, nf, _ = _problem_sizes(m, w.isl_con, nci, nsi, w.con_pair)
     k = m.fric_dirs.shape[0]
     A = w.Abuf[:n * n].reshape((n, n))
+    bvec = w.bvec[:n]
     assemble_lcp(m, poses, vk, w.isl_con, nci, w.isl_sup, nsi, w.con_pair, w.con_phi, w.con_n, w.con_p,
                  w.v_tilde, w.v_hat, h, velocity_form, w.col_dyn, w.col_g, A, w.bvec)
-    T = w.lT[:n * (2 * n + 2)].reshape((n, 2 * n + 2))
     warm = False
     if opt.warm_start and w.ws_n[isl] == n:
         # the previous step's basis for this island: contact modes rarely change from one step to the next
-        warm, res = lemke_from_basis(A, w.bvec[:n], w.ws_zmask[isl], opt.res_tol, w.lz, w.lw, w.llu, w.lrhs,
+        warm, res = lemke_from_basis(A, bvec, w.ws_zmask[isl], opt.res_tol, w.lz, w.lw, w.llu, w.lrhs,
                                      w.lperm, w.lzb)
+    piv = 0
     if warm:
-        status, piv = STATUS_SOLVED, 0
+        status = STATUS_SOLVED
         stats[ST_WARM_STARTS] += 1
     else:
-        status, piv, res = lemke_kernel(A, w.bvec[:n], 50 * n + 100, opt.piv_tol, opt.ratio_tol, opt.res_tol, T,
-                                        w.lbasis, w.lz, w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt,
-                                        w.lwalt, w.lprow)
-    for retry_tol in RETRY_PIV_TOLS:
-        if status == STATUS_SOLVED or retry_tol <= opt.piv_tol:
-            continue
-        stats[ST_LEMKE_RETRIES] += 1
-        pivots_before = piv
-        status, piv, res = lemke_kernel(A, w.bvec[:n], 50 * n + 100, retry_tol, opt.ratio_tol, opt.res_tol, T,
-                                        w.lbasis, w.lz, w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt,
-                                        w.lwalt, w.lprow)
-        piv += pivots_before
+        status, piv, res = _lemke(w, A, bvec, n, opt, opt.piv_tol, True)
+        method = ST_BY_LEMKE
+        if status != STATUS_SOLVED:
+            stats[ST_LEMKE_RETRIES] += 1
+            status, p, res = _lemke(w, A, bvec, n, opt, opt.piv_tol, False)
+            piv += p
+            method = ST_BY_UNSCALED
+        for retry_tol in RETRY_PIV_TOLS:
+            if status == STATUS_SOLVED or retry_tol <= opt.piv_tol:
+                continue
+            stats[ST_LEMKE_RETRIES] += 1
+            status, p, res = _lemke(w, A, bvec, n, opt, retry_tol, True)
+            piv += p
+            method = ST_BY_STRICT
+        if status != STATUS_SOLVED and not velocity_form:
+            # the island's normal rows in the velocity form, over the same contacts (friction rows are the same)
+            normal_rhs(m, poses, vk, w.isl_con, nci, w.con_pair, w.con_phi, w.con_n, w.con_p, w.v_tilde, w.v_hat, h,
+                       True, w.col_dyn, w.col_g, w.bvec)
+            stats[ST_LEMKE_RETRIES] += 1
+            status, p, res = _lemke(w, A, bvec, n, opt, opt.piv_tol, True)
+            piv += p
+            method = ST_BY_VELOCITY
+        if status == STATUS_SOLVED:
+            stats[method] += 1
     stats[ST_LCP_SIZE] += n
     stats[ST_LCP_MAX] = max(stats[ST_LCP_MAX], n)
     stats[ST_PIVOTS] += piv
@@ -238,7 +269,9 @@ def _solve_island(m, w, opt, poses, vk, isl, ncon, h, velocity_form, stats):
         status = _solve_island_lemke(m, w, opt, poses, vk, isl, nci, nsi, h, velocity_form, stats)
         if status == STATUS_SOLVED:
             return status
-    # PGS: asked for, or the fallback when Lemke failed on this island (the failure is returned)
+    # PGS: asked for, or, uncertified, when no Lemke method solved this island (the failure is returned)
+    if status != STATUS_SOLVED:
+        stats[ST_BY_PGS] += 1
     _solve_island_pgs(m, w, opt, poses, vk, isl, nci, nsi, h, velocity_form, stats)
     return status
 
@@ -334,10 +367,7 @@ def _project_positions(m, w, opt, qk_new, stats):
     delassus(m, n, w.col_dyn, w.col_g, A)
     for j in range(n):
         w.bvec[j] = w.chk_phi[j]
-    T = w.lT[:n * (2 * n + 2)].reshape((n, 2 * n + 2))
-    st, piv, res = lemke_kernel(A, w.bvec[:n], 50 * n + 100, opt.piv_tol, opt.ratio_tol, opt.res_tol, T,
-                                w.lbasis, w.lz, w.lw, w.lcand, w.llu, w.lrhs, w.lperm, w.lzb, w.lzalt, w.lwalt,
-                                w.lprow)
+    st, piv, res = _lemke(w, A, w.bvec[:n], n, opt, opt.piv_tol, True)
     if st != STATUS_SOLVED:
         stats[ST_LEMKE_STATUS] = max(stats[ST_LEMKE_STATUS], st)
         return

@@ -87,6 +87,7 @@ WORK_FIELDS = (
     ("lzalt", F1),
     ("lwalt", F1),
     ("lprow", F1),
+    ("ld", F1),
     ("v_tilde", F2),
     ("v_hat", F2),
     ("q_hat", F2),
@@ -200,6 +201,7 @@ def _new_work_struct(a):
     s.lzalt = a.lzalt
     s.lwalt = a.lwalt
     s.lprow = a.lprow
+    s.ld = a.ld
     s.v_tilde = a.v_tilde
     s.v_hat = a.v_hat
     s.q_hat = a.q_hat
