@@ -207,15 +207,11 @@ def replay_pymunk(plan, tm=None):
     tm = tm if tm is not None else TaskModel(plan["task"])
     space, hd = build_space(tm.scene, h=tm.h)
     pusher = hd.bodies[tm.task.pusher]
-    com = tm.model.com_local[0]
 
     def flat():
-        q, v, qk = read_state(hd)
+        q, _, qk, vc = read_state(hd)        # vc: the centre-of-mass velocities, as the flat state holds them
         qc = tm.model.frame_to_com(q)[0]
-        c, s = math.cos(q[0, 2]), math.sin(q[0, 2])
-        rx, ry = c * com[0] - s * com[1], s * com[0] + c * com[1]
-        w = v[0, 2]
-        x = np.array([qc[0], qc[1], qc[2], v[0, 0] - w * ry, v[0, 1] + w * rx, w,
+        x = np.array([qc[0], qc[1], qc[2], vc[0, 0], vc[0, 1], vc[0, 2],
                       qk[hd.kinematic_names.index(tm.task.pusher), 0],
                       qk[hd.kinematic_names.index(tm.task.pusher), 1]])
         x[2] = math.atan2(math.sin(x[2]), math.cos(x[2]))
