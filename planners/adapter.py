@@ -239,6 +239,8 @@ class Problem:
         """Solve with a wall-clock limit or an iteration budget (reproducible); stops at the first exact solution.
 
         Returns a dict: exact, approximate, solve_time, iterations, propagations, sim_steps."""
+        import signal
+        import threading
         import time
 
         from ompl import base as ob
@@ -260,14 +262,28 @@ class Problem:
             def limit():
                 count[0] += 1
                 return time.perf_counter() > t_end[0]
-        ptc = ob.plannerOrTerminationCondition(ob.PlannerTerminationCondition(limit),
+        # Ctrl-C: a KeyboardInterrupt raised inside a callback would have to unwind through OMPL's C++ planner, so
+        # during solve() SIGINT only sets a flag that the termination condition reads once per planner iteration
+        # (milliseconds apart); solve() then returns normally and the interrupt is raised here
+        interrupted = []
+        stop = lambda: bool(interrupted) or bool(limit())  # noqa: E731
+        ptc = ob.plannerOrTerminationCondition(ob.PlannerTerminationCondition(stop),
                                                ob.exactSolnPlannerTerminationCondition(pdef))
         steps0 = self.tm.nsteps_total
         calls0 = self.propagator.calls
         t0 = time.perf_counter()
         if iterations is None:
             t_end[0] = t0 + tl
-        self.ss.solve(ptc)
+        main_thread = threading.current_thread() is threading.main_thread()
+        if main_thread:
+            old = signal.signal(signal.SIGINT, lambda signum, frame: interrupted.append(signum))
+        try:
+            self.ss.solve(ptc)
+        finally:
+            if main_thread:
+                signal.signal(signal.SIGINT, old)
+        if interrupted:
+            raise KeyboardInterrupt
         dt = time.perf_counter() - t0
         exact = bool(self.ss.haveExactSolutionPath())
         approx = (not exact) and bool(self.ss.haveSolutionPath())
