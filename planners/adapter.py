@@ -10,6 +10,17 @@ Controls: R^2, the pusher velocity (m/s). Each propagate() call is ONE jitted ro
 `duration / h` simulator steps (`TaskModel.advance`); the object angle is wrapped there and nowhere else.
 A failed simulator step (e.g. the pusher jamming the object against a wall: the LCP has no solution) marks the
 result invalid by putting the object outside the workspace bounds.
+
+Every OMPL callback here deletes the state and control wrappers it was given before it returns (`del start, ...`).
+Why: nanobind hands out the EXISTING Python wrapper when C++ passes a pointer that a live wrapper already refers
+to. Planning runs with the cyclic GC off (the 2.0.1 bindings read freed memory during collection), so a reference
+cycle that captures a frame is never freed, and with it every caller frame up the `f_back` chain and their locals.
+numba's type inference makes such cycles (caught exceptions with their tracebacks) whenever it compiles, and with an
+empty cache it compiles inside a propagate() call (the PGS fallback kernel, on Lemke's first failure). The frame of
+that propagate() call then stayed alive holding `start`/`result`; OMPL freed those states, a state component was
+allocated at the same address, and nanobind returned the stale CompoundState wrapper for it: read_state failed with
+"CompoundState, slice" (issue 10). A leaked frame keeps the locals it has when it returns, so a callback whose
+wrapper locals are deleted leaks no wrapper, whatever else leaks.
 """
 
 import math
@@ -52,6 +63,7 @@ class Propagator:
     def __call__(self, start, control, duration, result):
         x = read_state(start)                    # read all of start before writing result (they may alias)
         u = (control[0], control[1])
+        del start, control                       # no wrapper may outlive this call (module docstring)
         n = int(round(duration / self.tm.h))
         y, ok = self.tm.advance(x, u, n)
         if not ok:
@@ -59,6 +71,7 @@ class Propagator:
             y[0] = INVALID_X
         self.calls += 1
         write_state(result, y)
+        del result
 
 
 def _goal_class():
@@ -75,10 +88,13 @@ def _goal_class():
             self.rng = ou.RNG()
 
         def distanceGoal(self, state):
-            return float(self.tm.goal_distance(read_state(state)))
+            x = read_state(state)
+            del state                            # no wrapper may outlive this call (module docstring)
+            return float(self.tm.goal_distance(x))
 
         def sampleGoal(self, state):
             write_state(state, self.tm.sample_goal(self.rng.uniformReal))
+            del state
 
         def maxSampleCount(self):
             return 1 << 30
@@ -109,6 +125,7 @@ def _projection_class():
             o = state[0]
             out[0] = o.getX()
             out[1] = o.getY()
+            del state, out, o                    # no wrapper may outlive this call (module docstring)
 
     return ObjectXY
 
@@ -125,10 +142,12 @@ def _decomposition_class():
         def project(self, s, coord):
             coord[0] = s[0].getX()
             coord[1] = s[0].getY()
+            del s, coord                         # no wrapper may outlive this call (module docstring)
 
         def sampleFullState(self, sampler, coord, s):
             sampler.sampleUniform(s)
             s[0].setXY(coord[0], coord[1])
+            del sampler, coord, s
 
     return ObjectGrid
 
@@ -181,10 +200,14 @@ class Problem:
         self.propagator = Propagator(tm)
         ss.setStatePropagator(self.propagator)
 
+        # the space, not `si`: a checker that held the SpaceInformation that holds the checker would be a
+        # reference cycle through C++ that nothing frees (nanobind's "leaked instances" at exit)
         def is_valid(state):
-            if not si.satisfiesBounds(state):
+            if not space.satisfiesBounds(state):
                 return False
-            return tm.valid(read_state(state))
+            x = read_state(state)
+            del state                            # no wrapper may outlive this call (module docstring)
+            return tm.valid(x)
 
         self._is_valid = is_valid
         ss.setStateValidityChecker(is_valid)
@@ -216,6 +239,8 @@ class Problem:
         """Solve with a wall-clock limit or an iteration budget (reproducible); stops at the first exact solution.
 
         Returns a dict: exact, approximate, solve_time, iterations, propagations, sim_steps."""
+        import signal
+        import threading
         import time
 
         from ompl import base as ob
@@ -237,14 +262,28 @@ class Problem:
             def limit():
                 count[0] += 1
                 return time.perf_counter() > t_end[0]
-        ptc = ob.plannerOrTerminationCondition(ob.PlannerTerminationCondition(limit),
+        # Ctrl-C: a KeyboardInterrupt raised inside a callback would have to unwind through OMPL's C++ planner, so
+        # during solve() SIGINT only sets a flag that the termination condition reads once per planner iteration
+        # (milliseconds apart); solve() then returns normally and the interrupt is raised here
+        interrupted = []
+        stop = lambda: bool(interrupted) or bool(limit())  # noqa: E731
+        ptc = ob.plannerOrTerminationCondition(ob.PlannerTerminationCondition(stop),
                                                ob.exactSolnPlannerTerminationCondition(pdef))
         steps0 = self.tm.nsteps_total
         calls0 = self.propagator.calls
         t0 = time.perf_counter()
         if iterations is None:
             t_end[0] = t0 + tl
-        self.ss.solve(ptc)
+        main_thread = threading.current_thread() is threading.main_thread()
+        if main_thread:
+            old = signal.signal(signal.SIGINT, lambda signum, frame: interrupted.append(signum))
+        try:
+            self.ss.solve(ptc)
+        finally:
+            if main_thread:
+                signal.signal(signal.SIGINT, old)
+        if interrupted:
+            raise KeyboardInterrupt
         dt = time.perf_counter() - t0
         exact = bool(self.ss.haveExactSolutionPath())
         approx = (not exact) and bool(self.ss.haveSolutionPath())

@@ -169,7 +169,8 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out="."):
     t0 = time.perf_counter()
     records = []
     ctx = mp.get_context("spawn")      # a fresh interpreter per worker: no fork of numba/ompl state
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as ex:
+    ex = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx)
+    try:
         futs = [ex.submit(_run_one, *a) for a in todo]
         with tqdm(total=len(futs), desc=f"plan-bench {task}", unit="run") as bar:
             for f in as_completed(futs):
@@ -177,6 +178,13 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out="."):
                 records.append(r)
                 bar.set_postfix_str(f"{r['planner']} seed {r['seed']}: {'exact' if r['exact'] else 'no'}")
                 bar.update()
+    except KeyboardInterrupt:
+        # leaving the `with` would wait for the running plans (up to --time each): end the workers now
+        ex.shutdown(wait=False, cancel_futures=True)
+        for p in mp.active_children():
+            p.terminate()
+        raise
+    ex.shutdown()
     total = time.perf_counter() - t0
     records.sort(key=lambda r: (planners.index(r["planner"]), r["seed"]))
     log = out / f"{task}.log"

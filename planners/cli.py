@@ -62,6 +62,23 @@ def _err(cmd, msg, code=2):
     return code
 
 
+def _interruptible(cmd):
+    """Ctrl-C ends the command with one line and exit status 130 (128 + SIGINT), not a traceback."""
+    import functools
+
+    def wrap(f):
+        @functools.wraps(f)
+        def run(args):
+            try:
+                return f(args)
+            except KeyboardInterrupt:
+                sys.stdout.flush()
+                return _err(cmd, "interrupted (Ctrl-C); stopped", 130)
+        return run
+    return wrap
+
+
+@_interruptible("plan")
 def cmd_plan(args):
     from .adapter import check_planner
     from .plan import animate_plan, plan_task, plot_plan, save_plan
@@ -108,6 +125,7 @@ def cmd_plan(args):
     return 0 if plan["exact"] else 1
 
 
+@_interruptible("replay")
 def cmd_replay(args):
     from .plan import load_plan, plot_plan, replay_lcp
 
@@ -120,6 +138,9 @@ def cmd_replay(args):
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         return _err("replay", f"--out {args.out}: cannot create the directory ({e.strerror or e})")
+    print(f"plan           {args.plan} (task {plan['task']}, planner {plan.get('planner')}, "
+          f"{len(plan['controls'])} controls)")
+    print(f"simulator      {args.simulator}", flush=True)
     if args.simulator == "pymunk":
         try:
             from .plan import replay_pymunk
@@ -129,9 +150,6 @@ def cmd_replay(args):
     else:
         res = replay_lcp(plan)
     tm, rep = res["tm"], res["report"]
-    print(f"plan           {args.plan} (task {plan['task']}, planner {plan.get('planner')}, "
-          f"{len(plan['controls'])} controls)")
-    print(f"simulator      {args.simulator}")
     for k, v in rep.items():
         print(f"{k:<14} {v:.6g}" if isinstance(v, float) else f"{k:<14} {v}")
     name = f"replay_{args.simulator}.png"
@@ -141,6 +159,7 @@ def cmd_replay(args):
     return 0 if rep["goal_holds"] else 1
 
 
+@_interruptible("plan-bench")
 def cmd_bench(args):
     from .adapter import check_planner
     from .bench import run_bench

@@ -80,21 +80,41 @@ def load_plan(path):
         raise TaskError(f"{path}: not a JSON plan file ({e})") from None
     if not isinstance(plan, dict):
         raise TaskError(f"{path}: a plan file holds a JSON object, got {type(plan).__name__}")
-    for key in ("task", "controls", "steps", "start"):
+    for key in ("format", "task", "controls", "steps", "start"):
         if key not in plan:
             raise TaskError(f"{path}: missing key {key!r}")
-    get_task(plan["task"])
+    if plan["format"] != PLAN_FORMAT or isinstance(plan["format"], bool):
+        raise TaskError(f"{path}: format must be {PLAN_FORMAT}, got {plan['format']!r}")
+    try:
+        task = get_task(plan["task"])
+    except TaskError as e:
+        raise TaskError(f"{path}: task: {e}") from None
     try:
         u = np.asarray(plan["controls"], float).reshape(-1, 2)
         k = np.asarray(plan["steps"], float)
         x0 = np.asarray(plan["start"], float)
     except (TypeError, ValueError):
         raise TaskError(f"{path}: controls must be [[vx, vy], ...], steps a list of integers, start 8 numbers")
-    if len(u) != len(k) or x0.shape != (8,) or np.any(k < 1) or np.any(k != np.rint(k)):
+    if len(u) != len(k) or k.ndim != 1 or x0.shape != (8,):
         raise TaskError(f"{path}: need one positive integer step count per control and an 8-number start, got "
                         f"{len(u)} controls, {len(k)} step counts, start of shape {x0.shape}")
-    if not (np.all(np.isfinite(u)) and np.all(np.isfinite(x0))):
-        raise TaskError(f"{path}: controls and start must be finite")
+    # a control is held for min_steps..max_steps propagation steps (the task's control durations, the only ones
+    # the planner samples): more would be a plan no planner wrote, and 1e9 steps a replay of days
+    for i, ki in enumerate(plan["steps"]):
+        if isinstance(ki, bool) or not isinstance(ki, (int, float)) or ki != k[i] or k[i] != np.rint(k[i]) \
+                or not task.min_steps <= k[i] <= task.max_steps:
+            raise TaskError(f"{path}: steps[{i}] must be an integer in {task.min_steps}..{task.max_steps} (the task's "
+                            f"control durations, in propagation steps), got {ki!r}")
+    cm = task.control_max
+    for (i, j) in zip(*np.nonzero(~(np.abs(u) <= cm))):
+        raise TaskError(f"{path}: controls[{i}][{j}] must be a number in [-{cm:g}, {cm:g}] m/s (the task's control "
+                        f"bounds), got {plan['controls'][i][j]!r}")
+    if not np.all(np.isfinite(x0)):
+        raise TaskError(f"{path}: start must be 8 finite numbers, got {plan['start']!r}")
+    if "step_duration" in plan:
+        sd = plan["step_duration"]
+        if isinstance(sd, bool) or not isinstance(sd, (int, float)) or abs(sd - task.step_duration) > 1e-12:
+            raise TaskError(f"{path}: step_duration must be the task's {task.step_duration:g} s, got {sd!r}")
     return plan
 
 
@@ -207,15 +227,11 @@ def replay_pymunk(plan, tm=None):
     tm = tm if tm is not None else TaskModel(plan["task"])
     space, hd = build_space(tm.scene, h=tm.h)
     pusher = hd.bodies[tm.task.pusher]
-    com = tm.model.com_local[0]
 
     def flat():
-        q, v, qk = read_state(hd)
+        q, _, qk, vc = read_state(hd)        # vc: the centre-of-mass velocities, as the flat state holds them
         qc = tm.model.frame_to_com(q)[0]
-        c, s = math.cos(q[0, 2]), math.sin(q[0, 2])
-        rx, ry = c * com[0] - s * com[1], s * com[0] + c * com[1]
-        w = v[0, 2]
-        x = np.array([qc[0], qc[1], qc[2], v[0, 0] - w * ry, v[0, 1] + w * rx, w,
+        x = np.array([qc[0], qc[1], qc[2], vc[0, 0], vc[0, 1], vc[0, 2],
                       qk[hd.kinematic_names.index(tm.task.pusher), 0],
                       qk[hd.kinematic_names.index(tm.task.pusher), 1]])
         x[2] = math.atan2(math.sin(x[2]), math.cos(x[2]))

@@ -91,7 +91,8 @@ def test_bad_names_bounds_and_files_give_clear_errors(tmp_path):
     (tmp_path / "bad.json").write_text("{not json")
     r = run_cli("replay", tmp_path / "bad.json")
     assert r.returncode == 2 and "not a JSON plan file" in r.stderr
-    (tmp_path / "short.json").write_text(json.dumps({"task": "tip_box", "controls": [[0.1, 0]], "steps": [],
+    (tmp_path / "short.json").write_text(json.dumps({"format": 1, "task": "tip_box", "controls": [[0.1, 0]],
+                                                     "steps": [],
                                                      "start": [0] * 8}))
     r = run_cli("replay", tmp_path / "short.json")
     assert r.returncode == 2 and "one positive integer step count per control" in r.stderr
