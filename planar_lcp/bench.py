@@ -41,9 +41,11 @@ def _alternate(runners, rounds=ROUNDS, min_round_s=MIN_ROUND_S, max_reps=100000,
 
     Each runner is first called once untimed (JIT, caches), then once timed to fix its units per round so that a
     round lasts at least `min_round_s` of thread CPU time. A runner with a `prepare(k)` method gets it called before
-    each of its rounds' clock starts (set-up for k units that must not be timed). Returns a dict with, per name, `per_unit` (rounds,) seconds
-    of thread CPU time per unit in each round, `reps` (units per round), and `other_threads_cpu_share`: the process
-    CPU time beyond this thread's over the timed rounds, as a fraction of this thread's (0 when nothing else ran).
+    each of its rounds' clock starts (set-up for k units that must not be timed).
+
+    Returns a dict with `per_unit`: per name, (rounds,) seconds of thread CPU time per unit in each round; `reps`:
+    units per round; `other_threads_cpu_share`: the process CPU time beyond this thread's over the timed rounds, as
+    a fraction of this thread's (0 when nothing else ran).
     """
     clock = clock or _clock
     names = list(runners)
