@@ -226,8 +226,8 @@ def format_lcp_table(rows, compile_times=None):
         rounds, least = rows[0].get("rounds"), 1e3 * rows[0].get("min_round_s", MIN_ROUND_S)
         lines.append(f"times: thread CPU time (time.thread_time) per solve, median over {rounds} alternating rounds "
                      "(ours, QuantEcon, public lemke(), ours, ...) in one process, each round a fixed number of "
-                     f"solves lasting >= {least:g} ms; ratio: median of the per-round ratios ours/QuantEcon, [min-max] over "
-                     "rounds")
+                     f"solves lasting >= {least:g} ms; ratio: median of the per-round ratios ours/QuantEcon, "
+                     "[min-max] over rounds")
         other = max(r.get("other_threads_cpu_share", 0.0) for r in rows)
         lines.append(f"CPU time of other threads during the rounds: at most {100 * other:.1f} % of the timed "
                      "thread's (not counted in the times)")
