@@ -1,6 +1,7 @@
 """Benchmarks (not tests): speed reported as ratios against a peer measured in the same run."""
 
 import json
+import math
 import os
 import statistics
 import subprocess
@@ -15,19 +16,85 @@ from .lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, default_ma
 from .lcp_corpus import load_corpus
 
 
-def _time_call(fn, min_total=0.02, max_reps=5000, rounds=3):
-    """Median seconds per call over `rounds` batches sized to last at least `min_total` seconds each."""
-    t0 = time.perf_counter()
-    fn()
-    one = max(time.perf_counter() - t0, 1e-7)
-    reps = int(min(max_reps, max(1, min_total / one)))
-    per = []
-    for _ in range(rounds):
-        t0 = time.perf_counter()
-        for _ in range(reps):
-            fn()
-        per.append((time.perf_counter() - t0) / reps)
-    return statistics.median(per)
+#: The clock of every timed round: CPU time of the calling thread. Wall clock on a shared machine counts the time
+#: other processes hold the core (ratios moved by 2x between two runs); thread CPU time does not. Every peer timed
+#: here runs its work on the calling thread (numba kernels without parallel=True, QuantEcon's njit lcp_lemke,
+#: pymunk.Space() unthreaded: Chipmunk's cpSpaceStep in C through cffi), so thread CPU time counts all of it; each
+#: round also records the process's CPU time, and `other_threads_cpu_share` reports what other threads used.
+_clock = time.thread_time
+
+#: Default number of alternating rounds and the least thread CPU time of one runner's round (s).
+ROUNDS = 15
+MIN_ROUND_S = 0.005
+
+
+def _spread(x):
+    """Median and spread (min, first and third quartile, max) of the values x."""
+    x = np.asarray(x, dtype=float)
+    q1, med, q3 = np.percentile(x, [25, 50, 75])
+    return dict(median=float(med), min=float(x.min()), q1=float(q1), q3=float(q3), max=float(x.max()))
+
+
+def _alternate(runners, rounds=ROUNDS, min_round_s=MIN_ROUND_S, max_reps=100000, clock=None):
+    """Time the callables of `runners` (name -> callable doing one unit of work: a solve, a whole rollout) in
+    alternating rounds: round r runs every runner in turn (a, b, c, a, b, c, ...), each its fixed number of units.
+
+    Each runner is first called once untimed (JIT, caches), then once timed to fix its units per round so that a
+    round lasts at least `min_round_s` of thread CPU time. A runner with a `prepare(k)` method gets it called before
+    each of its rounds' clock starts (set-up for k units that must not be timed).
+
+    Returns a dict with `per_unit`: per name, (rounds,) seconds of thread CPU time per unit in each round; `reps`:
+    units per round; `other_threads_cpu_share`: the process CPU time beyond this thread's over the timed rounds, as
+    a fraction of this thread's (0 when nothing else ran).
+    """
+    clock = clock or _clock
+    names = list(runners)
+    reps = {}
+    for name in names:
+        fn = runners[name]
+        prepare = getattr(fn, "prepare", None)
+        if prepare is not None:
+            prepare(2)
+        fn()
+        t0 = clock()
+        fn()
+        one = clock() - t0
+        reps[name] = int(min(max_reps, max(1, math.ceil(min_round_s / one)))) if one > 0 else max_reps
+    per = {name: np.empty(rounds) for name in names}
+    thread_total = process_total = 0.0
+    for r in range(rounds):
+        for name in names:
+            fn, k = runners[name], reps[name]
+            prepare = getattr(fn, "prepare", None)
+            if prepare is not None:
+                prepare(k)
+            p0 = time.process_time()
+            t0 = clock()
+            for _ in range(k):
+                fn()
+            dt = clock() - t0
+            process_total += time.process_time() - p0
+            thread_total += dt
+            per[name][r] = dt / k
+    share = max(0.0, process_total - thread_total) / thread_total if thread_total > 0 else 0.0
+    return dict(per_unit=per, reps=reps, rounds=rounds, other_threads_cpu_share=share)
+
+
+def _ratio_stats(num, den):
+    """The per-round ratios num[r] / den[r] (each round's two times were measured back to back) summarized by
+    `_spread`: median, min, q1, q3, max."""
+    return _spread(np.asarray(num, dtype=float) / np.asarray(den, dtype=float))
+
+
+def _ratio_fields(prefix, st):
+    """Flat JSON fields for a ratio summary: `prefix` is the median (the old field name), then its spread."""
+    return {prefix: st["median"], f"{prefix}_min": st["min"], f"{prefix}_q1": st["q1"], f"{prefix}_q3": st["q3"],
+            f"{prefix}_max": st["max"]}
+
+
+def _fmt_ratio(r, prefix, digits=1):
+    """'median [min-max]' of a ratio's fields."""
+    return f"{r[prefix]:.{digits}f} [{r[prefix + '_min']:.{digits}f}-{r[prefix + '_max']:.{digits}f}]"
 
 
 class _OurKernel:
@@ -63,8 +130,14 @@ def _residual(M, q, z):
     return float(np.max(np.abs(np.minimum(z, w))) + max(0.0, -z.min()) + max(0.0, -w.min())) if len(q) else 0.0
 
 
-def bench_lcp(corpus_dir=None, slow_cap_s=1.0):
-    """Ours vs QuantEcon's lcp_lemke on every corpus instance. Returns a list of row dicts."""
+def bench_lcp(corpus_dir=None, slow_cap_s=1.0, rounds=ROUNDS, min_round_s=MIN_ROUND_S):
+    """Ours vs QuantEcon's lcp_lemke on every corpus instance. Returns a list of row dicts.
+
+    Per instance, our kernel, QuantEcon's and our public lemke() are timed in `rounds` alternating rounds of thread
+    CPU time (`_alternate`); `ratio` is the median over rounds of ours / QuantEcon measured back to back, with its
+    spread in ratio_min, ratio_q1, ratio_q3, ratio_max; us, qe_us, public_us are the medians per solve. Where one
+    QuantEcon solve takes more than `slow_cap_s` (it cycles to its iteration cap) it is timed once, and the ratio
+    is our median over that one time (`qe_rounds` 1, no spread)."""
     try:
         import quantecon  # noqa: F401
     except ImportError as e:
@@ -76,38 +149,50 @@ def bench_lcp(corpus_dir=None, slow_cap_s=1.0):
     for inst in load_corpus(corpus_dir):
         ours, qe = _OurKernel(inst.M, inst.q), _QuantEcon(inst.M, inst.q)
         status, pivots, res = ours()
-        t0 = time.perf_counter()
+        t0 = _clock()
         qres = qe()
-        qe_once = time.perf_counter() - t0
+        qe_once = _clock() - t0
         qe_status = {0: "solved", 1: "max_iter", 2: "ray_termination"}[int(qres.status)]
         if qe_status == "solved":
             # QuantEcon does not check its answer; we do, with the same residual as ours
             scale = max(1.0, np.abs(inst.M).max(), np.abs(inst.q).max())
             if _residual(inst.M, inst.q, qres.z) > DEFAULT_RES_TOL * scale:
                 qe_status = "wrong_z"
-        t_ours = _time_call(ours)
-        t_qe = qe_once if qe_once > slow_cap_s else _time_call(qe)
-        t_pub = _time_call(lambda: lemke(inst.M, inst.q))
+        public = (lambda M=inst.M, q=inst.q: lemke(M, q))
+        slow = qe_once > slow_cap_s
+        runners = dict(ours=ours, public=public) if slow else dict(ours=ours, qe=qe, public=public)
+        m = _alternate(runners, rounds=rounds, min_round_s=min_round_s)
+        per = m["per_unit"]
+        if slow:
+            ratio = _spread(per["ours"] / qe_once)
+            qe_s, qe_rounds = qe_once, 1
+        else:
+            ratio = _ratio_stats(per["ours"], per["qe"])
+            qe_s, qe_rounds = float(np.median(per["qe"])), rounds
         rows.append(dict(id=inst.id, n=inst.n, status=STATUS_NAMES[status], pivots=int(pivots), residual=float(res),
-                         us=t_ours * 1e6, public_us=t_pub * 1e6, qe_status=qe_status, qe_pivots=int(qres.num_iter),
-                         qe_us=t_qe * 1e6, ratio=t_ours / t_qe))
+                         us=float(np.median(per["ours"])) * 1e6, public_us=float(np.median(per["public"])) * 1e6,
+                         qe_status=qe_status, qe_pivots=int(qres.num_iter), qe_us=qe_s * 1e6,
+                         **_ratio_fields("ratio", ratio), rounds=rounds, qe_rounds=qe_rounds, min_round_s=min_round_s,
+                         solves_per_round=m["reps"]["ours"], qe_solves_per_round=m["reps"].get("qe", 1),
+                         other_threads_cpu_share=m["other_threads_cpu_share"]))
     return rows
 
 
 _COMPILE_SNIPPET = (
-    "import time; t0 = time.perf_counter()\n"
+    "import time; t0, c0 = time.perf_counter(), time.process_time()\n"
     "import numpy as np\n"
     "import planar_lcp\n"
-    "t1 = time.perf_counter()\n"
+    "t1, c1 = time.perf_counter(), time.process_time()\n"
     "planar_lcp.lemke(np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0]))\n"
-    "t2 = time.perf_counter()\n"
-    "print(t1 - t0, t2 - t1)\n"
+    "t2, c2 = time.perf_counter(), time.process_time()\n"
+    "print(t1 - t0, t2 - t1, c1 - c0, c2 - c1)\n"
 )
 
 
 def _cold_and_warm(snippet):
-    """Run `snippet` (which prints two timings) in a subprocess twice with one fresh NUMBA_CACHE_DIR: the first run
-    compiles, the second loads the cache. Returns [(t1, t2) cold, (t1, t2) warm]."""
+    """Run `snippet` (which prints the wall-clock seconds of its import and first call, then their CPU seconds) in a
+    subprocess twice with one fresh NUMBA_CACHE_DIR: the first run compiles, the second loads the cache. Returns
+    [cold, warm], each a tuple (import wall, call wall, import CPU, call CPU)."""
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
         env.pop("NUMBA_DISABLE_JIT", None)
@@ -122,19 +207,30 @@ def measure_compile_time():
     """First-call JIT compile time of lemke() (fresh cache) and the same call with the cache warm."""
     out = _cold_and_warm(_COMPILE_SNIPPET)
     return dict(cold_import_s=out[0][0], cold_first_call_s=out[0][1], warm_import_s=out[1][0],
-                warm_first_call_s=out[1][1])
+                warm_first_call_s=out[1][1], cold_first_call_cpu_s=out[0][3], warm_first_call_cpu_s=out[1][3])
 
 
 def format_lcp_table(rows, compile_times=None):
     lines = [
-        "| instance | n | ours: status | pivots | µs | QuantEcon: status | pivots | µs | ratio ours/QE | public lemke() µs |",
+        "| instance | n | ours: status | pivots | µs | QuantEcon: status | pivots | µs | ratio ours/QE median "
+        "[min-max] | public lemke() µs |",
         "|---|---:|---|---:|---:|---|---:|---:|---:|---:|",
     ]
     for r in rows:
+        rt = (_fmt_ratio(r, "ratio", 3) if r.get("qe_rounds", 2) > 1 else f"{r['ratio']:.2e} (QE timed once)")
         lines.append(f"| {r['id']} | {r['n']} | {r['status']} | {r['pivots']} | {r['us']:.2f} | {r['qe_status']} | "
-                     f"{r['qe_pivots']} | {r['qe_us']:.2f} | {r['ratio']:.3f} | {r['public_us']:.2f} |")
+                     f"{r['qe_pivots']} | {r['qe_us']:.2f} | {rt} | {r['public_us']:.2f} |")
     ratios = [r["ratio"] for r in rows]
     lines.append("")
+    if rows:
+        rounds, least = rows[0].get("rounds"), 1e3 * rows[0].get("min_round_s", MIN_ROUND_S)
+        lines.append(f"times: thread CPU time (time.thread_time) per solve, median over {rounds} alternating rounds "
+                     "(ours, QuantEcon, public lemke(), ours, ...) in one process, each round a fixed number of "
+                     f"solves lasting >= {least:g} ms; ratio: median of the per-round ratios ours/QuantEcon, "
+                     "[min-max] over rounds")
+        other = max(r.get("other_threads_cpu_share", 0.0) for r in rows)
+        lines.append(f"CPU time of other threads during the rounds: at most {100 * other:.1f} % of the timed "
+                     "thread's (not counted in the times)")
     lines.append(f"median ratio ours/QuantEcon over {len(rows)} instances: {statistics.median(ratios):.3f} "
                  f"(target <= 1.0); geometric mean {float(np.exp(np.mean(np.log(ratios)))):.3f}")
     both = [r for r in rows if r["status"] == "solved" and r["qe_status"] == "solved"]
@@ -142,21 +238,25 @@ def format_lcp_table(rows, compile_times=None):
         lines.append(f"median ratio where both solve ({len(both)} instances): "
                      f"{statistics.median([r['ratio'] for r in both]):.3f}")
     if compile_times:
-        lines.append(f"first-call JIT compile (fresh cache): import {compile_times['cold_import_s']:.2f} s, "
-                     f"first lemke() {compile_times['cold_first_call_s']:.2f} s; warm cache: import "
-                     f"{compile_times['warm_import_s']:.2f} s, first lemke() {compile_times['warm_first_call_s']:.3f} s")
+        cpu = (f" (CPU time {compile_times['cold_first_call_cpu_s']:.2f} s)"
+               if "cold_first_call_cpu_s" in compile_times else "")
+        lines.append(f"first-call JIT compile (fresh cache, wall clock of a child process): import "
+                     f"{compile_times['cold_import_s']:.2f} s, first lemke() {compile_times['cold_first_call_s']:.2f} s"
+                     f"{cpu};"
+                     f" warm cache: import {compile_times['warm_import_s']:.2f} s, first lemke() "
+                     f"{compile_times['warm_first_call_s']:.3f} s")
     return "\n".join(lines)
 
 
 STEP_SCENES = ("falling_rod", "box_push", "box_tip", "push_t")
 
 _STEP_COMPILE_SNIPPET = (
-    "import time; t0 = time.perf_counter()\n"
+    "import time; t0, c0 = time.perf_counter(), time.process_time()\n"
     "import planar_lcp\n"
-    "t1 = time.perf_counter()\n"
+    "t1, c1 = time.perf_counter(), time.process_time()\n"
     "planar_lcp.simulate('falling_rod', t_end=0.01)\n"
-    "t2 = time.perf_counter()\n"
-    "print(t1 - t0, t2 - t1)\n"
+    "t2, c2 = time.perf_counter(), time.process_time()\n"
+    "print(t1 - t0, t2 - t1, c1 - c0, c2 - c1)\n"
 )
 
 
@@ -164,27 +264,41 @@ def measure_step_compile_time():
     """First simulate() with a fresh numba cache (compile) and again with the cache warm."""
     out = _cold_and_warm(_STEP_COMPILE_SNIPPET)
     return dict(cold_import_s=out[0][0], cold_first_simulate_s=out[0][1], warm_import_s=out[1][0],
-                warm_first_simulate_s=out[1][1])
+                warm_first_simulate_s=out[1][1], cold_first_simulate_cpu_s=out[0][3],
+                warm_first_simulate_cpu_s=out[1][3])
 
 
-def _time_pymunk_median(scene, n, rounds):
-    """Median seconds for n pymunk steps over `rounds` fresh spaces (the same statistic as ours)."""
-    from .pymunk_bridge import build_space
-    times = []
-    for _ in range(rounds):
-        space, _handles = build_space(scene, h=scene.sim.h)
-        step = space.step
-        t0 = time.perf_counter()
-        for _i in range(n):
-            step(scene.sim.h)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+class _PymunkRun:
+    """One unit of pymunk work: n steps of h on a fresh space of the scene, as `bench step` times ours (a whole run
+    from the initial state). The spaces are built by `prepare` before the round's clock starts."""
+
+    def __init__(self, scene, n):
+        self.scene, self.n, self.h, self.spaces = scene, n, scene.sim.h, []
+
+    def prepare(self, k):
+        from .pymunk_bridge import build_space
+        self.spaces = [build_space(self.scene, h=self.h)[0] for _ in range(k)]
+
+    def __call__(self):
+        space = self.spaces.pop() if self.spaces else self._fresh()
+        step, h = space.step, self.h
+        for _i in range(self.n):
+            step(h)
+
+    def _fresh(self):
+        from .pymunk_bridge import build_space
+        return build_space(self.scene, h=self.h)[0]
 
 
-def bench_step(scenes=STEP_SCENES, rounds=5, pymunk=True):
+def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_ROUND_S):
     """Microseconds per step of our stepper (one jitted rollout over the scene's duration, warm JIT), with its defaults
-    and with the LCP warm start the planners use, and, in the same run, of pymunk on the same scene and h through
-    planar_lcp.pymunk_bridge (10 iterations, its defaults)."""
+    and with the LCP warm start the planners use, and, in the same process, of pymunk on the same scene and h through
+    planar_lcp.pymunk_bridge (10 iterations, its defaults).
+
+    The three are timed in `rounds` alternating rounds of thread CPU time (`_alternate`): ours, ours warm-started,
+    pymunk, ours, ... each round a fixed number of whole runs. `ratio` (`warm_ratio`) is the median over rounds of
+    ours (warm-started) / pymunk measured back to back, with its spread in ratio_min, ratio_q1, ratio_q3,
+    ratio_max; the µs per step are medians over rounds."""
     from .model import compile_scene
     from .scene import load_scene
     from .sim import SimOptions, Simulator
@@ -193,59 +307,76 @@ def bench_step(scenes=STEP_SCENES, rounds=5, pymunk=True):
     for name in scenes:
         sc = load_scene(name)
         n = int(round(sc.sim.t_end / sc.sim.h))
-        us, stats = {}, {}
+        runners, stats = {}, {}
         for warm in (False, True):
             sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, solver=sc.sim.solver,
                                                           formulation=sc.sim.formulation, warm_start=warm))
             q, v, qk, vk = sim.initial_state()
-            sim.rollout(q, v, qk, vk[None], 5)  # warm JIT
-            times = []
-            for _ in range(rounds):
-                t0 = time.perf_counter()
-                out = sim.rollout(q, v, qk, vk[None], n)
-                times.append(time.perf_counter() - t0)
-            us[warm] = statistics.median(times) / n * 1e6
-            stats[warm] = out["stats"]
+            stats[warm] = sim.rollout(q, v, qk, vk[None], n)["stats"]  # also compiles
+            runners["ours_warm" if warm else "ours"] = (
+                lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], n))
+        if pymunk:
+            runners["pymunk"] = _PymunkRun(sc, n)
+        m = _alternate(runners, rounds=rounds, min_round_s=min_round_s)
+        per = m["per_unit"]
         st, stw = stats[False], stats[True]
         with_lcp = stw[:, 0] > 0
-        row = dict(scene=name, steps=n, h=sc.sim.h, us_per_step=us[False], warm_us_per_step=us[True],
+        row = dict(scene=name, steps=n, h=sc.sim.h, us_per_step=float(np.median(per["ours"])) / n * 1e6,
+                   warm_us_per_step=float(np.median(per["ours_warm"])) / n * 1e6,
                    mean_lcp_size=float(st[:, 0].mean()), max_lcp_size=int(st[:, 1].max()),
                    pivots_per_step=float(st[:, 2].mean()), warm_pivots_per_step=float(stw[:, 2].mean()),
-                   warm_start_share=float(stw[with_lcp, ST_WARM_STARTS].mean()) if with_lcp.any() else 0.0)
+                   warm_start_share=float(stw[with_lcp, ST_WARM_STARTS].mean()) if with_lcp.any() else 0.0,
+                   rounds=rounds, runs_per_round={k: int(v) for k, v in m["reps"].items()},
+                   other_threads_cpu_share=m["other_threads_cpu_share"])
         if pymunk:
-            row["pymunk_us_per_step"] = _time_pymunk_median(sc, n, rounds) / n * 1e6
-            row["ratio"] = row["us_per_step"] / row["pymunk_us_per_step"]
-            row["warm_ratio"] = row["warm_us_per_step"] / row["pymunk_us_per_step"]
+            row["pymunk_us_per_step"] = float(np.median(per["pymunk"])) / n * 1e6
+            row.update(_ratio_fields("ratio", _ratio_stats(per["ours"], per["pymunk"])))
+            row.update(_ratio_fields("warm_ratio", _ratio_stats(per["ours_warm"], per["pymunk"])))
         rows.append(row)
     return rows
 
 
 def format_step_table(rows, compile_times=None):
-    lines = ["| scene | steps | h (s) | ours µs / step | pymunk µs / step | ratio ours/pymunk | mean LCP size | "
-             "largest LCP | pivots / step | ours with warm start µs / step | ratio | warm-started LCPs | "
-             "pivots / step |",
+    lines = ["| scene | steps | h (s) | ours µs / step | pymunk µs / step | ratio ours/pymunk median [min-max] | "
+             "mean LCP size | largest LCP | pivots / step | ours with warm start µs / step | ratio median [min-max] "
+             "| warm-started LCPs | pivots / step |",
              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
-        pm = f"{r['pymunk_us_per_step']:.1f} | {r['ratio']:.1f}" if "ratio" in r else "- | -"
-        wr = f"{r['warm_ratio']:.1f}" if "warm_ratio" in r else "-"
-        lines.append(f"| {r['scene']} | {r['steps']} | {r['h']} | {r['us_per_step']:.1f} | {pm} | "
+        pm = f"{r['pymunk_us_per_step']:.2f} | {_fmt_ratio(r, 'ratio')}" if "ratio" in r else "- | -"
+        wr = _fmt_ratio(r, "warm_ratio") if "warm_ratio" in r else "-"
+        lines.append(f"| {r['scene']} | {r['steps']} | {r['h']} | {r['us_per_step']:.2f} | {pm} | "
                      f"{r['mean_lcp_size']:.1f} | {r['max_lcp_size']} | {r['pivots_per_step']:.1f} | "
-                     f"{r['warm_us_per_step']:.1f} | {wr} | {100 * r['warm_start_share']:.0f} % | "
+                     f"{r['warm_us_per_step']:.2f} | {wr} | {100 * r['warm_start_share']:.0f} % | "
                      f"{r['warm_pivots_per_step']:.1f} |")
-    if any("ratio" in r for r in rows):
+    if rows:
         lines.append("")
+        peers = "ours, ours warm-started, pymunk" if "ratio" in rows[0] else "ours, ours warm-started"
+        lines.append(f"times: thread CPU time (time.thread_time) per step, median over {rows[0]['rounds']} "
+                     f"alternating rounds ({peers}, ours, ...) in one process; a round is a fixed number of whole "
+                     "runs of the scene from its initial state (ours: one Simulator.rollout call each, including "
+                     "its output arrays; pymunk: space.step(h) in a Python loop on a space built before the clock "
+                     "starts); ratio: median of the per-round ratios, [min-max] over rounds")
+        other = max(r.get("other_threads_cpu_share", 0.0) for r in rows)
+        lines.append(f"CPU time of other threads during the rounds: at most {100 * other:.1f} % of the timed "
+                     "thread's (not counted in the times)")
+    if any("ratio" in r for r in rows):
         lines.append("target: ratio <= 1.0 on each scene (pymunk through planar_lcp.pymunk_bridge, 10 iterations); "
                      "ours with the defaults, then with SimOptions(warm_start=True) as the planners run it")
     if compile_times:
         lines.append("")
-        lines.append(f"first simulate() with a fresh numba cache (compile): {compile_times['cold_first_simulate_s']:.1f} s "
-                     f"(import {compile_times['cold_import_s']:.2f} s); with the cache warm: "
+        cpu = (f" (CPU time {compile_times['cold_first_simulate_cpu_s']:.1f} s)"
+               if "cold_first_simulate_cpu_s" in compile_times else "")
+        lines.append(f"first simulate() with a fresh numba cache (compile, wall clock of a child process): "
+                     f"{compile_times['cold_first_simulate_s']:.1f} s{cpu} (import "
+                     f"{compile_times['cold_import_s']:.2f} s); with the cache warm: "
                      f"{compile_times['warm_first_simulate_s']:.2f} s (import {compile_times['warm_import_s']:.2f} s); "
-                     f"targets <= 20 s and <= 2 s")
+                     "targets <= 20 s and <= 2 s (wall clock: a loaded machine makes it longer)")
     return "\n".join(lines)
 
 
 SCALING_SIZES = (1, 2, 4, 8, 16, 32, 64)
+#: Fewer rounds than the others: one 20-step rollout of the 64-box tower is about a second of CPU time.
+SCALING_ROUNDS = 7
 
 
 def _scaling_scene(n, kind):
@@ -264,63 +395,82 @@ def _scaling_scene(n, kind):
                         "sim": {"h": 0.005, "t_end": 0.1}, "bodies": bodies}, source=f"<{kind} of {n}>")
 
 
-def bench_scaling(sizes=SCALING_SIZES, steps=20):
+def bench_scaling(sizes=SCALING_SIZES, steps=20, rounds=SCALING_ROUNDS, min_round_s=MIN_ROUND_S):
     """Cost per step of a tower of n boxes (one island, LCP of 8 n unknowns) and of n separate boxes (n islands of
-    8 unknowns), with the growth exponent fitted on log(cost) against log(n) over n >= 4."""
+    8 unknowns), with the growth exponent fitted on log(cost) against log(n) over n >= 4.
+
+    There is no peer: the sizes of one layout are timed in `rounds` alternating rounds of thread CPU time (n = 1, 2,
+    4, ..., 1, 2, 4, ...; each round a fixed number of `steps`-step rollouts), the exponent is fitted in every round
+    and `fits` is its median over rounds, `fit_spread` its min, q1, q3 and max. Each row's us_per_step is the
+    median over rounds, with us_min and us_max."""
     from .model import compile_scene
     from .sim import SimOptions, Simulator
-    rows = []
+    rows, fits, fit_spread = [], {}, {}
     for kind in ("pile", "islands"):
+        runners, outs = {}, {}
         for n in sizes:
             sim = Simulator(compile_scene(_scaling_scene(n, kind)), SimOptions(h=0.005))
             q, v, qk, vk = sim.initial_state()
-            sim.rollout(q, v, qk, vk[None], 2)
-            reps = max(1, int(200 / n))
-            times = []
-            for _ in range(3):
-                t0 = time.perf_counter()
-                for _ in range(reps):
-                    out = sim.rollout(q, v, qk, vk[None], steps)
-                times.append((time.perf_counter() - t0) / (reps * steps))
-            rows.append(dict(kind=kind, bodies=n, us_per_step=statistics.median(times) * 1e6,
-                             lcp_max=int(out["stats"][:, 1].max()), pivots_per_step=float(out["stats"][:, 2].mean())))
-    fits = {}
-    for kind in ("pile", "islands"):
-        pts = [(r["bodies"], r["us_per_step"]) for r in rows if r["kind"] == kind and r["bodies"] >= 4]
-        x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
-        fits[kind] = float(np.polyfit(x, y, 1)[0])
-    return rows, fits
+            outs[n] = sim.rollout(q, v, qk, vk[None], steps)
+            runners[n] = lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], steps)
+        m = _alternate(runners, rounds=rounds, min_round_s=min_round_s)
+        per_step = {n: m["per_unit"][n] / steps for n in sizes}
+        for n in sizes:
+            st = outs[n]["stats"]
+            us = per_step[n] * 1e6
+            rows.append(dict(kind=kind, bodies=n, us_per_step=float(np.median(us)), us_min=float(us.min()),
+                             us_max=float(us.max()), lcp_max=int(st[:, 1].max()),
+                             pivots_per_step=float(st[:, 2].mean()), rounds=rounds,
+                             runs_per_round=int(m["reps"][n])))
+        fit_n = [n for n in sizes if n >= 4]
+        x = np.log(fit_n)
+        per_round = [float(np.polyfit(x, np.log([per_step[n][r] for n in fit_n]), 1)[0]) for r in range(rounds)]
+        sp = _spread(per_round)
+        fits[kind] = sp["median"]
+        fit_spread[kind] = dict(min=sp["min"], q1=sp["q1"], q3=sp["q3"], max=sp["max"])
+    return rows, fits, fit_spread
 
 
-def format_scaling_table(rows, fits):
-    lines = ["| layout | bodies | µs / step | largest LCP | pivots / step |", "|---|---:|---:|---:|---:|"]
+def format_scaling_table(rows, fits, fit_spread=None):
+    lines = ["| layout | bodies | µs / step median [min-max] | largest LCP | pivots / step |",
+             "|---|---:|---:|---:|---:|"]
     for r in rows:
-        lines.append(f"| {r['kind']} | {r['bodies']} | {r['us_per_step']:.1f} | {r['lcp_max']} | "
-                     f"{r['pivots_per_step']:.1f} |")
+        us = f"{r['us_per_step']:.1f}"
+        if "us_min" in r:
+            us += f" [{r['us_min']:.1f}-{r['us_max']:.1f}]"
+        lines.append(f"| {r['kind']} | {r['bodies']} | {us} | {r['lcp_max']} | {r['pivots_per_step']:.1f} |")
     lines.append("")
-    lines.append(f"fitted growth exponent (cost ~ n^p over n >= 4): pile p = {fits['pile']:.2f} (one island: "
-                 f"Lemke on a dense tableau), islands p = {fits['islands']:.2f}")
+    if rows and "rounds" in rows[0]:
+        lines.append(f"times: thread CPU time (time.thread_time) per step, median over {rows[0]['rounds']} rounds "
+                     "alternating over the sizes of a layout in one process, [min-max] over rounds")
+
+    def fit(kind):
+        if not fit_spread:
+            return f"{fits[kind]:.2f}"
+        return f"{fits[kind]:.2f} [{fit_spread[kind]['min']:.2f}-{fit_spread[kind]['max']:.2f}]"
+    lines.append(f"fitted growth exponent (cost ~ n^p over n >= 4, fitted per round, median [min-max]): pile p = "
+                 f"{fit('pile')} (one island: Lemke on a dense tableau), islands p = {fit('islands')}")
     return "\n".join(lines)
 
 
 def run_bench(which, json_path=None):
     report = {}
     if which in ("scaling", "all"):
-        rows, fits = bench_scaling()
-        print(format_scaling_table(rows, fits))
-        report["scaling"] = dict(rows=rows, fits=fits)
+        rows, fits, fit_spread = bench_scaling()
+        print(format_scaling_table(rows, fits, fit_spread))
+        report["scaling"] = dict(rows=rows, fits=fits, fit_spread=fit_spread, clock="thread_time")
     if which in ("step", "all"):
         compile_times = measure_step_compile_time()
         rows = bench_step()
         print(format_step_table(rows, compile_times))
-        report["step"] = dict(rows=rows, compile=compile_times)
+        report["step"] = dict(rows=rows, compile=compile_times, clock="thread_time")
     if which in ("lcp", "all"):
         compile_times = measure_compile_time()
         rows = bench_lcp()
         if not rows:
             raise SystemExit("bench lcp: the LCP corpus ../shared/data/lcp was not found (set PLANAR_LCP_CORPUS)")
         print(format_lcp_table(rows, compile_times))
-        report["lcp"] = dict(rows=rows, compile=compile_times,
+        report["lcp"] = dict(rows=rows, compile=compile_times, clock="thread_time",
                              median_ratio=statistics.median([r["ratio"] for r in rows]))
     if json_path:
         with open(json_path, "w") as f:

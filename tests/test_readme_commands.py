@@ -1,0 +1,355 @@
+"""Every command of the README's "Commands" table runs end to end, as a user types it, in a subprocess on small
+settings: exit status 0 and its output files checked (they exist, are not empty and parse: CSV header and rows, PNG
+and GIF magic bytes, JSON with the expected keys, SQLite header).
+
+`test_every_readme_command_has_a_test` parses the table, so a new row without a test here fails.
+
+`demo` and `plan` run with their own EMPTY numba cache, as on a user's fresh machine (CI's cache is warm by the time
+these run, and a warm cache hides the cold-start crash of issue 10, item 4)."""
+
+import csv
+import io
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+README = ROOT / "README.md"
+CLI = [sys.executable, "-c", "import sys; from planar_lcp.cli import main; sys.exit(main())"]
+
+PNG = b"\x89PNG\r\n\x1a\n"
+SQLITE = b"SQLite format 3\x00"
+
+#: README command -> the tests below that run it (the table check reads this)
+COVERED = {}
+
+
+def covers(*commands):
+    """Register a test as running these README commands; it is slow-marked (compiled code for seconds to
+    minutes; hours without the JIT)."""
+    def mark(fn):
+        for c in commands:
+            COVERED.setdefault(c, []).append(fn.__name__)
+        return pytest.mark.slow(fn)
+    return mark
+
+
+def run(args, cwd, timeout=600, cold_cache=None):
+    env = dict(os.environ, MPLBACKEND="Agg")
+    if cold_cache is not None:
+        Path(cold_cache).mkdir(parents=True, exist_ok=True)
+        assert not any(Path(cold_cache).iterdir()), f"{cold_cache} is not empty"
+        env["NUMBA_CACHE_DIR"] = str(cold_cache)
+    r = subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True, timeout=timeout, cwd=cwd,
+                       env=env)
+    return r
+
+
+def ok(r):
+    """Exit status 0 and no traceback; the output on failure."""
+    assert r.returncode == 0, f"exit status {r.returncode}\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
+    assert "Traceback" not in r.stderr, r.stderr[-3000:]
+
+
+# --- file checks ------------------------------------------------------------------------------------------------
+
+
+def check_png(p):
+    b = Path(p).read_bytes()
+    assert b[:8] == PNG and len(b) > 1000, p
+
+
+def check_gif(p):
+    b = Path(p).read_bytes()
+    assert b[:6] in (b"GIF87a", b"GIF89a") and len(b) > 1000, p
+    assert b.count(b"\x21\xf9\x04") > 1, f"{p}: one frame or none"   # graphic control extension per frame
+
+
+def check_csv(p, first=None, numeric=None, min_rows=1):
+    """A header row, at least `min_rows` rows of its width; `first`: the first header cell; `numeric`: columns
+    whose non-empty cells all parse as finite floats (True: every column)."""
+    text = Path(p).read_text()
+    rows = list(csv.reader(io.StringIO(text)))
+    assert rows and len(rows) - 1 >= min_rows, f"{p}: {len(rows) - 1} rows"
+    header = rows[0]
+    assert len(set(header)) == len(header) and all(h.strip() for h in header), f"{p}: header {header}"
+    if first is not None:
+        assert header[0] == first, f"{p}: header {header}"
+    assert all(len(r) == len(header) for r in rows[1:]), f"{p}: ragged rows"
+    cols = range(len(header)) if numeric is True else [header.index(c) for c in (numeric or [])]
+    for r in rows[1:]:
+        for j in cols:
+            if r[j] != "":
+                assert math.isfinite(float(r[j])), f"{p}: {header[j]} = {r[j]}"
+    return header, rows[1:]
+
+
+def check_text(p, contains=None):
+    t = Path(p).read_text()
+    assert t.strip(), f"{p} is empty"
+    if contains:
+        assert contains in t, f"{p} lacks {contains!r}"
+    return t
+
+
+def check_json(p, keys):
+    d = json.loads(Path(p).read_text())
+    missing = set(keys) - set(d)
+    assert not missing, f"{p}: no {sorted(missing)}"
+    return d
+
+
+def check_dir(out, expected):
+    """Every expected file exists, is not empty and parses by its extension; no other file was written empty."""
+    out = Path(out)
+    for name in expected:
+        assert (out / name).is_file(), f"{out / name} not written; the directory holds {sorted(os.listdir(out))}"
+    for p in out.iterdir():
+        if not p.is_file():
+            continue
+        assert p.stat().st_size > 0, f"{p} is empty"
+        ext = p.suffix
+        if ext == ".png":
+            check_png(p)
+        elif ext == ".gif":
+            check_gif(p)
+        elif ext == ".csv":
+            check_csv(p)
+        elif ext == ".json":
+            json.loads(p.read_text())
+        elif ext == ".md":
+            check_text(p, "|")
+        elif ext == ".db":
+            assert p.read_bytes()[:16] == SQLITE, p
+
+
+def wrote_lines(stdout):
+    return [line.split(None, 1)[1].strip() for line in stdout.splitlines() if line.startswith("wrote")]
+
+
+# --- the table --------------------------------------------------------------------------------------------------
+
+
+def readme_commands():
+    """The commands of the README's Commands table: 'planar-lcp' and the lower-case words after it (the sub-
+    command and any sub-sub-command), e.g. 'study falling-rod', 'bench'."""
+    text = README.read_text()
+    m = re.search(r"^## Commands\n(.*?)(?=^## )", text, re.M | re.S)
+    assert m, "README.md has no '## Commands' section"
+    cmds = []
+    for line in m.group(1).splitlines():
+        cell = re.match(r"\|\s*`planar-lcp ([^`]*)`", line)
+        if not cell:
+            continue
+        words = []
+        for w in cell.group(1).split():
+            if not re.fullmatch(r"[a-z][a-z-]*", w):
+                break
+            words.append(w)
+        cmds.append(" ".join(words))
+    return cmds
+
+
+def test_readme_table_is_parsed():
+    cmds = readme_commands()
+    # the parser finds the rows it must: if this breaks, the table's format changed, not the commands
+    assert {"demo", "simulate", "study falling-rod", "bench"} <= set(cmds) and len(cmds) >= 11, cmds
+
+
+def test_every_readme_command_has_a_test():
+    missing = [c for c in readme_commands() if c not in COVERED]
+    assert not missing, f"README commands without a test in {Path(__file__).name}: {missing}"
+    # and the replay row is run with both simulators
+    assert {"test_replay_lcp", "test_replay_pymunk"} <= set(COVERED["replay"])
+
+
+# --- the commands -----------------------------------------------------------------------------------------------
+
+
+@covers("demo")
+@pytest.mark.xfail(strict=True, reason="issue 10 item 4: with an empty numba cache the demo's planning child crashes "
+                                       "(TypeError in planners/adapter.py read_state) and the demo writes no plan; "
+                                       "being fixed in parallel")
+def test_demo(tmp_path):
+    out = tmp_path / "demo"
+    r = run(["demo", "--out", out], cwd=tmp_path, cold_cache=tmp_path / "numba_cache")
+    ok(r)
+    check_dir(out, ["falling_rod.csv", "falling_rod.png", "plan.json", "plan.png", "plan.gif"])
+    check_csv(out / "falling_rod.csv", first="t", numeric=True, min_rows=100)
+    plan = check_json(out / "plan.json", ["task", "planner", "seed", "exact", "controls", "states"])
+    assert plan["task"] == "push_box" and plan["exact"] is True
+    assert "an exact plan in" in r.stdout
+
+
+@covers("scenes")
+def test_scenes(tmp_path):
+    r = run(["scenes"], cwd=tmp_path)
+    ok(r)
+    for name in ("falling_rod", "four_disks", "box_push", "box_tip", "push_t"):
+        assert re.search(rf"^\s+{name}\s+\S", r.stdout, re.M), r.stdout
+
+
+@covers("simulate")
+def test_simulate_with_csv_plot_and_animation(tmp_path):
+    f = tmp_path / "rod"
+    r = run(["simulate", "falling_rod", "--t-end", "0.2", "--csv", f"{f}.csv", "--plot", f"{f}.png",
+             "--animate", f"{f}.gif"], cwd=tmp_path)
+    ok(r)
+    header, rows = check_csv(f"{f}.csv", first="t", numeric=True, min_rows=80)
+    assert header == ["t", "rod.x", "rod.y", "rod.theta", "rod.vx", "rod.vy", "rod.omega"]
+    assert float(rows[-1][0]) == pytest.approx(0.2)
+    check_png(f"{f}.png")
+    check_gif(f"{f}.gif")
+    assert sorted(wrote_lines(r.stdout)) == sorted([f"{f}.csv", f"{f}.png", f"{f}.gif"])
+
+
+@covers("simulate")
+def test_simulate_with_the_solver_and_formulation_options(tmp_path):
+    f = tmp_path / "push.csv"
+    r = run(["simulate", "box_push", "--h", "0.01", "--t-end", "0.3", "--solver", "lemke", "--formulation",
+             "fixed_point", "--fixed-point-iterations", "2", "--friction-directions", "6", "--on-failure", "record",
+             "--csv", f], cwd=tmp_path)
+    ok(r)
+    assert re.search(r"^formulation\s+fixed_point$", r.stdout, re.M) and re.search(r"^steps\s+30 ", r.stdout, re.M)
+    check_csv(f, first="t", numeric=True, min_rows=30)
+
+
+@covers("study falling-rod")
+def test_study_falling_rod(tmp_path):
+    out = tmp_path / "rod"
+    r = run(["study", "falling-rod", "--out", out, "--quick"], cwd=tmp_path)
+    ok(r)
+    check_dir(out, ["strobe.png", "vx.png", "vy.png", "omega.png", "events.csv", "events.md", "convergence.csv",
+                    "convergence.md"])
+    check_csv(out / "events.csv", first="h", min_rows=2)
+    check_csv(out / "convergence.csv", min_rows=1)
+
+
+@covers("study four-disks")
+def test_study_four_disks(tmp_path):
+    out = tmp_path / "disks"
+    r = run(["study", "four-disks", "--out", out, "--quick"], cwd=tmp_path)
+    ok(r)
+    check_dir(out, ["trajectories.png", "velocity.png", "impulses.png", "cascade.csv", "events.csv",
+                    "convergence.csv"])
+    check_csv(out / "cascade.csv", min_rows=1)
+
+
+@covers("compare")
+def test_compare(tmp_path):
+    out = tmp_path / "cmp"
+    r = run(["compare", "falling_rod", "--out", out, "--t-end", "0.6"], cwd=tmp_path)
+    ok(r)
+    check_dir(out, ["report.csv", "report.md", "trajectories.png", "frames.png", "side_by_side.gif"])
+    header, rows = check_csv(out / "report.csv", first="scene", numeric=["max_penetration_m", "us_per_step"])
+    assert {row[header.index("simulator")] for row in rows} == {"planar_lcp", "pymunk"}
+
+
+PLAN_KEYS = ["format", "task", "planner", "seed", "exact", "start", "controls", "steps", "durations", "states", "goal"]
+
+
+def check_plan_dir(out, task):
+    check_dir(out, ["plan.json", "plan.png"])
+    plan = check_json(out / "plan.json", PLAN_KEYS)
+    assert plan["task"] == task and plan["exact"] is True
+    assert len(plan["controls"]) == len(plan["steps"]) == len(plan["durations"]) == len(plan["states"]) - 1 > 0
+    return plan
+
+
+@covers("plan")
+@pytest.mark.xfail(strict=True, reason="issue 10 item 4: with an empty numba cache `plan` crashes in "
+                                       "planners/adapter.py read_state (TypeError: __getitem__(): incompatible "
+                                       "function arguments ... CompoundState, slice); being fixed in parallel")
+def test_plan(tmp_path):
+    out = tmp_path / "plan"
+    r = run(["plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--out", out],
+            cwd=tmp_path, cold_cache=tmp_path / "numba_cache")
+    ok(r)
+    check_plan_dir(out, "tip_box")
+    check_gif(out / "plan.gif")
+
+
+@pytest.fixture(scope="module")
+def tip_plan(tmp_path_factory):
+    """A plan to replay, made by `plan` with the shared numba cache (warm in CI: earlier tests compiled it)."""
+    out = tmp_path_factory.mktemp("tip_plan")
+    r = run(["plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--out", out, "--no-gif"],
+            cwd=out)
+    ok(r)
+    check_plan_dir(out, "tip_box")
+    return out / "plan.json"
+
+
+def check_replay(r, out, simulator):
+    """`replay` exits 0 exactly when it reports that the goal holds, and draws the replay."""
+    m = re.search(r"^goal_holds\s+(True|False)$", r.stdout, re.M)
+    assert m, f"no goal_holds line:\n{r.stdout}\n{r.stderr[-3000:]}"
+    assert re.search(rf"^simulator\s+{simulator}$", r.stdout, re.M), r.stdout
+    check_png(out / f"replay_{simulator}.png")
+    return m.group(1) == "True"
+
+
+@covers("replay")
+def test_replay_lcp(tip_plan, tmp_path):
+    r = run(["replay", tip_plan, "--simulator", "lcp", "--out", tmp_path], cwd=tmp_path)
+    ok(r)
+    assert check_replay(r, tmp_path, "lcp")   # our simulator replays the plan it made: the goal holds
+
+
+@covers("replay")
+@pytest.mark.xfail(strict=True, reason="issue 10: `replay --simulator pymunk` always crashes (ValueError: too many "
+                                       "values to unpack in planners/plan.py: pymunk_bridge.read_state returns four "
+                                       "values); being fixed in parallel")
+def test_replay_pymunk(tip_plan, tmp_path):
+    r = run(["replay", tip_plan, "--simulator", "pymunk", "--out", tmp_path], cwd=tmp_path)
+    assert "Traceback" not in r.stderr, r.stderr[-3000:]
+    # pymunk is another simulator: the open-loop plan may miss the goal there (exit 1), but it must say which
+    assert r.returncode in (0, 1), f"exit status {r.returncode}\n{r.stdout}\n{r.stderr[-3000:]}"
+    holds = check_replay(r, tmp_path, "pymunk")
+    assert r.returncode == (0 if holds else 1)
+
+
+@covers("plan-bench")
+def test_plan_bench(tmp_path):
+    out = tmp_path / "pb"
+    r = run(["plan-bench", "tip_box", "--planners", "RRT", "--runs", "1", "--time", "3", "--jobs", "1", "--out", out],
+            cwd=tmp_path)
+    ok(r)
+    check_dir(out, ["tip_box.log", "tip_box.db", "summary.md", "summary.json", "boxplots.png"])
+    d = check_json(out / "summary.json", ["task", "runs", "time_limit", "summary", "records"])
+    assert d["task"] == "tip_box" and d["runs"] == 1 and len(d["records"]) == 1
+    assert [s["planner"] for s in d["summary"]] == ["RRT"]
+    check_text(out / "tip_box.log", "RRT")
+
+
+@covers("tradeoff")
+def test_tradeoff_quick(tmp_path):
+    out = tmp_path / "to"
+    r = run(["tradeoff", "--quick", "--scenes", "falling_rod", "--out", out, "--no-progress"], cwd=tmp_path)
+    ok(r)
+    check_dir(out, ["tradeoff.csv", "pareto_falling_rod.png"])
+    header, rows = check_csv(out / "tradeoff.csv", first="scene",
+                             numeric=["h", "velocity_error", "max_penetration", "cpu_s_per_sim_s"])
+    assert {row[0] for row in rows} == {"falling_rod"} and len(rows) >= 2
+
+
+@covers("bench")
+def test_bench_scaling_json(tmp_path):
+    """`bench scaling`, the cheapest sub-command (about 10 s of CPU; `step` and `lcp` also time cold-cache
+    compiles in child processes)."""
+    path = tmp_path / "bench.json"
+    r = run(["bench", "scaling", "--json", path], cwd=tmp_path)
+    ok(r)
+    assert "thread CPU time" in r.stdout and "fitted growth exponent" in r.stdout
+    d = check_json(path, ["scaling"])["scaling"]
+    assert d["clock"] == "thread_time" and set(d["fits"]) == set(d["fit_spread"]) == {"pile", "islands"}
+    assert {(row["kind"], row["bodies"]) for row in d["rows"]} == {(k, n) for k in ("pile", "islands")
+                                                                  for n in (1, 2, 4, 8, 16, 32, 64)}
+    for row in d["rows"]:
+        assert 0 < row["us_min"] <= row["us_per_step"] <= row["us_max"] and math.isfinite(row["us_max"])
