@@ -136,10 +136,49 @@ def one_line_errors(parser):
     return parser
 
 
-def _check_output(path, option):
+#: Output files of `simulate`: the extensions each writer produces (matplotlib's savefig(format="png"), PillowWriter).
+OUTPUT_SUFFIXES = {"--csv": (".csv", ".txt"), "--plot": (".png",), "--animate": (".gif",)}
+
+
+def check_output_file(path, option, suffixes):
+    """Before any work: `path` has one of `suffixes` and can be written (its directory exists and is writable, and
+    it is not a directory). Raises _InputError naming the option."""
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix not in suffixes:
+        raise _InputError(f"{option} {path}: the file name must end in {' or '.join(suffixes)}, got "
+                          f"{suffix or 'no extension'!r}")
     d = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(d):
         raise _InputError(f"{option} {path}: the directory {d} does not exist")
+    if os.path.isdir(path):
+        raise _InputError(f"{option} {path}: must be a file name, got a directory")
+    existed = os.path.exists(path)
+    try:
+        with open(path, "ab"):   # opened to append: an existing file is left as it is
+            pass
+    except OSError as e:
+        raise _InputError(f"{option} {path}: must be a writable file, got: {e.strerror or e}") from None
+    if not existed:
+        os.remove(path)
+
+
+def prepare_output_dir(path, option):
+    """Before any work: create the output directory `path` if missing (as every command writing a directory does)
+    and check that it is a writable directory. Raises _InputError naming the option."""
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise _InputError(f"{option} {path}: must be a directory, got an existing file")
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as e:
+        raise _InputError(f"{option} {path}: cannot create the directory: {e.strerror or e}") from None
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise _InputError(f"{option} {path}: must be a writable directory, got no write permission")
+
+
+#: How `simulate()`'s messages name the settings this command sets by flags.
+SIMULATE_FLAGS = {"h": "--h", "t_end": "--t-end", "solver": "--solver", "formulation": "--formulation",
+                  "fixed_point_iterations": "--fixed-point-iterations", "friction_directions": "--friction-directions",
+                  "pgs_iterations": "--pgs-iterations", "on_failure": "--on-failure record"}
 
 
 def _cmd_scenes(args):
@@ -178,7 +217,7 @@ def _simulate(args):
 
     for path, option in ((args.csv, "--csv"), (args.plot, "--plot"), (args.animate, "--animate")):
         if path is not None:
-            _check_output(path, option)
+            check_output_file(path, option, OUTPUT_SUFFIXES[option])
     try:
         scene = load_scene(args.scene)
     except SceneError as e:
@@ -187,10 +226,14 @@ def _simulate(args):
     try:
         traj = simulate(scene, t_end=args.t_end, h=args.h, solver=args.solver, formulation=args.formulation,
                         fixed_point_iterations=args.fixed_point_iterations,
-                        friction_directions=args.friction_directions, on_failure=args.on_failure)
+                        friction_directions=args.friction_directions, on_failure=args.on_failure,
+                        option_names=SIMULATE_FLAGS)
     except SimulationError as e:
         print(f"planar-lcp simulate: simulation failed: {e}", file=sys.stderr)
         return 1
+    except SceneError as e:
+        # a setting out of range or a run too large: the message names the scene file and the flag
+        raise _InputError(str(e)) from None
     except (ValueError, NotImplementedError) as e:
         # options the scene accepts but the simulator rejects (e.g. a solver not available there)
         raise _InputError(f"{scene.source}: {e}") from None
@@ -213,7 +256,7 @@ def _simulate(args):
     if not traj.body_names:
         print("  (no dynamic bodies)")
     print(f"max penetration {pen:.3e} m")
-    print(f"failed steps   {len(traj.failures)}")
+    print(f"failed steps   {len(traj.failures)}" + (" (each failed island took PGS's answer)" if traj.failures else ""))
     for i, t, cause in traj.failures[:3]:
         print(f"  step {i} (t = {t:.6g} s): {cause}")
     if len(traj.failures) > 3:
