@@ -256,7 +256,7 @@ def _simulate(args):
     if not traj.body_names:
         print("  (no dynamic bodies)")
     print(f"max penetration {pen:.3e} m")
-    print(f"failed steps   {len(traj.failures)}" + (" (each failed island took PGS's answer)" if traj.failures else ""))
+    print(f"failed steps   {len(traj.failures)}")
     for i, t, cause in traj.failures[:3]:
         print(f"  step {i} (t = {t:.6g} s): {cause}")
     if len(traj.failures) > 3:
@@ -290,6 +290,8 @@ COMMAND_MODULES = ["planar_lcp.compare", "planar_lcp.studies", "planners.cli", "
 
 
 def build_parser():
+    from .scene import MAX_FIXED_POINT_ITERATIONS, MAX_FRICTION_DIRECTIONS, MAX_STEPS
+
     p = argparse.ArgumentParser(prog="planar-lcp", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
 
@@ -310,21 +312,24 @@ def build_parser():
         description="Simulate a scene (a shipped name, see `planar-lcp scenes`, or a path to a .toml file). "
                     "Options override the scene's [sim] table."))
     s.add_argument("scene", metavar="SCENE", help="a shipped scene name or a path to a .toml scene file")
-    s.add_argument("--h", type=finite_number(float, 0, True), metavar="H", help="time step [s]")
-    s.add_argument("--t-end", type=finite_number(float, 0, True), metavar="T", help="duration [s]")
+    s.add_argument("--h", type=finite_number(float, 0, True), metavar="H", help=f"time step [s]; below the duration, and at most {MAX_STEPS} steps in all")
+    s.add_argument("--t-end", type=finite_number(float, 0, True), metavar="T", help=f"duration [s] (t_end / h <= {MAX_STEPS} steps)")
     s.add_argument("--solver", choices=["lemke", "pgs", "osqp"], help="LCP solver")
     s.add_argument("--formulation", choices=["position", "fixed_point", "velocity"],
                    help="position (Stewart-Trinkle), fixed_point (re-linearized), velocity (Anitescu-Potra)")
     s.add_argument("--fixed-point-iterations", type=finite_number(int, 1, False), metavar="N",
-                   help="iterations of the fixed_point formulation")
+                   help=f"iterations of the fixed_point formulation (1 to {MAX_FIXED_POINT_ITERATIONS})")
     s.add_argument("--friction-directions", type=finite_number(int, 3, False), metavar="K",
-                   help="friction directions per support point (horizontal plane)")
+                   help=f"friction directions per support point (3 to {MAX_FRICTION_DIRECTIONS}; horizontal-plane scenes only)")
     s.add_argument("--on-failure", choices=["raise", "record"], default="raise",
                    help="raise (default): stop with exit status 1 at the first failed step; record: continue and "
                         "count the failures")
-    s.add_argument("--csv", metavar="FILE", help="write t and each dynamic body's pose and velocity per step")
+    s.add_argument("--csv", metavar="FILE", help="write t and each dynamic body's pose and velocity per step (.csv or .txt)")
     s.add_argument("--plot", metavar="FILE.png", help="write a strobe of the motion and time series (PNG)")
     s.add_argument("--animate", metavar="FILE.gif", help="write an animation (GIF)")
+    s.epilog = ("Output files are checked before the run (extension, an existing writable directory). A run whose "
+                "trajectory and LCP buffers would need more than a quarter of physical memory is refused before it "
+                "starts, with the estimate (docs/scene-format.md, Limits).")
     s.set_defaults(func=_cmd_simulate)
 
     sc = one_line_errors(sub.add_parser("scenes", help="list the shipped scenes with their descriptions"))

@@ -81,7 +81,7 @@ def _cause(status, stats):
     if status == STEP_LCP_FAILED:
         ls = int(stats[ST_LEMKE_STATUS])
         return (f"the contact solver returned '{STATUS_NAMES[ls]}' on a problem of size up to "
-                f"{int(stats[ST_LCP_MAX])} (residual {stats[ST_RESIDUAL]:.3e})")
+                f"{int(stats[ST_LCP_MAX])} (residual {stats[ST_RESIDUAL]:.3e}); that island was solved by PGS instead")
     return "ok"
 
 
@@ -408,6 +408,8 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
         failures.append((int(i), float((i + 1) * h), _cause(out["status"][i], out["stats"][i])))
     if failures and on_failure == "raise":
         i, t, cause = failures[0]
+        # the cause is worded for a recorded failure, after which the run went on with PGS's answer; this run stops
+        cause = cause.replace("; that island was solved by PGS instead", "")
         raise SimulationError(f"{scene.source}: step {i} (t = {t:.6g} s, h = {h}): {cause}; the run stopped at this "
                               f"step. Pass {names['on_failure']} to continue (a failed island then takes PGS's "
                               "answer) and list the failures.")
