@@ -178,7 +178,7 @@ def prepare_output_dir(path, option):
 #: How `simulate()`'s messages name the settings this command sets by flags.
 SIMULATE_FLAGS = {"h": "--h", "t_end": "--t-end", "solver": "--solver", "formulation": "--formulation",
                   "fixed_point_iterations": "--fixed-point-iterations", "friction_directions": "--friction-directions",
-                  "pgs_iterations": "--pgs-iterations", "on_failure": "--on-failure record"}
+                  "on_failure": "--on-failure record"}
 
 
 def _cmd_scenes(args):
