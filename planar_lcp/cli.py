@@ -137,10 +137,49 @@ def one_line_errors(parser):
     return parser
 
 
-def _check_output(path, option):
+#: Output files of `simulate`: the extensions each writer produces (matplotlib's savefig(format="png"), PillowWriter).
+OUTPUT_SUFFIXES = {"--csv": (".csv", ".txt"), "--plot": (".png",), "--animate": (".gif",)}
+
+
+def check_output_file(path, option, suffixes):
+    """Before any work: `path` has one of `suffixes` and can be written (its directory exists and is writable, and
+    it is not a directory). Raises _InputError naming the option."""
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix not in suffixes:
+        raise _InputError(f"{option} {path}: the file name must end in {' or '.join(suffixes)}, got "
+                          f"{suffix or 'no extension'!r}")
     d = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(d):
         raise _InputError(f"{option} {path}: the directory {d} does not exist")
+    if os.path.isdir(path):
+        raise _InputError(f"{option} {path}: must be a file name, got a directory")
+    existed = os.path.exists(path)
+    try:
+        with open(path, "ab"):   # opened to append: an existing file is left as it is
+            pass
+    except OSError as e:
+        raise _InputError(f"{option} {path}: must be a writable file, got: {e.strerror or e}") from None
+    if not existed:
+        os.remove(path)
+
+
+def prepare_output_dir(path, option):
+    """Before any work: create the output directory `path` if missing (as every command writing a directory does)
+    and check that it is a writable directory. Raises _InputError naming the option."""
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise _InputError(f"{option} {path}: must be a directory, got an existing file")
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as e:
+        raise _InputError(f"{option} {path}: cannot create the directory: {e.strerror or e}") from None
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise _InputError(f"{option} {path}: must be a writable directory, got no write permission")
+
+
+#: How `simulate()`'s messages name the settings this command sets by flags.
+SIMULATE_FLAGS = {"h": "--h", "t_end": "--t-end", "solver": "--solver", "formulation": "--formulation",
+                  "fixed_point_iterations": "--fixed-point-iterations", "friction_directions": "--friction-directions",
+                  "on_failure": "--on-failure record"}
 
 
 def _cmd_scenes(args):
@@ -179,7 +218,7 @@ def _simulate(args):
 
     for path, option in ((args.csv, "--csv"), (args.plot, "--plot"), (args.animate, "--animate")):
         if path is not None:
-            _check_output(path, option)
+            check_output_file(path, option, OUTPUT_SUFFIXES[option])
     try:
         scene = load_scene(args.scene)
     except SceneError as e:
@@ -188,10 +227,14 @@ def _simulate(args):
     try:
         traj = simulate(scene, t_end=args.t_end, h=args.h, solver=args.solver, formulation=args.formulation,
                         fixed_point_iterations=args.fixed_point_iterations,
-                        friction_directions=args.friction_directions, on_failure=args.on_failure)
+                        friction_directions=args.friction_directions, on_failure=args.on_failure,
+                        option_names=SIMULATE_FLAGS)
     except SimulationError as e:
         print(f"planar-lcp simulate: simulation failed: {e}", file=sys.stderr)
         return 1
+    except SceneError as e:
+        # a setting out of range or a run too large: the message names the scene file and the flag
+        raise _InputError(str(e)) from None
     except (ValueError, NotImplementedError) as e:
         # options the scene accepts but the simulator rejects (e.g. a solver not available there)
         raise _InputError(f"{scene.source}: {e}") from None
@@ -248,6 +291,8 @@ COMMAND_MODULES = ["planar_lcp.compare", "planar_lcp.studies", "planners.cli", "
 
 
 def build_parser():
+    from .scene import MAX_FIXED_POINT_ITERATIONS, MAX_FRICTION_DIRECTIONS, MAX_STEPS
+
     p = argparse.ArgumentParser(prog="planar-lcp", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
 
@@ -268,21 +313,24 @@ def build_parser():
         description="Simulate a scene (a shipped name, see `planar-lcp scenes`, or a path to a .toml file). "
                     "Options override the scene's [sim] table."))
     s.add_argument("scene", metavar="SCENE", help="a shipped scene name or a path to a .toml scene file")
-    s.add_argument("--h", type=finite_number(float, 0, True), metavar="H", help="time step [s]")
-    s.add_argument("--t-end", type=finite_number(float, 0, True), metavar="T", help="duration [s]")
+    s.add_argument("--h", type=finite_number(float, 0, True), metavar="H", help=f"time step [s]; below the duration, and at most {MAX_STEPS} steps in all")
+    s.add_argument("--t-end", type=finite_number(float, 0, True), metavar="T", help=f"duration [s] (t_end / h <= {MAX_STEPS} steps)")
     s.add_argument("--solver", choices=["lemke", "pgs", "osqp"], help="LCP solver")
     s.add_argument("--formulation", choices=["position", "fixed_point", "velocity"],
                    help="position (Stewart-Trinkle), fixed_point (re-linearized), velocity (Anitescu-Potra)")
     s.add_argument("--fixed-point-iterations", type=finite_number(int, 1, False), metavar="N",
-                   help="iterations of the fixed_point formulation")
+                   help=f"iterations of the fixed_point formulation (1 to {MAX_FIXED_POINT_ITERATIONS})")
     s.add_argument("--friction-directions", type=finite_number(int, 3, False), metavar="K",
-                   help="friction directions per support point (horizontal plane)")
+                   help=f"friction directions per support point (3 to {MAX_FRICTION_DIRECTIONS}; horizontal-plane scenes only)")
     s.add_argument("--on-failure", choices=["raise", "record"], default="raise",
                    help="raise (default): stop with exit status 1 at the first failed step; record: continue and "
                         "count the failures")
-    s.add_argument("--csv", metavar="FILE", help="write t and each dynamic body's pose and velocity per step")
+    s.add_argument("--csv", metavar="FILE", help="write t and each dynamic body's pose and velocity per step (.csv or .txt)")
     s.add_argument("--plot", metavar="FILE.png", help="write a strobe of the motion and time series (PNG)")
     s.add_argument("--animate", metavar="FILE.gif", help="write an animation (GIF)")
+    s.epilog = ("Output files are checked before the run (extension, an existing writable directory). A run whose "
+                "trajectory and LCP buffers would need more than a quarter of physical memory is refused before it "
+                "starts, with the estimate (docs/scene-format.md, Limits).")
     s.set_defaults(func=_cmd_simulate)
 
     sc = one_line_errors(sub.add_parser("scenes", help="list the shipped scenes with their descriptions"))

@@ -342,9 +342,14 @@ def _cmd_compare(args):
     except SceneError as e:
         print(f"{prog}: error: {e}", file=sys.stderr)
         return 2
+    from .cli import SIMULATE_FLAGS, _InputError, prepare_output_dir
+    from .scene import sim_settings
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        print(f"{prog}: error: --out {out}: exists and is not a directory", file=sys.stderr)
+    try:
+        sim_settings(scene, {"h": args.h, "t_end": args.t_end}, SIMULATE_FLAGS)  # before any work, named by flag
+        prepare_output_dir(args.out, "--out")
+    except (_InputError, SceneError) as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
         return 2
     parts = [f"planar-lcp compare {args.scene} --out {args.out}"]
     for opt, val in (("--h", args.h), ("--t-end", args.t_end), ("--iterations", args.iterations),
@@ -363,6 +368,9 @@ def _cmd_compare(args):
     except OSError as e:
         print(f"{prog}: error: cannot write {e.filename or ''}: {e.strerror or e}", file=sys.stderr)
         return 1
+    except SceneError as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 2
     except ValueError as e:
         print(f"{prog}: error: {scene.source}: {e}", file=sys.stderr)
         return 2

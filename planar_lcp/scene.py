@@ -31,6 +31,16 @@ FORMULATIONS = ("position", "fixed_point", "velocity")
 # points closer than this times the size are "repeated".
 _POLY_REL_TOL = 1e-10
 
+# Upper bounds on the simulation settings, so that a typo cannot start a run that takes hours inside a kernel (which
+# Python cannot interrupt) or asks for more memory than the machine has; see docs/scene-format.md, "Limits".
+MAX_STEPS = 10_000_000                 # round(t_end / h): 10 to 100 us per step make this minutes to hours
+MAX_PGS_ITERATIONS = 100_000           # sweeps per island per step
+MAX_FIXED_POINT_ITERATIONS = 1_000     # LCP solves per step
+MAX_FRICTION_DIRECTIONS = 256          # edges of the table-friction polygon (8 already approximates the disk to 8 %)
+# A support point may lie outside the bounding box of its body's shapes by at most this fraction of the box's
+# diagonal (rounding only): a point outside would carry load where the body has no material.
+_SUPPORT_REL_TOL = 1e-6
+
 
 class SceneError(ValueError):
     """A scene file or dict is invalid; the message names the source, the field and the expected value."""
@@ -244,13 +254,33 @@ def load_scene(name_or_path) -> Scene:
     if not path.is_file():
         raise SceneError(f"{path}: no such scene file")
     try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except tomllib.TOMLDecodeError as e:
-        raise SceneError(f"{path}: invalid TOML: {e}") from None
+        raw = path.read_bytes()
     except OSError as e:
         raise SceneError(f"{path}: cannot read the scene file: {e.strerror or e}") from None
+    try:
+        data = tomllib.loads(_decode_utf8(raw, path))
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError(f"{path}: invalid TOML: {e}") from None
     return parse_scene(data, source=str(path))
+
+
+_UTF16_BOMS = {b"\xff\xfe": "UTF-16 (little-endian)", b"\xfe\xff": "UTF-16 (big-endian)"}
+
+
+def _decode_utf8(raw: bytes, path) -> str:
+    """The text of a scene file, which TOML requires to be UTF-8 (a leading UTF-8 byte-order mark is dropped)."""
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]
+    for bom, name in _UTF16_BOMS.items():
+        if raw.startswith(bom):
+            raise SceneError(f"{path}: the scene file must be UTF-8 text, got a {name} byte-order mark at byte "
+                             "offset 0 (save the file as UTF-8)")
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = raw.count(b"\n", 0, e.start) + 1
+        raise SceneError(f"{path}: the scene file must be UTF-8 text, got byte 0x{raw[e.start]:02x} at byte offset "
+                         f"{e.start} (line {line}: {e.reason}; save the file as UTF-8)") from None
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -353,12 +383,14 @@ class _Validator:
             self.fail(f"{path} must be >= 0, got {_fmt_num(x)}")
         return x
 
-    def integer(self, path: str, value, minimum: int) -> int:
+    def integer(self, path: str, value, minimum: int, maximum: int | None = None) -> int:
         if not _is_int(value):
             self.fail(f"{path} must be an integer, got {value!r}")
         n = int(value)
         if n < minimum:
             self.fail(f"{path} must be >= {minimum}, got {n}")
+        if maximum is not None and n > maximum:
+            self.fail(f"{path} must be <= {maximum}, got {n}")
         return n
 
     def string(self, path: str, value, nonempty: bool = False) -> str:
@@ -454,22 +486,87 @@ def parse_scene(data: dict, source: str = "<dict>") -> Scene:
     return Scene(name=name, description=description, world=world, sim=sim, bodies=tuple(bodies), source=source)
 
 
+def _sim_value(v: _Validator, key: str, label: str, value):
+    """One [sim] setting, checked by the rule of its key; `label` is how the message names it."""
+    if key in ("h", "t_end"):
+        return v.positive(label, value)
+    if key == "solver":
+        return v.choice(label, value, SOLVERS)
+    if key == "formulation":
+        return v.choice(label, value, FORMULATIONS)
+    if key == "fixed_point_iterations":
+        return v.integer(label, value, 1, MAX_FIXED_POINT_ITERATIONS)
+    if key == "friction_directions":
+        return v.integer(label, value, 3, MAX_FRICTION_DIRECTIONS)
+    if key == "pgs_iterations":
+        return v.integer(label, value, 1, MAX_PGS_ITERATIONS)
+    raise KeyError(key)
+
+
+def _check_duration(v: _Validator, h: float, t_end: float, labels: dict, knobs: dict) -> int:
+    """At least one step and at most MAX_STEPS; returns the number of steps, round(t_end / h). `labels` name where
+    the values came from, `knobs` what the user can change (a keyword, a flag, or the [sim] key)."""
+    if not h < t_end:
+        v.fail(f"{labels['h']} must be < {labels['t_end']} = {_fmt_num(t_end)} s (at least one step), "
+               f"got {_fmt_num(h)}")
+    ratio = t_end / h
+    if not ratio <= MAX_STEPS + 0.5:
+        v.fail(f"the number of steps {labels['t_end']} / {labels['h']} must be <= {MAX_STEPS}, got {t_end:g} s / "
+               f"{h:g} s = {ratio:.3g} (reduce {knobs['t_end']} or increase {knobs['h']})")
+    return int(round(ratio))
+
+
 def _parse_sim(v: _Validator, t: dict) -> SimSpec:
     v.keys("sim", t, _SIM_KEYS)
     d = SimSpec()
-    return SimSpec(
-        h=v.positive("sim.h", t["h"]) if "h" in t else d.h,
-        t_end=v.positive("sim.t_end", t["t_end"]) if "t_end" in t else d.t_end,
-        solver=v.choice("sim.solver", t["solver"], SOLVERS) if "solver" in t else d.solver,
-        formulation=(v.choice("sim.formulation", t["formulation"], FORMULATIONS)
-                     if "formulation" in t else d.formulation),
-        fixed_point_iterations=(v.integer("sim.fixed_point_iterations", t["fixed_point_iterations"], 1)
-                                if "fixed_point_iterations" in t else d.fixed_point_iterations),
-        friction_directions=(v.integer("sim.friction_directions", t["friction_directions"], 3)
-                             if "friction_directions" in t else d.friction_directions),
-        pgs_iterations=(v.integer("sim.pgs_iterations", t["pgs_iterations"], 1)
-                        if "pgs_iterations" in t else d.pgs_iterations),
-    )
+    kw = {k: (_sim_value(v, k, f"sim.{k}", t[k]) if k in t else getattr(d, k)) for k in _SIM_KEYS}
+    keys = {"h": "sim.h", "t_end": "sim.t_end"}
+    _check_duration(v, kw["h"], kw["t_end"], keys, keys)
+    return SimSpec(**kw)
+
+
+def sim_settings(scene: Scene, overrides: dict, names: dict | None = None) -> tuple:
+    """The [sim] settings of a run: `scene.sim` with `overrides` (a value of None keeps the scene's), each override
+    checked by the same rules as the scene file's [sim] table, then the duration (h < t_end, at most MAX_STEPS).
+
+    Parameters
+    ----------
+    scene : Scene
+    overrides : dict
+        {key of [sim]: value or None}.
+    names : dict, optional
+        How messages name an override, and what they tell the user to change (default: its key, a keyword of
+        `simulate`); the CLI passes its flags. A value taken from the scene is named `sim.KEY`.
+
+    Returns
+    -------
+    (SimSpec, int, dict)
+        The settings, the number of steps round(t_end / h), and the label of every setting as messages name it.
+
+    Raises
+    ------
+    SceneError
+        ``"{scene.source}: {label} must be ..., got ..."``.
+    """
+    v = _Validator(scene.source)
+    names = names or {}
+    labels, kw = {}, {}
+    for key in _SIM_KEYS:
+        value = overrides.get(key)
+        if value is None:
+            labels[key], kw[key] = f"sim.{key}", getattr(scene.sim, key)
+        else:
+            labels[key] = names.get(key, key)
+            kw[key] = _sim_value(v, key, labels[key], value)
+    for key in overrides:
+        if key not in _SIM_KEYS:
+            raise KeyError(f"sim_settings: {key!r} is not a [sim] key")
+    if overrides.get("friction_directions") is not None and scene.world.plane != "horizontal":
+        v.fail(f"{labels['friction_directions']} applies only in the horizontal plane (the table-friction cone), "
+               f"got {kw['friction_directions']} for a scene with world.plane = {scene.world.plane!r}")
+    knobs = {key: names.get(key, key) for key in ("h", "t_end")}
+    nsteps = _check_duration(v, kw["h"], kw["t_end"], labels, knobs)
+    return SimSpec(**kw), nsteps, labels
 
 
 def _parse_world(v: _Validator, t: dict) -> WorldSpec:
@@ -542,6 +639,7 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
             support_friction = v.nonneg(f"{path}.support_friction", t["support_friction"])
         if "support_points" in t:
             support_points = v.points(f"{path}.support_points", t["support_points"], 1)
+            _check_support_points(v, f"{path}.support_points", support_points, shapes)
         if not any(s.type != "segment" or s.radius > 0.0 for s in shapes):
             v.fail(f"{path}.shapes must include a shape with area for a dynamic body (a disk, capsule, box, polygon "
                    "or a segment with radius > 0), got only segments with radius 0")
@@ -637,3 +735,18 @@ def _check_convex_ccw(v: _Validator, path: str, verts: tuple) -> None:
     if np.all(cross < 0) and abs(turning + 2 * math.pi) < 1e-6:
         v.fail(f"{path} must be counter-clockwise, got a clockwise polygon")
     v.fail(f"{path} must be strictly convex, got a non-convex polygon")
+
+
+def _check_support_points(v: _Validator, path: str, points: tuple, shapes: tuple) -> None:
+    """Each support point within the bounding box of the body's shapes (body frame, rounding included), up to
+    _SUPPORT_REL_TOL of its diagonal."""
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    for s in shapes:
+        core = s.core_vertices_body()
+        lo = np.minimum(lo, core.min(axis=0) - s.radius)
+        hi = np.maximum(hi, core.max(axis=0) + s.radius)
+    tol = _SUPPORT_REL_TOL * float(np.hypot(*(hi - lo)))
+    for j, p in enumerate(points):
+        if not (lo[0] - tol <= p[0] <= hi[0] + tol and lo[1] - tol <= p[1] <= hi[1] + tol):
+            v.fail(f"{path}[{j}] must lie within the body's extent x in [{lo[0]:.6g}, {hi[0]:.6g}], y in "
+                   f"[{lo[1]:.6g}, {hi[1]:.6g}] (the bounding box of its shapes, body frame, m), got {_show_vec(p)}")

@@ -6,6 +6,7 @@
 """
 
 import csv
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,7 +21,7 @@ from .kernels.step import (FORM_FIXED_POINT, FORM_POSITION, FORM_VELOCITY, NSTAT
                            StepOptions, make_step_work, step_kernel, step_kernel_lemke)
 from .kernels.structs import model_struct, work_struct
 from .model import Model, compile_scene
-from .scene import Scene, load_scene
+from .scene import Scene, SceneError, load_scene, sim_settings
 
 SOLVER_OSQP = 2  # never reaches the kernels: Simulator runs osqp_step (Python) instead
 SOLVERS = {"lemke": SOLVER_LEMKE, "pgs": SOLVER_PGS, "osqp": SOLVER_OSQP}
@@ -311,34 +312,98 @@ def _energy(model, q_com, v_com):
     return (kinetic - m * (g[0] * q_com[..., 0] + g[1] * q_com[..., 1])).sum(axis=1)
 
 
+#: Fraction of physical memory a run may plan to use (trajectory plus LCP work buffers); see `check_run_size`.
+MEMORY_FRACTION = 0.25
+
+
+def _physical_memory():
+    """Bytes of physical memory, or None where the OS does not say."""
+    try:
+        return int(os.sysconf("SC_PHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def _fmt_bytes(n):
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if n < 1024 or unit == "PiB":
+            return f"{n:.3g} {unit}" if unit != "B" else f"{int(n)} B"
+        n /= 1024.0
+
+
+def estimate_run_bytes(model, nsteps, record_contacts=True):
+    """(trajectory bytes, LCP work-buffer bytes) that `simulate` would allocate for `nsteps` steps of `model`.
+
+    Trajectory: per step the rollout's q, v (ndyn x 3), qk (nkin x 3), stats (NSTAT), status, the contact arrays
+    (88 bytes per contact slot, 2 slots per shape pair) when recorded, and the Trajectory's copies (frame poses and
+    velocities, 14 stats, energy, t). Work: the Lemke tableau U x (2U + 2), the dense A and LU (U x U each) and
+    ~30 vectors of U, U = model.max_unknowns() (kernels/step.py `make_step_work`)."""
+    nd, nk = model.ndyn, model.nkin
+    C = model.max_contacts() if record_contacts else 0
+    per_step = 8 * (2 * 3 * nd + 3 * nk + NSTAT + 1) + (8 + 88 * C if C else 0) + 8 * (2 * 3 * nd + 14 + 2)
+    U = max(1, model.max_unknowns())
+    work = 8 * (U * (2 * U + 2) + 2 * U * U + 30 * U) + 2 * max(1, nd) * U
+    return (nsteps + 1) * per_step, work
+
+
+def check_run_size(model, nsteps, names=None, record_contacts=True, limit=None):
+    """Refuse a run whose estimated memory (`estimate_run_bytes`) exceeds `limit` bytes, by default MEMORY_FRACTION
+    of physical memory (4 GiB where unknown). `names`: how the message names the settings h, t_end,
+    friction_directions the user can change (default the keywords of `simulate`).
+    Raises SceneError naming the estimate, the limit and what to change."""
+    traj, work = estimate_run_bytes(model, nsteps, record_contacts)
+    phys = _physical_memory()
+    if limit is None:
+        limit = MEMORY_FRACTION * phys if phys else 4 * 1024 ** 3
+    if traj + work <= limit:
+        return
+    labels = {k: (names or {}).get(k, k) for k in ("h", "t_end", "friction_directions")}
+    where = (f"{MEMORY_FRACTION:g} of this machine's {_fmt_bytes(phys)} of memory" if phys else "a default of 4 GiB")
+    if traj >= work:
+        advice = f"reduce {labels['t_end']} or increase {labels['h']}"
+    elif model.scene.world.plane == "horizontal":
+        advice = f"reduce {labels['friction_directions']} or the number of shapes in contact"
+    else:
+        advice = "reduce the number of shapes that can touch each other"
+    raise SceneError(f"{model.scene.source}: the run must fit in {_fmt_bytes(limit)} ({where}), got an estimated "
+                     f"{_fmt_bytes(traj + work)}: trajectory {_fmt_bytes(traj)} ({nsteps} steps x {model.ndyn} "
+                     f"dynamic bodies, {model.max_contacts()} contact slots), LCP work buffers {_fmt_bytes(work)} "
+                     f"(up to {model.max_unknowns()} unknowns); {advice}")
+
+
+#: How `simulate`'s messages name its keywords (the CLI passes its flags instead, see `option_names`).
+_KEYWORD_NAMES = {"on_failure": "on_failure='record'"}
+
+
 def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_point_iterations=None,
              friction_directions=None, pgs_iterations=None, on_failure="raise", record_contacts=True,
-             seed_friction_arm=False, **options) -> Trajectory:
+             seed_friction_arm=False, option_names=None, **options) -> Trajectory:
     """Simulate a scene (a Scene, a shipped scene name, or a .toml path). Keywords override the scene's [sim].
 
     on_failure: "raise" (default) raises SimulationError at the first failed step; "record" continues (the failed
     island is solved by PGS) and lists every failure in Trajectory.failures. seed_friction_arm applies contact
-    friction at the shapes' core points, as the seed paper's rod does (see compile_scene). Further keywords go to
-    SimOptions.
+    friction at the shapes' core points, as the seed paper's rod does (see compile_scene). option_names: how error
+    messages name the keywords, e.g. {"t_end": "--t-end", "on_failure": "--on-failure record"} for a command line
+    (default: the keywords themselves). Further keywords go to SimOptions.
+
+    Every override is checked by the rules of the scene file's [sim] table (docs/scene-format.md, "Limits"), and the
+    run's memory (`check_run_size`) before anything is allocated: SceneError (a ValueError) names the setting, the
+    expected and the actual value.
     """
     if on_failure not in ("raise", "record"):
         raise ValueError(f"on_failure must be 'raise' or 'record', got {on_failure!r}")
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
-    sim = scene.sim
-    h = float(sim.h if h is None else h)
-    t_end = float(sim.t_end if t_end is None else t_end)
-    if not (np.isfinite(t_end) and t_end > 0):
-        raise ValueError(f"t_end must be > 0, got {t_end}")
-    def pick(value, default):
-        return default if value is None else value
-
-    opts = SimOptions(h=h, solver=pick(solver, sim.solver), formulation=pick(formulation, sim.formulation),
-                      fixed_point_iterations=pick(fixed_point_iterations, sim.fixed_point_iterations),
-                      pgs_iterations=pick(pgs_iterations, sim.pgs_iterations), **options)
-    model = compile_scene(scene, friction_directions=friction_directions, seed_friction_arm=seed_friction_arm)
+    names = {**_KEYWORD_NAMES, **(option_names or {})}
+    sim, nsteps, _ = sim_settings(scene, dict(
+        t_end=t_end, h=h, solver=solver, formulation=formulation, fixed_point_iterations=fixed_point_iterations,
+        friction_directions=friction_directions, pgs_iterations=pgs_iterations), names)
+    h = sim.h
+    opts = SimOptions(h=h, solver=sim.solver, formulation=sim.formulation,
+                      fixed_point_iterations=sim.fixed_point_iterations, pgs_iterations=sim.pgs_iterations, **options)
+    model = compile_scene(scene, friction_directions=sim.friction_directions, seed_friction_arm=seed_friction_arm)
+    check_run_size(model, nsteps, names, record_contacts)
     simr = Simulator(model, opts)
-    nsteps = int(round(t_end / h))
     q0, v0, qk0, vk0 = simr.initial_state()
     out = simr.rollout(q0, v0, qk0, vk0[None], nsteps, stop_on_failure=(on_failure == "raise"),
                        record_contacts=record_contacts)
@@ -348,8 +413,11 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
         failures.append((int(i), float((i + 1) * h), _cause(out["status"][i], out["stats"][i])))
     if failures and on_failure == "raise":
         i, t, cause = failures[0]
-        raise SimulationError(f"{scene.source}: step {i} (t = {t:.6g} s, h = {h}): {cause}. "
-                              f"Pass on_failure='record' to continue and record failures.")
+        # the cause is worded for a recorded failure, after which the run went on with PGS's answer; this run stops
+        cause = cause.replace("; that island was solved by PGS instead", "")
+        raise SimulationError(f"{scene.source}: step {i} (t = {t:.6g} s, h = {h}): {cause}; the run stopped at this "
+                              f"step. Pass {names['on_failure']} to continue (a failed island then takes PGS's "
+                              "answer) and list the failures.")
     T = done + 1
     q_com, v_com = out["q"][:T], out["v"][:T]
     st = out["stats"][:done]

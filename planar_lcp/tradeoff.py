@@ -170,11 +170,17 @@ def plot_pareto(rows, path, title):
 def _cmd(args):
     import sys
 
+    from .cli import _InputError, prepare_output_dir
     from .scene import list_scenes
     known = [n for n, _ in list_scenes()]
     bad = [n for n in args.scenes if n not in known]
     if bad:
         print(f"planar-lcp tradeoff: error: unknown scene {bad[0]!r} (shipped: {', '.join(known)})", file=sys.stderr)
+        return 2
+    try:
+        prepare_output_dir(args.out, "--out")
+    except _InputError as e:
+        print(f"planar-lcp tradeoff: error: {e}", file=sys.stderr)
         return 2
     rows = run_tradeoff(scenes=tuple(args.scenes), quick=args.quick, out_dir=args.out, progress=not args.no_progress)
     print(f"{len(rows)} settings; wrote {Path(args.out) / 'tradeoff.csv'} and the Pareto plots")

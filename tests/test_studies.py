@@ -210,4 +210,4 @@ def test_study_out_must_be_a_directory(tmp_path, capsys):
     f = tmp_path / "file"
     f.write_text("x")
     assert main(["study", "falling-rod", "--out", str(f), "--quick"]) == 2
-    assert "cannot create --out" in capsys.readouterr().err
+    assert capsys.readouterr().err == f"planar-lcp study: error: --out {f}: must be a directory, got an existing file\n"

@@ -6,7 +6,6 @@
 Matplotlib, scipy and tqdm are imported only when a study runs.
 """
 
-import os
 import sys
 
 
@@ -21,10 +20,11 @@ def _runner(module_name):
     def run(args):
         import importlib
 
+        from ..cli import _InputError, prepare_output_dir
         try:
-            os.makedirs(args.out, exist_ok=True)
-        except OSError as e:
-            print(f"planar-lcp study: error: cannot create --out {args.out}: {e.strerror or e}", file=sys.stderr)
+            prepare_output_dir(args.out, "--out")
+        except _InputError as e:
+            print(f"planar-lcp study: error: {e}", file=sys.stderr)
             return 2
         module = importlib.import_module(f"{__name__}.{module_name}")
         return module.cmd(args)
