@@ -4,11 +4,8 @@ penetration, the largest per-step energy gain and where it comes from, and how t
     python examples/random_scene_scan.py [N_SCENES]        (default 200, as tests/test_reliability.py)
 
 Energy is measured with the ground (y = 0) as the datum, relative to the run's initial energy E0 (> 0: every body
-starts above the ground). A step's gain splits exactly into
-  - the contact impulses' change of kinetic energy, KE(v+) - KE(v~) with v~ = v + h g (gravity's own work is
-    exchanged with potential energy by the integrator and cancels),
-  - the potential energy of any position change beyond q + h v+ (the velocity form's projection),
-  - and gravity's exchange, which is zero for q+ = q + h v+ up to the O(h^2) term of symplectic Euler.
+starts above the ground), and split by `planar_lcp.sim.energy_changes` into what the contact impulses add to the
+kinetic energy and what the velocity form's projection adds to the potential energy.
 Runs are made with on_failure="record" so that a failure is counted, not raised.
 """
 
@@ -20,30 +17,20 @@ from planar_lcp import simulate
 from planar_lcp.model import compile_scene
 from planar_lcp.random_scenes import random_scene
 from planar_lcp.scene import parse_scene
+from planar_lcp.sim import energy_changes
 
 FORMULATIONS = ("position", "fixed_point", "velocity")
 
 
-def energy_split(tr, model, h):
-    """Per step, relative to E0: total energy change, contact-impulse KE change, projection PE change."""
-    a = model.arrays
-    g = -a.gravity[1]
-    vc, qc = tr.v_com, tr.q_com
-
-    def ke(v):
-        return (0.5 * a.dyn_mass * (v[..., 0] ** 2 + v[..., 1] ** 2) + 0.5 * a.dyn_inertia * v[..., 2] ** 2).sum(-1)
-
-    e = tr.stats["energy"]
-    v_free = vc[:-1].copy()
-    v_free[..., :2] += h * a.gravity
-    impulses = ke(vc[1:]) - ke(v_free)
-    projection = (a.dyn_mass * g * (qc[1:, :, 1] - (qc[:-1, :, 1] + h * vc[1:, :, 1]))).sum(-1)
-    return np.diff(e) / e[0], impulses / e[0], projection / e[0]
+def body_sizes(scene):
+    """(ndyn,) m: each dynamic body's extent, the largest distance of its shapes' points from the body origin."""
+    return np.array([max(float(np.max(np.linalg.norm(sh.core_vertices_body(), axis=1))) + sh.radius
+                         for sh in b.shapes) for b in scene.bodies if b.type == "dynamic"])
 
 
 def main(n_scenes=200):
     rows = {f: dict(aborted=0, failed_steps=0, nonfinite=0, pen=0.0, gain=(0.0, None), imp=0.0, proj=0.0,
-                    runs_gaining_1e3=0, methods={}) for f in FORMULATIONS}
+                    runs_gaining_1e3=0, methods={}, big_steps=0, big_fast=0, big_fallback=0) for f in FORMULATIONS}
     for seed in range(n_scenes):
         data = random_scene(seed)
         sc = parse_scene(data, f"<random {seed}>")
@@ -60,12 +47,19 @@ def main(n_scenes=200):
                 r["methods"][k] = r["methods"].get(k, 0) + int(tr.stats[k].sum())
             if data["world"]["plane"] != "vertical":
                 continue
-            total, imp, proj = energy_split(tr, model, sc.sim.h)
+            total, imp, proj = (x / tr.stats["energy"][0] for x in energy_changes(model, tr.q_com, tr.v_com,
+                                                                                     sc.sim.h))
             if total.max() > r["gain"][0]:
                 r["gain"] = (float(total.max()), seed)
             r["imp"] = max(r["imp"], float(imp.max()))
             r["proj"] = max(r["proj"], float(proj.max()))
             r["runs_gaining_1e3"] += bool(total.max() > 1e-3)
+            # the steps whose contact impulses add more than 1e-3 E0: does a body travel more than half its size?
+            big = np.flatnonzero(imp > 1e-3)
+            travel = sc.sim.h * np.hypot(tr.v_com[:-1, :, 0], tr.v_com[:-1, :, 1]) / body_sizes(sc)
+            r["big_steps"] += len(big)
+            r["big_fast"] += int((travel[big].max(axis=1) > 0.5).sum()) if len(big) else 0
+            r["big_fallback"] += int((tr.stats["solved_velocity"][big] > 0).sum())
     n_vert = sum(random_scene(s)["world"]["plane"] == "vertical" for s in range(n_scenes))
     print(f"{n_scenes} random scenes ({n_vert} vertical, {n_scenes - n_vert} horizontal), defaults")
     print("| formulation | runs with a failed step | failed steps | non-finite | max final penetration (m) "
@@ -76,6 +70,12 @@ def main(n_scenes=200):
         print(f"| {f} | {r['aborted']} | {r['failed_steps']} | {r['nonfinite']} | {r['pen']:.2e} "
               f"| {r['gain'][0]:.2e} ({r['gain'][1]}) | {r['imp']:.2e} | {r['proj']:.2e} "
               f"| {r['runs_gaining_1e3']} of {n_vert} |")
+    print("\nsteps whose contact impulses add more than 1e-3 E0 (vertical plane): how many have a body moving more "
+          "than half its size in the step (h |v| > size / 2), how many used the velocity-form fallback")
+    for f in FORMULATIONS:
+        r = rows[f]
+        print(f"  {f}: {r['big_steps']} steps, {r['big_fast']} with h |v| > size / 2, {r['big_fallback']} with the "
+              "fallback")
     print("\nislands solved by each method (summed over steps and runs):")
     for f in FORMULATIONS:
         print(f"  {f}: " + ", ".join(f"{k} {v}" for k, v in rows[f]["methods"].items()))

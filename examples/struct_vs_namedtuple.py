@@ -27,9 +27,9 @@ m, w = (sim.kmodel, sim.kwork) if kind == "struct" else (sim.model.arrays, sim.w
 q, v, qk, vk = sim.initial_state()
 n = 400
 z = np.zeros
-args = (m, q, v, qk, vk.reshape(1, -1, 3).copy(), n, sim.h, sim.kopt, w, z((n + 1,) + q.shape), z((n + 1,) + v.shape),
+args = (m, q, v, qk, vk.reshape(1, -1, 3).copy(), 0, n, sim.h, sim.kopt, w, z((n + 1,) + q.shape), z((n + 1,) + v.shape),
         z((n + 1,) + qk.shape), z((n, NSTAT)), z(n, np.int64), z(0, np.int64), z((0, 0), np.int64), z((0, 0)),
-        z((0, 0, 2)), z((0, 0, 2)), z((0, 0)), z((0, 0)), z((0, 0)), z((0, 0), np.int64), False)
+        z((0, 0, 2)), z((0, 0, 2)), z((0, 0)), z((0, 0)), z((0, 0)), z((0, 0), np.int64), False, True)
 t0 = time.perf_counter()
 rollout_kernel(*args)
 t1 = time.perf_counter()

@@ -15,7 +15,7 @@ def _cmd_demo(args):
 
     from .lcp import lemke
     from .lcp_corpus import find_corpus_dir, load_corpus
-    from .sim import simulate
+    from .sim import SimulationError, simulate
     from .viz import plot_trajectory
 
     out = Path(args.out)
@@ -25,7 +25,11 @@ def _cmd_demo(args):
     print("planar-lcp demo")
     print("1. The seed paper's falling rod (section 4.1), Stewart-Trinkle time-stepping with Lemke")
     t0 = time.perf_counter()
-    traj = simulate("falling_rod")
+    try:
+        traj = simulate("falling_rod")
+    except SimulationError as e:
+        print(f"planar-lcp demo: error: part 1 (the falling rod) failed: {e}", file=sys.stderr)
+        return 1
     wall = time.perf_counter() - t0
     first = int(np.argmax(traj.stats["n_contacts"] > 0))
     x, y, th = traj.q[-1, 0]
@@ -213,7 +217,7 @@ def _simulate(args):
 
     import numpy as np
 
-    from .scene import SceneError, load_scene
+    from .scene import SceneError, load_scene, sim_settings
     from .sim import SimulationError, simulate
 
     for path, option in ((args.csv, "--csv"), (args.plot, "--plot"), (args.animate, "--animate")):
@@ -223,12 +227,16 @@ def _simulate(args):
         scene = load_scene(args.scene)
     except SceneError as e:
         raise _InputError(str(e)) from None
+    settings = dict(t_end=args.t_end, h=args.h, solver=args.solver, formulation=args.formulation,
+                    fixed_point_iterations=args.fixed_point_iterations, friction_directions=args.friction_directions)
+    try:
+        sim_settings(scene, settings, SIMULATE_FLAGS)             # checked again by simulate(); here so that
+    except SceneError as e:                                           # nothing is printed before a bad setting
+        raise _InputError(str(e)) from None
+    print(f"scene          {scene.name} ({scene.source})", flush=True)
     t0 = time.perf_counter()
     try:
-        traj = simulate(scene, t_end=args.t_end, h=args.h, solver=args.solver, formulation=args.formulation,
-                        fixed_point_iterations=args.fixed_point_iterations,
-                        friction_directions=args.friction_directions, on_failure=args.on_failure,
-                        option_names=SIMULATE_FLAGS)
+        traj = simulate(scene, **settings, on_failure=args.on_failure, option_names=SIMULATE_FLAGS)
     except SimulationError as e:
         print(f"planar-lcp simulate: simulation failed: {e}", file=sys.stderr)
         return 1
@@ -244,7 +252,6 @@ def _simulate(args):
     steps = len(traj.t) - 1
     st = traj.stats
     pen = float(np.max(st["penetration"])) if steps else 0.0
-    print(f"scene          {scene.name} ({scene.source})")
     print(f"steps          {steps} (h = {o.h:g} s, t = 0 to {traj.t[-1]:.6g} s)")
     print(f"solver         {o.solver}")
     print(f"formulation    {o.formulation}")
@@ -342,7 +349,14 @@ def build_parser():
 
 def main(argv=None):
     args = build_parser().parse_args(argv)
-    return args.func(args)
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        # Long runs return to Python often enough for this (rollouts in chunks, a flag in the planners' termination
+        # condition), so Ctrl-C ends any command within about a second: one line, exit status 130 (128 + SIGINT).
+        sys.stdout.flush()
+        print(f"planar-lcp {args.command}: error: interrupted (Ctrl-C); stopped", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

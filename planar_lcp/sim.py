@@ -6,6 +6,7 @@
 """
 
 import csv
+import time
 import os
 from dataclasses import dataclass, field
 
@@ -76,13 +77,16 @@ class SimOptions:
             warm_start=bool(self.warm_start))
 
 
-def _cause(status, stats):
+def _cause(status, stats, stopped):
+    """What went wrong in a failed step; `stopped`: the run ends there (else PGS's answer was used and it went on)."""
     if status == STEP_NONFINITE:
         return "the new state is not finite (NaN or inf)"
     if status == STEP_LCP_FAILED:
         ls = int(stats[ST_LEMKE_STATUS])
-        return (f"the contact solver returned '{STATUS_NAMES[ls]}' on a problem of size up to "
-                f"{int(stats[ST_LCP_MAX])} (residual {stats[ST_RESIDUAL]:.3e}); that island was solved by PGS instead")
+        return (f"no method gave a certified solution of an island's contact LCP (size up to {int(stats[ST_LCP_MAX])}"
+                f"; Lemke ended with '{STATUS_NAMES[ls]}', residual {stats[ST_RESIDUAL]:.3e}, after every fallback: "
+                "docs/method.md, 'Certified solves')"
+                + ("" if stopped else "; that island took PGS's uncertified answer"))
     return "ok"
 
 
@@ -149,7 +153,7 @@ class Simulator:
         return q_out, v_out, qk_out, st
 
     def rollout(self, q, v, qk, vk_seq, nsteps, stop_on_failure=True, record_contacts=False):
-        """nsteps steps in one jitted call. vk_seq: (nvk, nkin, 3), step i uses vk_seq[min(i, nvk - 1)].
+        """nsteps steps by the jitted kernels (one call for a short rollout). vk_seq: (nvk, nkin, 3), step i uses vk_seq[min(i, nvk - 1)].
 
         Returns a dict of arrays: q, v (nsteps+1, ndyn, 3), qk (nsteps+1, nkin, 3), stats (nsteps, NSTAT),
         status (nsteps,), steps_done, and contact arrays when record_contacts."""
@@ -174,42 +178,49 @@ class Simulator:
         if self.kopt.solver == SOLVER_OSQP:
             out["steps_done"] = self._rollout_python(out, q, v, qk, vk_seq, nsteps, stop_on_failure, C)
             return out
-        if self._fast_kernel:
-            out["steps_done"] = self._rollout_lemke(out, q, v, qk, vk_seq, int(nsteps), bool(stop_on_failure), C)
-            return out
-        done = rollout_kernel(self.kmodel, np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(v, dtype=float),
-                              np.ascontiguousarray(qk, dtype=float), vk_seq, int(nsteps), self.h, self.kopt,
-                              self.kwork, out["q"], out["v"], out["qk"], out["stats"], out["status"],
-                              out["con_count"], out["con_pair"], out["con_phi"], out["con_n"], out["con_p"],
-                              out["con_cn"], out["con_ft"], out["con_vt"], out["con_mode"], bool(stop_on_failure))
-        out["steps_done"] = int(done)
+        out["steps_done"] = self._rollout_kernels(out, q, v, qk, vk_seq, int(nsteps), bool(stop_on_failure), C)
         return out
 
-    def _rollout_lemke(self, out, q, v, qk, vk_seq, nsteps, stop_on_failure, C):
-        """Solver lemke: `rollout_kernel_lemke` (no PGS compiled in), and a step on which Lemke fails run by
-        `step_kernel` from Python, then resumed. The same outputs as `rollout_kernel`, bit for bit: each step is
-        computed by the same code from the same inputs and the same warm-start memory."""
+    #: Wall-clock length a rollout's kernel calls aim at: between two calls Python handles signals, so Ctrl-C stops a
+    #: long simulation within about this long. Short rollouts (a planner's propagation) are one call.
+    CHUNK_SECONDS = 0.25
+
+    def _rollout_kernels(self, out, q, v, qk, vk_seq, nsteps, stop_on_failure, C):
+        """The rollout by the jitted kernels, in chunks of steps (CHUNK_SECONDS each; the kernels are resumable, so
+        the chunks together equal one call bit for bit). Solver lemke with a position form runs
+        `rollout_kernel_lemke` (no PGS compiled in), and a step on which no Lemke method is certified is run by
+        `step_kernel` from Python, then resumed: each step is computed by the same code from the same inputs and the
+        same warm-start memory, so the outputs are `rollout_kernel`'s bit for bit."""
         keys = ("q", "v", "qk", "stats", "status", "con_count", "con_pair", "con_phi", "con_n", "con_p", "con_cn",
                 "con_ft", "con_vt", "con_mode")
-        start = 0
-        while True:
-            view = [out[k][start:] for k in keys]
-            done = start + int(rollout_kernel_lemke(
-                self.kmodel, out["q"][start] if start else q, out["v"][start] if start else v,
-                out["qk"][start] if start else qk, vk_seq, start, nsteps - start, self.h, self.kopt, self.kwork,
-                *view, stop_on_failure, start == 0))
-            if done == nsteps or out["status"][done] != STEP_NEEDS_FALLBACK:
-                return done
-            # Lemke failed on an island in step `done`: that step with the PGS fallback
-            i = done
+        kernel = rollout_kernel_lemke if self._fast_kernel else rollout_kernel
+        start, chunk = 0, 64
+        while start < nsteps:
+            n = min(chunk, nsteps - start)
+            # state rows start .. start + n, per-step rows start .. start + n - 1 (an empty contact array stays empty)
+            view = [out[k][start:start + n + 1] if k in ("q", "v", "qk") else out[k][start:start + n] for k in keys]
+            t0 = time.perf_counter()
+            done = int(kernel(self.kmodel, out["q"][start] if start else q, out["v"][start] if start else v,
+                              out["qk"][start] if start else qk, vk_seq, start, n, self.h, self.kopt, self.kwork,
+                              *view, stop_on_failure, start == 0))
+            if done:
+                chunk = int(min(max(16, self.CHUNK_SECONDS * done / max(time.perf_counter() - t0, 1e-9)), 1 << 20))
+            i = start + done
+            if done == n:
+                start = i
+                continue
+            if out["status"][i] != STEP_NEEDS_FALLBACK:
+                return i                      # stopped on a failed step (stop_on_failure)
+            # no Lemke method was certified on an island in step i: that step with the (uncertified) PGS fallback
             st = int(step_kernel(self.kmodel, out["q"][i], out["v"][i], out["qk"][i], vk_seq[min(i, len(vk_seq) - 1)],
                                  self.h, self.kopt, self.kwork, out["q"][i + 1], out["v"][i + 1], out["qk"][i + 1],
                                  out["stats"][i]))
             out["status"][i] = st
             self._record_contacts(out, i, C)
-            if (st != STEP_OK and stop_on_failure) or i + 1 == nsteps:
+            if st != STEP_OK and stop_on_failure:
                 return i + 1
             start = i + 1
+        return nsteps
 
     def _record_contacts(self, out, i, C):
         if not C:
@@ -248,14 +259,16 @@ class Trajectory:
     body_names : names of the dynamic bodies (columns of q and v).
     stats : dict of (T-1,) arrays per step: lcp_size, lcp_max, pivots, n_contacts, n_islands, fp_iterations,
         resolves, residual, penetration (deepest overlap at the end of the step, m), lemke_retries (further Lemke
-        solves after the first failed on an island), and how each island's LCP was solved, one count per island,
-        every answer certified by its residual on the island's LCP: warm_starts (on the previous step's LCP basis,
-        with SimOptions(warm_start=True), no pivots), solved_lemke (Lemke on the equilibrated LCP: the default path),
-        solved_unscaled (Lemke on the LCP as assembled), solved_strict (equilibrated, stricter pivot tolerances),
-        solved_velocity (position forms: the island's normal rows in the velocity form, so that step neither
-        corrects penetration nor linearizes about q + h v; docs/method.md), pgs_uncertified (no method solved the island; PGS's answer was used and the step is a failure); fp_change (the fixed point's last change of
-        the linearization pose), pgs_update (PGS's largest impulse change in its last sweep: its convergence),
-        status (0 ok, 1 LCP failed, 2 non-finite); energy (T,) J.
+        solves after the first failed on an island); how the islands' LCPs were solved, one count per island LCP
+        solved (a fixed-point iteration or an active-set re-solve solves again), each answer certified by its
+        residual: warm_starts (on the previous step's LCP basis, with SimOptions(warm_start=True), no pivots),
+        solved_lemke (Lemke on the equilibrated LCP: the default path), solved_unscaled (Lemke on the LCP as
+        assembled), solved_strict (equilibrated, stricter pivot tolerances), solved_velocity (position forms: the
+        island's normal rows in the velocity form, so that step neither corrects penetration nor linearizes about
+        q + h v; docs/method.md, "Certified solves"), pgs_uncertified (no method was certified: PGS's answer was
+        used and the step is a failure); fp_change (the fixed point's last change of the linearization pose),
+        pgs_update (PGS's largest impulse change in its last sweep: its convergence), status (0 ok, 1 LCP failed,
+        2 non-finite); energy (T,) J.
     contacts : dict of per-step contact arrays (count (T-1,), then (T-1, C[, 2]): pair, phi, normal, point, cn, ft,
         vt, mode with mode 0 separated, 1 sticking, 2 sliding) and `shape_pairs` naming each pair's bodies. The
         rows of a step are the contacts in the order they were found (not matched across steps). vt and mode use the
@@ -303,13 +316,37 @@ def _frame_velocity(model, q_com, v_com):
     return v
 
 
+def _kinetic(model, v_com):
+    a = model.arrays
+    return (0.5 * a.dyn_mass * (v_com[..., 0] ** 2 + v_com[..., 1] ** 2) + 0.5 * a.dyn_inertia * v_com[..., 2] ** 2
+            ).sum(axis=-1)
+
+
+def _potential(model, q_com):
+    a = model.arrays
+    return -(a.dyn_mass * (a.gravity[0] * q_com[..., 0] + a.gravity[1] * q_com[..., 1])).sum(axis=-1)
+
+
 def _energy(model, q_com, v_com):
     """Kinetic + potential energy of the dynamic bodies (J) per row of (T, ndyn, 3) COM poses and velocities; the
     potential is -m g.x (vertical plane; g = 0 in the horizontal plane)."""
+    return _kinetic(model, v_com) + _potential(model, q_com)
+
+
+def energy_changes(model, q_com, v_com, h):
+    """Where each step's energy change comes from (J, (T-1,) each), for a trajectory's COM states (T, ndyn, 3).
+
+    Returns (total, impulses, projection): total = E(k+1) - E(k); impulses = KE(v+) - KE(v + h g), the kinetic energy
+    the contact impulses add (gravity's own work is exchanged with potential energy by q+ = q + h v+); projection =
+    the potential energy of the position change beyond q + h v+ (the velocity form's projection; 0 otherwise). What is
+    left, total - impulses - projection = -(m/2) |g|^2 h^2 per body in free flight, is the integrator's own.
+    """
     a = model.arrays
-    m, J, g = a.dyn_mass, a.dyn_inertia, a.gravity
-    kinetic = 0.5 * m * (v_com[..., 0] ** 2 + v_com[..., 1] ** 2) + 0.5 * J * v_com[..., 2] ** 2
-    return (kinetic - m * (g[0] * q_com[..., 0] + g[1] * q_com[..., 1])).sum(axis=1)
+    v_free = v_com[:-1].copy()
+    v_free[..., :2] += h * a.gravity
+    impulses = _kinetic(model, v_com[1:]) - _kinetic(model, v_free)
+    projection = _potential(model, q_com[1:]) - _potential(model, q_com[:-1] + h * v_com[1:])
+    return np.diff(_energy(model, q_com, v_com)), impulses, projection
 
 
 #: Fraction of physical memory a run may plan to use (trajectory plus LCP work buffers); see `check_run_size`.
@@ -336,11 +373,11 @@ def estimate_run_bytes(model, nsteps, record_contacts=True):
 
     Trajectory: per step the rollout's q, v (ndyn x 3), qk (nkin x 3), stats (NSTAT), status, the contact arrays
     (88 bytes per contact slot, 2 slots per shape pair) when recorded, and the Trajectory's copies (frame poses and
-    velocities, 14 stats, energy, t). Work: the Lemke tableau U x (2U + 2), the dense A and LU (U x U each) and
+    velocities, NSTAT stats, energy, t). Work: the Lemke tableau U x (2U + 2), the dense A and LU (U x U each) and
     ~30 vectors of U, U = model.max_unknowns() (kernels/step.py `make_step_work`)."""
     nd, nk = model.ndyn, model.nkin
     C = model.max_contacts() if record_contacts else 0
-    per_step = 8 * (2 * 3 * nd + 3 * nk + NSTAT + 1) + (8 + 88 * C if C else 0) + 8 * (2 * 3 * nd + 14 + 2)
+    per_step = 8 * (2 * 3 * nd + 3 * nk + NSTAT + 1) + (8 + 88 * C if C else 0) + 8 * (2 * 3 * nd + NSTAT + 2)
     U = max(1, model.max_unknowns())
     work = 8 * (U * (2 * U + 2) + 2 * U * U + 30 * U) + 2 * max(1, nd) * U
     return (nsteps + 1) * per_step, work
@@ -380,8 +417,9 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
              seed_friction_arm=False, option_names=None, **options) -> Trajectory:
     """Simulate a scene (a Scene, a shipped scene name, or a .toml path). Keywords override the scene's [sim].
 
-    on_failure: "raise" (default) raises SimulationError at the first failed step; "record" continues (the failed
-    island is solved by PGS) and lists every failure in Trajectory.failures. seed_friction_arm applies contact
+    on_failure: "raise" (default) raises SimulationError at the first failed step (one where no method gave a
+    certified answer); "record" continues (the failed island takes PGS's uncertified answer) and lists every failure
+    in Trajectory.failures. seed_friction_arm applies contact
     friction at the shapes' core points, as the seed paper's rod does (see compile_scene). option_names: how error
     messages name the keywords, e.g. {"t_end": "--t-end", "on_failure": "--on-failure record"} for a command line
     (default: the keywords themselves). Further keywords go to SimOptions.
@@ -410,11 +448,10 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     done = out["steps_done"]
     failures = []
     for i in np.flatnonzero(out["status"][:done] != STEP_OK):
-        failures.append((int(i), float((i + 1) * h), _cause(out["status"][i], out["stats"][i])))
+        failures.append((int(i), float((i + 1) * h), _cause(out["status"][i], out["stats"][i],
+                                                            on_failure == "raise")))
     if failures and on_failure == "raise":
         i, t, cause = failures[0]
-        # the cause is worded for a recorded failure, after which the run went on with PGS's answer; this run stops
-        cause = cause.replace("; that island was solved by PGS instead", "")
         raise SimulationError(f"{scene.source}: step {i} (t = {t:.6g} s, h = {h}): {cause}; the run stopped at this "
                               f"step. Pass {names['on_failure']} to continue (a failed island then takes PGS's "
                               "answer) and list the failures.")

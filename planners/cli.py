@@ -62,23 +62,6 @@ def _err(cmd, msg, code=2):
     return code
 
 
-def _interruptible(cmd):
-    """Ctrl-C ends the command with one line and exit status 130 (128 + SIGINT), not a traceback."""
-    import functools
-
-    def wrap(f):
-        @functools.wraps(f)
-        def run(args):
-            try:
-                return f(args)
-            except KeyboardInterrupt:
-                sys.stdout.flush()
-                return _err(cmd, "interrupted (Ctrl-C); stopped", 130)
-        return run
-    return wrap
-
-
-@_interruptible("plan")
 def cmd_plan(args):
     from .adapter import check_planner
     from .plan import animate_plan, plan_task, plot_plan, save_plan
@@ -125,7 +108,6 @@ def cmd_plan(args):
     return 0 if plan["exact"] else 1
 
 
-@_interruptible("replay")
 def cmd_replay(args):
     from .plan import load_plan, plot_plan, replay_lcp
 
@@ -159,7 +141,6 @@ def cmd_replay(args):
     return 0 if rep["goal_holds"] else 1
 
 
-@_interruptible("plan-bench")
 def cmd_bench(args):
     from .adapter import check_planner
     from .bench import run_bench

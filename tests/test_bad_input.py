@@ -329,11 +329,12 @@ def test_failure_message_python_keeps_the_keyword_and_says_the_run_stopped():
     with pytest.raises(SimulationError) as e:
         simulate("falling_rod", res_tol=0.0)
     msg = str(e.value)
-    assert re.match(rf"{re.escape(ROD)}: step \d+ \(t = .* s, h = 0\.0025\): the contact solver returned "
-                    r"'inaccurate' on a problem of size up to \d+ \(residual .*\); the run stopped at this step\. "
+    assert re.match(rf"{re.escape(ROD)}: step \d+ \(t = .* s, h = 0\.0025\): no method gave a certified solution "
+                    r"of an island's contact LCP \(size up to \d+; Lemke ended with 'inaccurate', residual .*, after "
+                    r"every fallback: docs/method\.md, 'Certified solves'\); the run stopped at this step\. "
                     r"Pass on_failure='record' to continue \(a failed island then takes PGS's answer\) and list the "
                     r"failures\.$", msg), msg
-    assert "solved by PGS instead" not in msg and "--on-failure" not in msg
+    assert "PGS's uncertified answer" not in msg and "--on-failure" not in msg
 
 
 def test_failure_message_cli_names_the_flag(monkeypatch, capsys):
@@ -343,7 +344,7 @@ def test_failure_message_cli_names_the_flag(monkeypatch, capsys):
     rc = main(["simulate", "falling_rod"])
     err = capsys.readouterr().err
     assert rc == 1 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
-    assert err.startswith("planar-lcp simulate: simulation failed: ") and "the contact solver returned" in err
+    assert err.startswith("planar-lcp simulate: simulation failed: ") and "no method gave a certified solution" in err
     assert err.endswith("; the run stopped at this step. Pass --on-failure record to continue (a failed island then "
                         "takes PGS's answer) and list the failures.\n"), err
-    assert "on_failure=" not in err and "solved by PGS instead" not in err
+    assert "on_failure=" not in err and "PGS's uncertified answer" not in err

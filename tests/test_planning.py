@@ -10,12 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_helpers import CLI
 
 pytest.importorskip("ompl")
 pytest.importorskip("shapely")
 
 ROOT = Path(__file__).resolve().parent.parent
-CLI = [sys.executable, "-c", "import sys; from planar_lcp.cli import main; sys.exit(main())"]
 
 
 def run_cli(*args, timeout=120):

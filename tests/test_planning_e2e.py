@@ -7,9 +7,7 @@ only happened when the kernels were compiled during planning. Each costs a cold 
 
 import json
 import os
-import signal
 import subprocess
-import sys
 import time
 
 import numpy as np
@@ -18,6 +16,7 @@ import pytest
 pytest.importorskip("ompl")
 pytest.importorskip("shapely")
 
+from cli_helpers import interrupt_cli  # noqa: E402
 from test_planning import CLI, ROOT, run_cli  # noqa: E402
 
 pytestmark = pytest.mark.skipif(os.environ.get("NUMBA_DISABLE_JIT") == "1", reason="cold-compile and timing tests")
@@ -125,28 +124,8 @@ def test_bad_plan_fields_give_one_line_errors(small_plan, tmp_path, field, value
     assert time.perf_counter() - t0 < 30
 
 
-def _interrupt(args, started, tmp_path):
-    """Run the CLI, wait for the line `started` on stdout, send SIGINT; returns (exit status, stderr, seconds)."""
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    p = subprocess.Popen(CLI + [str(a) for a in args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         cwd=tmp_path, env=env)
-    try:
-        for line in p.stdout:
-            if line.startswith(started):
-                break
-        time.sleep(1.0)                       # inside the long part
-        assert p.poll() is None, "the command finished before it could be interrupted"
-        t0 = time.perf_counter()
-        p.send_signal(signal.SIGINT)
-        _, err = p.communicate(timeout=30)
-        return p.returncode, err, time.perf_counter() - t0
-    finally:
-        if p.poll() is None:
-            p.kill()
-
-
 def test_ctrl_c_stops_plan_cleanly(tmp_path):
-    rc, err, dt = _interrupt(["plan", "push_t", "--time", "120", "--out", tmp_path, "--no-gif"], "planner",
+    rc, err, dt = interrupt_cli(["plan", "push_t", "--time", "120", "--out", tmp_path, "--no-gif"], "planner",
                              tmp_path)
     assert rc == 130 and err == "planar-lcp plan: error: interrupted (Ctrl-C); stopped\n", err
     assert dt < 2.0, dt
@@ -155,11 +134,12 @@ def test_ctrl_c_stops_plan_cleanly(tmp_path):
 def test_ctrl_c_stops_replay_cleanly(small_plan, tmp_path):
     _, out = small_plan
     plan = json.loads((out / "plan.json").read_text())
-    # a long but valid plan: 4000 copies of the first control, each for the task's longest duration
-    plan["controls"] = [plan["controls"][0]] * 4000
-    plan["steps"] = [10] * 4000
+    # a long but valid plan: 40000 copies of the first control, each for the task's longest duration (a minute of
+    # replay: the signal comes long before its end)
+    plan["controls"] = [plan["controls"][0]] * 40000
+    plan["steps"] = [10] * 40000
     long_plan = tmp_path / "long.json"
     long_plan.write_text(json.dumps(plan))
-    rc, err, dt = _interrupt(["replay", long_plan, "--out", tmp_path], "simulator", tmp_path)
+    rc, err, dt = interrupt_cli(["replay", long_plan, "--out", tmp_path], "simulator", tmp_path)
     assert rc == 130 and err == "planar-lcp replay: error: interrupted (Ctrl-C); stopped\n", err
     assert dt < 2.0, dt

@@ -4,8 +4,8 @@ and GIF magic bytes, JSON with the expected keys, SQLite header).
 
 `test_every_readme_command_has_a_test` parses the table, so a new row without a test here fails.
 
-`demo` and `plan` run with their own EMPTY numba cache, as on a user's fresh machine (CI's cache is warm by the time
-these run, and a warm cache hides the cold-start crash of issue 10, item 4)."""
+They share the suite's numba cache; tests/test_planning_e2e.py runs `plan` and `demo` with an EMPTY one, as on a
+user's fresh machine."""
 
 import csv
 import io
@@ -14,14 +14,13 @@ import math
 import os
 import re
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from cli_helpers import CLI
 
 ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
-CLI = [sys.executable, "-c", "import sys; from planar_lcp.cli import main; sys.exit(main())"]
 
 PNG = b"\x89PNG\r\n\x1a\n"
 SQLITE = b"SQLite format 3\x00"
@@ -40,12 +39,8 @@ def covers(*commands):
     return mark
 
 
-def run(args, cwd, timeout=600, cold_cache=None):
+def run(args, cwd, timeout=600):
     env = dict(os.environ, MPLBACKEND="Agg")
-    if cold_cache is not None:
-        Path(cold_cache).mkdir(parents=True, exist_ok=True)
-        assert not any(Path(cold_cache).iterdir()), f"{cold_cache} is not empty"
-        env["NUMBA_CACHE_DIR"] = str(cold_cache)
     r = subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True, timeout=timeout, cwd=cwd,
                        env=env)
     return r
@@ -173,12 +168,9 @@ def test_every_readme_command_has_a_test():
 
 
 @covers("demo")
-@pytest.mark.xfail(strict=True, reason="issue 10 item 4: with an empty numba cache the demo's planning child crashes "
-                                       "(TypeError in planners/adapter.py read_state) and the demo writes no plan; "
-                                       "being fixed in parallel")
 def test_demo(tmp_path):
     out = tmp_path / "demo"
-    r = run(["demo", "--out", out], cwd=tmp_path, cold_cache=tmp_path / "numba_cache")
+    r = run(["demo", "--out", out], cwd=tmp_path)
     ok(r)
     check_dir(out, ["falling_rod.csv", "falling_rod.png", "plan.json", "plan.png", "plan.gif"])
     check_csv(out / "falling_rod.csv", first="t", numeric=True, min_rows=100)
@@ -263,13 +255,10 @@ def check_plan_dir(out, task):
 
 
 @covers("plan")
-@pytest.mark.xfail(strict=True, reason="issue 10 item 4: with an empty numba cache `plan` crashes in "
-                                       "planners/adapter.py read_state (TypeError: __getitem__(): incompatible "
-                                       "function arguments ... CompoundState, slice); being fixed in parallel")
 def test_plan(tmp_path):
     out = tmp_path / "plan"
     r = run(["plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--out", out],
-            cwd=tmp_path, cold_cache=tmp_path / "numba_cache")
+            cwd=tmp_path)
     ok(r)
     check_plan_dir(out, "tip_box")
     check_gif(out / "plan.gif")
@@ -303,9 +292,6 @@ def test_replay_lcp(tip_plan, tmp_path):
 
 
 @covers("replay")
-@pytest.mark.xfail(strict=True, reason="issue 10: `replay --simulator pymunk` always crashes (ValueError: too many "
-                                       "values to unpack in planners/plan.py: pymunk_bridge.read_state returns four "
-                                       "values); being fixed in parallel")
 def test_replay_pymunk(tip_plan, tmp_path):
     r = run(["replay", tip_plan, "--simulator", "pymunk", "--out", tmp_path], cwd=tmp_path)
     assert "Traceback" not in r.stderr, r.stderr[-3000:]

@@ -195,9 +195,9 @@ def test_lemke_rollout_with_python_fallback_equals_the_full_kernel_bit_for_bit(w
     z = {k: np.zeros_like(out[k]) for k in ("q", "v", "qk", "stats", "status", "con_count", "con_pair", "con_phi",
                                              "con_n", "con_p", "con_cn", "con_ft", "con_vt", "con_mode")}
     assert C > 0
-    done = rollout_kernel(ref.kmodel, q, v, qk, vk[None], n, ref.h, ref.kopt, ref.kwork, z["q"], z["v"], z["qk"],
+    done = rollout_kernel(ref.kmodel, q, v, qk, vk[None], 0, n, ref.h, ref.kopt, ref.kwork, z["q"], z["v"], z["qk"],
                           z["stats"], z["status"], z["con_count"], z["con_pair"], z["con_phi"], z["con_n"], z["con_p"],
-                          z["con_cn"], z["con_ft"], z["con_vt"], z["con_mode"], False)
+                          z["con_cn"], z["con_ft"], z["con_vt"], z["con_mode"], False, True)
     assert done == n
     for k, a in z.items():
         assert np.array_equal(out[k], a), k
@@ -221,9 +221,28 @@ def test_lemke_rollout_stops_at_the_first_failure_like_the_full_kernel():
     assert 0 < done < n and out["status"][done - 1] != 0 and np.all(out["status"][:done - 1] == 0)
     z = {k: np.zeros_like(out[k]) for k in ("q", "v", "qk", "stats", "status", "con_count", "con_pair", "con_phi",
                                              "con_n", "con_p", "con_cn", "con_ft", "con_vt", "con_mode")}
-    d = rollout_kernel(ref.kmodel, q, v, qk, vk[None], n, ref.h, ref.kopt, ref.kwork, z["q"], z["v"], z["qk"],
+    d = rollout_kernel(ref.kmodel, q, v, qk, vk[None], 0, n, ref.h, ref.kopt, ref.kwork, z["q"], z["v"], z["qk"],
                        z["stats"], z["status"], z["con_count"], z["con_pair"], z["con_phi"], z["con_n"], z["con_p"],
-                       z["con_cn"], z["con_ft"], z["con_vt"], z["con_mode"], True)
+                       z["con_cn"], z["con_ft"], z["con_vt"], z["con_mode"], True, True)
     assert d == done
     for k in ("q", "v", "stats", "status"):
         assert np.array_equal(out[k], z[k]), k
+
+
+@pytest.mark.parametrize("name, opts", [("box_push", dict(warm_start=True)), ("falling_rod", dict(res_tol=0.0)),
+                                        ("four_disks", dict(formulation="velocity", warm_start=True))])
+def test_a_rollout_in_chunks_equals_one_kernel_call(name, opts):
+    """Simulator.rollout runs long rollouts in chunks (so that Ctrl-C is handled between them): 16-step chunks and one
+    call give the same outputs bit for bit, warm-start memory, the Python-run fallback steps (res_tol = 0 makes
+    failures) and recorded contacts included."""
+    sc = load_scene(name)
+    outs = []
+    for seconds in (1e-12, 1e12):          # the smallest chunk (16 steps), and the whole rollout in one call
+        sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, **opts))
+        sim.CHUNK_SECONDS = seconds
+        q, v, qk, vk = sim.initial_state()
+        outs.append(sim.rollout(q, v, qk, vk[None], 300, stop_on_failure=False, record_contacts=True))
+    a, b = outs
+    assert a["steps_done"] == b["steps_done"] == 300
+    for k in a:
+        assert np.array_equal(a[k], b[k]), k

@@ -44,17 +44,19 @@ def _record_contacts(w, i, nc, con_count, con_pair, con_phi, con_n, con_p, con_c
 
 
 @njit(cache=True)
-def rollout_kernel(m, q0, v0, qk0, vk_seq, nsteps, h, opt, w, q_traj, v_traj, qk_traj, stats_traj, status_traj,
-                   con_count, con_pair, con_phi, con_n, con_p, con_cn, con_ft, con_vt, con_mode, stop_on_failure):
-    """Run nsteps steps from (q0, v0, qk0). Step i uses kinematic velocities vk_seq[min(i, len - 1)].
+def rollout_kernel(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, q_traj, v_traj, qk_traj, stats_traj,
+                   status_traj, con_count, con_pair, con_phi, con_n, con_p, con_cn, con_ft, con_vt, con_mode,
+                   stop_on_failure, reset_warm_start):
+    """Run nsteps steps from (q0, v0, qk0). Step i uses kinematic velocities vk_seq[min(step0 + i, len - 1)].
 
     Trajectory buffers have nsteps + 1 rows (row 0 = the initial state); contact buffers have nsteps rows and
-    capacity columns (pass zero-column arrays to skip recording contacts). Returns the number of steps done
+    capacity columns (pass zero-column arrays to skip recording contacts). Resumable: the warm-start memory is kept
+    when reset_warm_start is false, so a rollout run in pieces equals one call. Returns the number of steps done
     (fewer than nsteps only when stop_on_failure and a step failed)."""
-    _start(w, q0, v0, qk0, q_traj, v_traj, qk_traj, True)
+    _start(w, q0, v0, qk0, q_traj, v_traj, qk_traj, reset_warm_start)
     nvk = vk_seq.shape[0]
     for i in range(nsteps):
-        vk = vk_seq[min(i, nvk - 1)]
+        vk = vk_seq[min(step0 + i, nvk - 1)]
         st = step_kernel(m, q_traj[i], v_traj[i], qk_traj[i], vk, h, opt, w, q_traj[i + 1], v_traj[i + 1],
                          qk_traj[i + 1], stats_traj[i])
         status_traj[i] = st

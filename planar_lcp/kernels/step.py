@@ -45,7 +45,7 @@ ST_LCP_SIZE, ST_LCP_MAX, ST_PIVOTS, ST_LEMKE_STATUS, ST_NCON, ST_NISLAND, ST_FP_
     ST_BY_LEMKE, ST_BY_UNSCALED, ST_BY_STRICT, ST_BY_VELOCITY, ST_BY_PGS = range(19)
 NSTAT = 19
 
-# How an island's LCP was solved, in the order tried (stats ST_BY_*, one count per island; ST_WARM_STARTS counts the
+# How an island's LCP was solved, in the order tried (stats ST_BY_*, one count per island LCP solved; ST_WARM_STARTS counts the
 # warm start). Every answer is certified by its residual on the island's original LCP before it is accepted.
 #   lemke     Lemke on the equilibrated problem (the default path)
 #   unscaled  Lemke on the problem as assembled: another pivot path to the same solution set
@@ -496,9 +496,11 @@ def step_kernel(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     # the velocity form evaluates contacts at the current configuration, the position forms at the end of the step
     qk_lin = qk if velocity_form else qk_out
     fp_iter = 0
+    # a step fails if any of its solves had an island without a certified answer: a fixed-point iterate or an
+    # active-set re-solve that starts from an uncertified answer is not trusted either, even if its own LCP solves
+    worst = STATUS_SOLVED
     while True:
         ncon, nisl = prepare_contacts(m, w, opt, qk_lin, stats)
-        worst = STATUS_SOLVED
         for isl in range(nisl):
             st = _solve_island(m, w, opt, w.poses, vk, isl, ncon, h, velocity_form, stats)
             if st != STATUS_SOLVED:
