@@ -42,7 +42,7 @@ def main(n_scenes=200):
             r["failed_steps"] += len(tr.failures)
             r["nonfinite"] += not (np.all(np.isfinite(tr.q)) and np.all(np.isfinite(tr.v)))
             r["pen"] = max(r["pen"], float(tr.stats["penetration"][-1]))
-            for k in ("warm_starts", "solved_lemke", "solved_unscaled", "solved_strict", "solved_velocity",
+            for k in ("warm_starts", "solved_lemke", "solved_equilibrated", "solved_strict", "solved_velocity",
                       "pgs_uncertified"):
                 r["methods"][k] = r["methods"].get(k, 0) + int(tr.stats[k].sum())
             if data["world"]["plane"] != "vertical":

@@ -17,7 +17,7 @@ from .kernels.rollout import rollout_kernel, rollout_kernel_lemke
 from .kernels.step import (FORM_FIXED_POINT, FORM_POSITION, FORM_VELOCITY, NSTAT, SOLVER_LEMKE, SOLVER_PGS,
                            ST_FP_CHANGE, ST_FP_ITERS, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_RETRIES, ST_LEMKE_STATUS,
                            ST_NCON, ST_NISLAND, ST_PENETRATION, ST_PGS_UPDATE, ST_PIVOTS, ST_RESIDUAL, ST_RESOLVES,
-                           ST_WARM_STARTS, ST_BY_LEMKE, ST_BY_UNSCALED, ST_BY_STRICT, ST_BY_VELOCITY, ST_BY_PGS,
+                           ST_WARM_STARTS, ST_BY_LEMKE, ST_BY_EQUILIBRATED, ST_BY_STRICT, ST_BY_VELOCITY, ST_BY_PGS,
                            STEP_LCP_FAILED, STEP_NEEDS_FALLBACK, STEP_NONFINITE, STEP_OK,
                            StepOptions, make_step_work, step_kernel, step_kernel_lemke)
 from .kernels.structs import model_struct, work_struct
@@ -262,10 +262,10 @@ class Trajectory:
         solves after the first failed on an island); how the islands' LCPs were solved, one count per island LCP
         solved (a fixed-point iteration or an active-set re-solve solves again), each answer certified by its
         residual: warm_starts (on the previous step's LCP basis, with SimOptions(warm_start=True), no pivots),
-        solved_lemke (Lemke on the equilibrated LCP: the default path), solved_unscaled (Lemke on the LCP as
-        assembled), solved_strict (equilibrated, stricter pivot tolerances), solved_velocity (position forms: the
-        island's normal rows in the velocity form, so that step neither corrects penetration nor linearizes about
-        q + h v; docs/method.md, "Certified solves"), pgs_uncertified (no method was certified: PGS's answer was
+        solved_lemke (Lemke on the LCP as assembled: the default path), solved_equilibrated (Lemke on the
+        exactly equilibrated LCP), solved_strict (as assembled, stricter pivot tolerances), solved_velocity
+        (position forms: the island's normal rows in the velocity form, so that step neither corrects penetration
+        nor linearizes about q + h v; docs/method.md, "Certified solves"), pgs_uncertified (no method was certified: PGS's answer was
         used and the step is a failure); fp_change (the fixed point's last change of the linearization pose),
         pgs_update (PGS's largest impulse change in its last sweep: its convergence), status (0 ok, 1 LCP failed,
         2 non-finite); energy (T,) J.
@@ -465,7 +465,7 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
                  resolves=st[:, ST_RESOLVES].astype(int), residual=st[:, ST_RESIDUAL].copy(),
                  penetration=st[:, ST_PENETRATION].copy(), lemke_retries=st[:, ST_LEMKE_RETRIES].astype(int),
                  warm_starts=st[:, ST_WARM_STARTS].astype(int),
-                 solved_lemke=st[:, ST_BY_LEMKE].astype(int), solved_unscaled=st[:, ST_BY_UNSCALED].astype(int),
+                 solved_lemke=st[:, ST_BY_LEMKE].astype(int), solved_equilibrated=st[:, ST_BY_EQUILIBRATED].astype(int),
                  solved_strict=st[:, ST_BY_STRICT].astype(int), solved_velocity=st[:, ST_BY_VELOCITY].astype(int),
                  pgs_uncertified=st[:, ST_BY_PGS].astype(int),
                  fp_change=st[:, ST_FP_CHANGE].copy(), pgs_update=st[:, ST_PGS_UPDATE].copy(),

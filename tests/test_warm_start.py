@@ -27,8 +27,8 @@ def _from_basis(M, q, mask):
     return ok, res, z.copy()
 
 
-def _cold(M, q, equilibrate=True):
-    """Lemke from scratch as the time-stepper's first try does it (equilibrated), or on the unscaled problem."""
+def _cold(M, q, equilibrate=False):
+    """Lemke from scratch as the time-stepper's first try does it (as assembled), or on the equilibrated problem."""
     n = len(q)
     work = make_lemke_work(n)
     status, piv, res = lemke_kernel(M, q, 50 * n + 100, DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, equilibrate,
@@ -84,15 +84,15 @@ def test_on_a_non_unique_lcp_the_warm_start_can_keep_another_solution():
     point, t = 0.3856 s; printed by the step kernel's own assembly, rounded here): the gap is 47 um and open at the
     end of the step without an impulse. It has two solutions: free flight (z = lambda only, what the previous step's
     basis gives) and a 0.26 N s impulse with sticking friction that brings the gap to exactly 0. Which one Lemke
-    reaches depends on its pivot path: on the unscaled problem (covering vector e) the impulse, on the equilibrated
-    one (the time-stepper's first try) free flight. All are checked against the LCP conditions here."""
+    reaches depends on its pivot path: as assembled (covering vector e, the time-stepper's first try) the impulse, on
+    the equilibrated problem free flight. All are checked against the LCP conditions here."""
     M = np.array([[8.059624, -16.040113, 16.040113, 0.0],
                   [-16.040113, 37.444606, -37.444606, 1.0],
                   [16.040113, -37.444606, 37.444606, 1.0],
                   [0.6, -1.0, -1.0, 0.0]])
     q = np.array([0.149081, -1.07992, 1.07992, 0.0])
-    status, z_cold, _ = _cold(M, q, equilibrate=False)
-    status_eq, z_eq, _ = _cold(M, q)
+    status, z_cold, _ = _cold(M, q)
+    status_eq, z_eq, _ = _cold(M, q, equilibrate=True)
     ok, _, z_warm = _from_basis(M, q, [False, True, False, True])
     assert status == 0 and status_eq == 0 and ok
     for z in (z_cold, z_eq, z_warm):

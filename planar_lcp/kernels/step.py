@@ -42,16 +42,17 @@ MODE_SEPARATED, MODE_STICKING, MODE_SLIDING = 0, 1, 2
 # stats vector layout
 ST_LCP_SIZE, ST_LCP_MAX, ST_PIVOTS, ST_LEMKE_STATUS, ST_NCON, ST_NISLAND, ST_FP_ITERS, ST_RESOLVES, \
     ST_RESIDUAL, ST_FP_CHANGE, ST_PGS_UPDATE, ST_PENETRATION, ST_LEMKE_RETRIES, ST_WARM_STARTS, \
-    ST_BY_LEMKE, ST_BY_UNSCALED, ST_BY_STRICT, ST_BY_VELOCITY, ST_BY_PGS = range(19)
+    ST_BY_LEMKE, ST_BY_EQUILIBRATED, ST_BY_STRICT, ST_BY_VELOCITY, ST_BY_PGS = range(19)
 NSTAT = 19
 
-# How an island's LCP was solved, in the order tried (stats ST_BY_*, one count per island LCP solved; ST_WARM_STARTS counts the
-# warm start). Every answer is certified by its residual on the island's original LCP before it is accepted.
-#   lemke     Lemke on the equilibrated problem (the default path)
-#   unscaled  Lemke on the problem as assembled: another pivot path to the same solution set
-#   strict    equilibrated, with the stricter pivot tolerances RETRY_PIV_TOLS: a nearly degenerate contact LCP (a rod
-#             lying flat: two friction columns that differ by round-off-sized lever arms) can offer a pivot ~1e-7 of
-#             its column that blows the tableau up and ends on a false ray; rejecting such pivots solves it
+# How an island's LCP was solved, in the order tried (stats ST_BY_*, one count per island LCP solved; ST_WARM_STARTS
+# counts the warm start). Every answer is certified by its residual on the island's original LCP before it is accepted.
+#   lemke         Lemke on the problem as assembled, covering vector e: the method as published, the default path
+#   equilibrated  Lemke on the exactly (power-of-two) equilibrated problem: another pivot path, on which the rows of
+#                 light and heavy bodies weigh the same (docs/lcp.md)
+#   strict        as assembled, with the stricter pivot tolerances RETRY_PIV_TOLS: a nearly degenerate contact LCP (a
+#                 rod lying flat: two friction columns that differ by round-off-sized lever arms) can offer a pivot
+#                 ~1e-7 of its column that blows the tableau up and ends on a false ray; rejecting such pivots solves it
 #   velocity  position forms only: the same island (same contacts, same geometry) with the velocity form's normal
 #             rows, n.v+ >= -max(phi, 0)/h: no drift correction in this step and no linearization about v_hat.
 #             With no kinematic body in the island, Lemke processes this LCP (Anitescu & Potra 1997; the seed's
@@ -59,7 +60,7 @@ NSTAT = 19
 #             into a corner it cannot leave in one step) or can end Lemke on a secondary ray
 #   pgs       uncertified: only with on_failure="record", the step is then reported as failed
 RETRY_PIV_TOLS = (1e-6, 1e-4)
-METHOD_NAMES = ("lemke", "unscaled", "strict", "velocity", "pgs")
+METHOD_NAMES = ("lemke", "equilibrated", "strict", "velocity", "pgs")
 
 StepOptions = namedtuple("StepOptions", [
     "solver", "formulation", "fp_iters", "fp_tol", "pgs_iters", "margin", "pen_tol", "max_resolves",
@@ -191,27 +192,29 @@ def _solve_island_lemke(m, w, opt, poses, vk, isl, nci, nsi, h, velocity_form, s
         status = STATUS_SOLVED
         stats[ST_WARM_STARTS] += 1
     else:
-        status, piv, res = _lemke(w, A, bvec, n, opt, opt.piv_tol, True)
+        status, piv, res = _lemke(w, A, bvec, n, opt, opt.piv_tol, False)
         method = ST_BY_LEMKE
         if status != STATUS_SOLVED:
             stats[ST_LEMKE_RETRIES] += 1
-            status, p, res = _lemke(w, A, bvec, n, opt, opt.piv_tol, False)
+            status, p, res = _lemke(w, A, bvec, n, opt, opt.piv_tol, True)
             piv += p
-            method = ST_BY_UNSCALED
+            method = ST_BY_EQUILIBRATED
         for retry_tol in RETRY_PIV_TOLS:
             if status == STATUS_SOLVED or retry_tol <= opt.piv_tol:
                 continue
             stats[ST_LEMKE_RETRIES] += 1
-            status, p, res = _lemke(w, A, bvec, n, opt, retry_tol, True)
+            status, p, res = _lemke(w, A, bvec, n, opt, retry_tol, False)
             piv += p
             method = ST_BY_STRICT
         if status != STATUS_SOLVED and not velocity_form:
             # the island's normal rows in the velocity form, over the same contacts (friction rows are the same)
             normal_rhs(m, poses, vk, w.isl_con, nci, w.con_pair, w.con_phi, w.con_n, w.con_p, w.v_tilde, w.v_hat, h,
                        True, w.col_dyn, w.col_g, w.bvec)
-            stats[ST_LEMKE_RETRIES] += 1
-            status, p, res = _lemke(w, A, bvec, n, opt, opt.piv_tol, True)
-            piv += p
+            for equilibrate in (False, True):
+                if status != STATUS_SOLVED:
+                    stats[ST_LEMKE_RETRIES] += 1
+                    status, p, res = _lemke(w, A, bvec, n, opt, opt.piv_tol, equilibrate)
+                    piv += p
             method = ST_BY_VELOCITY
         if status == STATUS_SOLVED:
             stats[method] += 1
