@@ -347,11 +347,30 @@ def build_parser():
     return p
 
 
+def _raised_while_interrupted(e):
+    """Whether an exception was raised while a KeyboardInterrupt was being handled (its __context__ chain)."""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return True
+        seen.add(id(e))
+        e = e.__context__
+    return False
+
+
 def main(argv=None):
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
+    except Exception as e:
+        # Ctrl-C while numba compiles: numba's clean-up then raises its own error ("no compiled object yet", while
+        # saving the unfinished function to its cache) in place of the KeyboardInterrupt. Still an interrupt.
+        if not _raised_while_interrupted(e):
+            raise
+        interrupted = True
     except KeyboardInterrupt:
+        interrupted = True
+    if interrupted:
         # Long runs return to Python often enough for this (rollouts in chunks, a flag in the planners' termination
         # condition), so Ctrl-C ends any command within about a second: one line, exit status 130 (128 + SIGINT).
         sys.stdout.flush()

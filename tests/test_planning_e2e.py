@@ -134,9 +134,10 @@ def test_ctrl_c_stops_plan_cleanly(tmp_path):
 def test_ctrl_c_stops_replay_cleanly(small_plan, tmp_path):
     _, out = small_plan
     plan = json.loads((out / "plan.json").read_text())
-    # a long but valid plan: 40000 copies of the first control, each for the task's longest duration (a minute of
-    # replay: the signal comes long before its end)
-    plan["controls"] = [plan["controls"][0]] * 40000
+    # a long but valid plan: the pusher standing still for 40000 controls of the task's longest duration (seconds of
+    # replay, no contact: no kernel is compiled during it, which would hold the signal until the compile returns to
+    # Python, see test_ctrl_c_during_a_compile_is_still_an_interrupt)
+    plan["controls"] = [[0.0, 0.0]] * 40000
     plan["steps"] = [10] * 40000
     long_plan = tmp_path / "long.json"
     long_plan.write_text(json.dumps(plan))
