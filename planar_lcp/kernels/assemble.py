@@ -138,22 +138,6 @@ def kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, dx, dy):
 
 
 @njit(cache=True)
-def normal_rhs(m, poses, vk, isl_con, nci, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h, velocity_form, col_dyn,
-               col_g, b):
-    """b[:nci], the normal rows' constant terms (the normal columns must be in col_dyn / col_g).
-
-    Position forms (linearized at q_hat = q + h v_hat):  phi/h + n.(v~ - v_hat); the kinematic bodies' motion is in
-    phi (they stand at their end poses). Velocity form:  n.v~ + max(phi, 0)/h + the kinematic normal velocity."""
-    for a in range(nci):
-        j = isl_con[a]
-        if velocity_form:
-            b[a] = column_dot(col_dyn, col_g, a, v_tilde) + max(con_phi[j], 0.0) / h + \
-                kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, con_n[j, 0], con_n[j, 1])
-        else:
-            b[a] = con_phi[j] / h + column_dot(col_dyn, col_g, a, v_tilde) - column_dot(col_dyn, col_g, a, v_hat)
-
-
-@njit(cache=True)
 def assemble_lcp(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h,
                  velocity_form, col_dyn, col_g, A, b):
     """Build the island's LCP (A, b) of size returned; columns of the force unknowns go to col_dyn / col_g.
@@ -194,8 +178,13 @@ def assemble_lcp(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, co
             A[i, c] = 0.0
     delassus(m, nforce, col_dyn, col_g, A)
     # constant vector
-    normal_rhs(m, poses, vk, isl_con, nci, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h, velocity_form, col_dyn,
-               col_g, b)
+    for a in range(nci):
+        j = isl_con[a]
+        if velocity_form:
+            b[a] = column_dot(col_dyn, col_g, a, v_tilde) + max(con_phi[j], 0.0) / h + \
+                kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, con_n[j, 0], con_n[j, 1])
+        else:
+            b[a] = con_phi[j] / h + column_dot(col_dyn, col_g, a, v_tilde) - column_dot(col_dyn, col_g, a, v_hat)
     f = 0
     for a in range(nci):
         j = isl_con[a]

@@ -221,17 +221,11 @@ def _lu_solve_inplace(A, b, m, perm):
 
 
 @njit(cache=True)
-def _solve_basic_z(M, q, zmask, z, lu, rhs, perm, zb):
-    """z_i for zmask[i] from M[Z, Z] z_Z = -q[Z] (w_i = 0 where z_i is basic), z_i = 0 elsewhere; the ORIGINAL data.
-
-    A tiny negative z_i from round-off is set to 0 (as in lemke_kernel's answer); a real one fails the residual.
+def _solve_basic_z(M, q, zb, m, z, lu, rhs, perm):
+    """z_i for i in zb[:m] from M[Z, Z] z_Z = -q[Z] (w_i = 0 where z_i is basic), z_i = 0 elsewhere; the ORIGINAL
+    data. A tiny negative z_i from round-off is set to 0 (as in lemke_kernel's answer); a real one fails the residual.
     Returns (solvable, most negative z_i before clipping, <= 0)."""
     n = q.shape[0]
-    m = 0
-    for i in range(n):
-        if zmask[i]:
-            zb[m] = i
-            m += 1
     for r in range(m):
         for c in range(m):
             lu[r, c] = M[zb[r], zb[c]]
@@ -260,7 +254,12 @@ def _refine_from_basis(M, q, basis, n, z, lu, rhs, perm, zb, zmask):
         k = basis[i]
         if k >= n and k < 2 * n:
             zmask[k - n] = 1
-    return _solve_basic_z(M, q, zmask[:n], z, lu, rhs, perm, zb)
+    m = 0
+    for i in range(n):
+        if zmask[i]:
+            zb[m] = i
+            m += 1
+    return _solve_basic_z(M, q, zb, m, z, lu, rhs, perm)
 
 
 @njit(cache=True)
@@ -272,7 +271,12 @@ def lemke_from_basis(M, q, zmask, res_tol, z, w, lu, rhs, perm, zb):
     accurate as a cold solve. Used as a warm start with the basis of the previous time step, where contact modes
     rarely change. Returns (accepted, residual); z, w hold the answer only when accepted.
     """
-    ok, neg = _solve_basic_z(M, q, zmask, z, lu, rhs, perm, zb)
+    m = 0
+    for i in range(q.shape[0]):
+        if zmask[i]:
+            zb[m] = i
+            m += 1
+    ok, neg = _solve_basic_z(M, q, zb, m, z, lu, rhs, perm)
     if not ok:
         return False, np.inf
     res = max(lcp_residual(M, q, z, w), -neg)

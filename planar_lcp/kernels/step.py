@@ -17,11 +17,11 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from .assemble import apply_impulses, assemble_lcp, contact_column, delassus, normal_rhs
+from .assemble import apply_impulses, assemble_lcp, contact_column, delassus
 from .constants import BODY_DYNAMIC, BODY_STATIC
 from .contacts import body_poses, find_contacts, world_vertices
 from .islands import contact_island, find_islands
-from .lemke import STATUS_SOLVED, lemke_from_basis, lemke_kernel
+from .lemke import STATUS_RAY, STATUS_SOLVED, lemke_from_basis, lemke_kernel
 from .pgs import assemble_pgs, solve_pgs
 
 # Compile time: the stages below are inline='always' into step_kernel. Every separately compiled numba function links
@@ -60,6 +60,10 @@ NSTAT = 19
 #             into a corner it cannot leave in one step) or can end Lemke on a secondary ray
 #   pgs       uncertified: only with on_failure="record", the step is then reported as failed
 RETRY_PIV_TOLS = (1e-6, 1e-4)
+# The chain, in order: (stats counter, pivot tolerance (-1: the options'), equilibrate, velocity-form normal rows)
+CHAIN = ((ST_BY_LEMKE, -1.0, False, False), (ST_BY_EQUILIBRATED, -1.0, True, False),
+         (ST_BY_STRICT, RETRY_PIV_TOLS[0], False, False), (ST_BY_STRICT, RETRY_PIV_TOLS[1], False, False),
+         (ST_BY_VELOCITY, -1.0, False, True), (ST_BY_VELOCITY, -1.0, True, True))
 METHOD_NAMES = ("lemke", "equilibrated", "strict", "velocity", "pgs")
 
 StepOptions = namedtuple("StepOptions", [
@@ -192,30 +196,29 @@ def _solve_island_lemke(m, w, opt, poses, vk, isl, nci, nsi, h, velocity_form, s
         status = STATUS_SOLVED
         stats[ST_WARM_STARTS] += 1
     else:
-        status, piv, res = _lemke(w, A, bvec, n, opt, opt.piv_tol, False)
+        # One call site for the whole chain (each inlined call of lemke_kernel costs compile time)
+        status = STATUS_RAY
         method = ST_BY_LEMKE
-        if status != STATUS_SOLVED:
-            stats[ST_LEMKE_RETRIES] += 1
-            status, p, res = _lemke(w, A, bvec, n, opt, opt.piv_tol, True)
+        velocity_rows = False
+        for attempt in range(len(CHAIN)):
+            method, piv_tol, equilibrate, in_velocity_form = CHAIN[attempt]
+            if piv_tol < 0.0:
+                piv_tol = opt.piv_tol
+            elif piv_tol <= opt.piv_tol:
+                continue                     # not stricter than the first try
+            if in_velocity_form and not velocity_rows:
+                if velocity_form:
+                    break                    # the velocity form's rows were the first try's
+                # the island's LCP in the velocity form over the same contacts: only the normal rows' constants change
+                assemble_lcp(m, poses, vk, w.isl_con, nci, w.isl_sup, nsi, w.con_pair, w.con_phi, w.con_n, w.con_p,
+                             w.v_tilde, w.v_hat, h, True, w.col_dyn, w.col_g, A, w.bvec)
+                velocity_rows = True
+            if attempt > 0:
+                stats[ST_LEMKE_RETRIES] += 1
+            status, p, res = _lemke(w, A, bvec, n, opt, piv_tol, equilibrate)
             piv += p
-            method = ST_BY_EQUILIBRATED
-        for retry_tol in RETRY_PIV_TOLS:
-            if status == STATUS_SOLVED or retry_tol <= opt.piv_tol:
-                continue
-            stats[ST_LEMKE_RETRIES] += 1
-            status, p, res = _lemke(w, A, bvec, n, opt, retry_tol, False)
-            piv += p
-            method = ST_BY_STRICT
-        if status != STATUS_SOLVED and not velocity_form:
-            # the island's normal rows in the velocity form, over the same contacts (friction rows are the same)
-            normal_rhs(m, poses, vk, w.isl_con, nci, w.con_pair, w.con_phi, w.con_n, w.con_p, w.v_tilde, w.v_hat, h,
-                       True, w.col_dyn, w.col_g, w.bvec)
-            for equilibrate in (False, True):
-                if status != STATUS_SOLVED:
-                    stats[ST_LEMKE_RETRIES] += 1
-                    status, p, res = _lemke(w, A, bvec, n, opt, opt.piv_tol, equilibrate)
-                    piv += p
-            method = ST_BY_VELOCITY
+            if status == STATUS_SOLVED:
+                break
         if status == STATUS_SOLVED:
             stats[method] += 1
     stats[ST_LCP_SIZE] += n
