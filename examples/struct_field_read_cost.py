@@ -3,7 +3,7 @@ the reference counting out of the loop.) Used for docs/performance.md:
 
     python examples/struct_field_read_cost.py
 """
-import time, numpy as np
+import time
 from numba import njit
 from planar_lcp import load_scene
 from planar_lcp.model import compile_scene

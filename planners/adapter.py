@@ -23,7 +23,6 @@ allocated at the same address, and nanobind returned the stale CompoundState wra
 wrapper locals are deleted leaks no wrapper, whatever else leaks.
 """
 
-import math
 
 import numpy as np
 

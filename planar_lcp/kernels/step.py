@@ -53,18 +53,17 @@ NSTAT = 19
 #   strict        as assembled, with the stricter pivot tolerances RETRY_PIV_TOLS: a nearly degenerate contact LCP (a
 #                 rod lying flat: two friction columns that differ by round-off-sized lever arms) can offer a pivot
 #                 ~1e-7 of its column that blows the tableau up and ends on a false ray; rejecting such pivots solves it
-#   velocity  position forms only: the same island (same contacts, same geometry) with the velocity form's normal
-#             rows, n.v+ >= -max(phi, 0)/h: no drift correction in this step and no linearization about v_hat.
-#             With no kinematic body in the island, Lemke processes this LCP (Anitescu & Potra 1997; the seed's
-#             section 3.3; docs/method.md), while the position form's need not have a solution (a body pressed
-#             into a corner it cannot leave in one step) or can end Lemke on a secondary ray
-#   pgs       uncertified: only with on_failure="record", the step is then reported as failed
+#   velocity      position forms only: the same island (same contacts, same geometry) with the velocity form's
+#                 normal rows, n.v+ >= -max(phi, 0)/h: no drift correction in this step and no linearization about
+#                 v_hat. With no kinematic body in the island, Lemke processes this LCP (Anitescu & Potra 1997; the
+#                 seed's section 3.3; docs/method.md), while the position form's need not have a solution (a body
+#                 pressed into a corner it cannot leave in one step) or can end Lemke on a secondary ray
+#   pgs           uncertified: the step is reported as failed (raised, or recorded with on_failure="record")
 RETRY_PIV_TOLS = (1e-6, 1e-4)
 # The chain, in order: (stats counter, pivot tolerance (-1: the options'), equilibrate, velocity-form normal rows)
 CHAIN = ((ST_BY_LEMKE, -1.0, False, False), (ST_BY_EQUILIBRATED, -1.0, True, False),
          (ST_BY_STRICT, RETRY_PIV_TOLS[0], False, False), (ST_BY_STRICT, RETRY_PIV_TOLS[1], False, False),
          (ST_BY_VELOCITY, -1.0, False, True), (ST_BY_VELOCITY, -1.0, True, True))
-METHOD_NAMES = ("lemke", "equilibrated", "strict", "velocity", "pgs")
 
 StepOptions = namedtuple("StepOptions", [
     "solver", "formulation", "fp_iters", "fp_tol", "pgs_iters", "margin", "pen_tol", "max_resolves",
@@ -93,7 +92,7 @@ def make_step_work(model):
     U = max(1, model.max_unknowns())
     nd = max(1, model.ndyn)
     nsup = max(1, a.sup_dyn.shape[0])
-    f, i = np.float64, np.int64
+    i = np.int64
     return StepWork(
         poses=np.zeros((nbody, 3)), vw=np.zeros((max(1, nvert), 2)),
         force_pair=np.zeros(max(1, npair), np.bool_), set_count=np.zeros(max(1, npair), np.int64),
