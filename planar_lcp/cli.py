@@ -2,6 +2,7 @@
 
 import argparse
 import importlib
+import importlib.metadata
 import math
 import os
 import sys
@@ -294,7 +295,10 @@ def _simulate(args):
 
 #: Modules that add subcommands: each has `register(subparsers)`, which adds its parsers with set_defaults(func=...)
 #: and must import heavy or optional libraries (matplotlib, pymunk, ompl) only inside the command's function.
-COMMAND_MODULES = ["planar_lcp.compare", "planar_lcp.studies", "planners.cli", "planar_lcp.tradeoff"]
+COMMAND_MODULES = ["planar_lcp.compare", "planar_lcp.studies", "planar_lcp.tradeoff"]
+#: Other installed packages add subcommands the same way through this entry-point group (`register(subparsers)`):
+#: planners (plan, replay, plan-bench) does, in pyproject.toml. planar_lcp itself never names them.
+COMMAND_ENTRY_POINTS = "planar_lcp.commands"
 
 
 def build_parser():
@@ -344,6 +348,8 @@ def build_parser():
     sc.set_defaults(func=_cmd_scenes)
     for module in COMMAND_MODULES:
         importlib.import_module(module).register(sub)
+    for ep in sorted(importlib.metadata.entry_points(group=COMMAND_ENTRY_POINTS), key=lambda e: e.name):
+        ep.load()(sub)
     return p
 
 

@@ -1,4 +1,5 @@
-"""Subcommands `plan`, `replay` and `plan-bench` of `planar-lcp` (registered through planar_lcp.cli.COMMAND_MODULES).
+"""Subcommands `plan`, `replay` and `plan-bench` of `planar-lcp`, registered through the entry-point group
+`planar_lcp.commands` (pyproject.toml): planar_lcp does not name this package.
 
 `register()` imports nothing heavy: ompl, matplotlib and pymunk are imported inside the commands.
 """

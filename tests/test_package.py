@@ -47,3 +47,18 @@ def test_demo_writes_its_files(tmp_path, capsys):
     lines = (tmp_path / "d" / "falling_rod.csv").read_text().splitlines()
     assert lines[0] == "t,rod.x,rod.y,rod.theta,rod.vx,rod.vy,rod.omega" and len(lines) == 402
     assert "first contact in the step ending at t = 0.3850 s" in out
+
+
+def test_the_core_never_names_the_planners_and_they_still_register():
+    """planners adds plan, replay and plan-bench through the entry-point group planar_lcp.commands (pyproject.toml);
+    no module of planar_lcp imports or names the planners package."""
+    import re
+    from pathlib import Path
+
+    from planar_lcp.cli import build_parser
+    core = Path(__file__).resolve().parents[1] / "planar_lcp"
+    for path in core.rglob("*.py"):
+        text = path.read_text()
+        assert not re.search(r"^\s*(from|import)\s+planners\b|[\"']planners[.\"']", text, re.M), path
+    commands = build_parser()._subparsers._group_actions[0].choices
+    assert {"plan", "replay", "plan-bench", "simulate"} <= set(commands)
