@@ -412,7 +412,7 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, 
     _pivot(T, n, r, z0, prow)
     leaving = basis[r]
     basis[r] = z0
-    z0_row = r
+    z0_row = r           # the artificial variable stays in this row until it leaves (then the loop ends)
     pivots = 1
     status = STATUS_MAX_PIVOTS
     while pivots < max_pivots:
@@ -432,10 +432,6 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, 
         if leaving == z0:
             status = STATUS_SOLVED
             break
-        if basis[z0_row] != z0:
-            for i in range(n):
-                if basis[i] == z0:
-                    z0_row = i
         # The artificial variable at zero while still basic: the basic z already solves the LCP (w = M z + q + e z0
         # with z0 = 0). Exact arithmetic would now let z0 leave on a tie; round-off can instead offer no pivot in
         # its row and end on a ray. Certify the point as it is (rare: only then is the O(n^2) residual computed).
