@@ -324,19 +324,23 @@ def build_parser():
         description="Simulate a scene (a shipped name, see `planar-lcp scenes`, or a path to a .toml file). "
                     "Options override the scene's [sim] table."))
     s.add_argument("scene", metavar="SCENE", help="a shipped scene name or a path to a .toml scene file")
-    s.add_argument("--h", type=finite_number(float, 0, True), metavar="H", help=f"time step [s]; below the duration, and at most {MAX_STEPS} steps in all")
-    s.add_argument("--t-end", type=finite_number(float, 0, True), metavar="T", help=f"duration [s] (t_end / h <= {MAX_STEPS} steps)")
+    s.add_argument("--h", type=finite_number(float, 0, True), metavar="H",
+                   help=f"time step [s]; below the duration, and at most {MAX_STEPS} steps in all")
+    s.add_argument("--t-end", type=finite_number(float, 0, True), metavar="T",
+                   help=f"duration [s] (t_end / h <= {MAX_STEPS} steps)")
     s.add_argument("--solver", choices=["lemke", "pgs", "osqp"], help="LCP solver")
     s.add_argument("--formulation", choices=["position", "fixed_point", "velocity"],
                    help="position (Stewart-Trinkle), fixed_point (re-linearized), velocity (Anitescu-Potra)")
     s.add_argument("--fixed-point-iterations", type=finite_number(int, 1, False), metavar="N",
                    help=f"iterations of the fixed_point formulation (1 to {MAX_FIXED_POINT_ITERATIONS})")
     s.add_argument("--friction-directions", type=finite_number(int, 3, False), metavar="K",
-                   help=f"friction directions per support point (3 to {MAX_FRICTION_DIRECTIONS}; horizontal-plane scenes only)")
+                   help=f"friction directions per support point (3 to {MAX_FRICTION_DIRECTIONS}; horizontal-plane "
+                        "scenes only)")
     s.add_argument("--on-failure", choices=["raise", "record"], default="raise",
                    help="raise (default): stop with exit status 1 at the first failed step; record: continue and "
                         "count the failures")
-    s.add_argument("--csv", metavar="FILE", help="write t and each dynamic body's pose and velocity per step (.csv or .txt)")
+    s.add_argument("--csv", metavar="FILE",
+                   help="write t and each dynamic body's pose and velocity per step (.csv or .txt)")
     s.add_argument("--plot", metavar="FILE.png", help="write a strobe of the motion and time series (PNG)")
     s.add_argument("--animate", metavar="FILE.gif", help="write an animation (GIF)")
     s.epilog = ("Output files are checked before the run (extension, an existing writable directory). A run whose "

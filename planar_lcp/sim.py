@@ -6,8 +6,8 @@
 """
 
 import csv
-import time
 import os
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -153,7 +153,8 @@ class Simulator:
         return q_out, v_out, qk_out, st
 
     def rollout(self, q, v, qk, vk_seq, nsteps, stop_on_failure=True, record_contacts=False):
-        """nsteps steps by the jitted kernels (one call for a short rollout). vk_seq: (nvk, nkin, 3), step i uses vk_seq[min(i, nvk - 1)].
+        """nsteps steps by the jitted kernels (one call for a short rollout, chunks for a long one).
+        vk_seq: (nvk, nkin, 3), step i uses vk_seq[min(i, nvk - 1)].
 
         Returns a dict of arrays: q, v (nsteps+1, ndyn, 3), qk (nsteps+1, nkin, 3), stats (nsteps, NSTAT),
         status (nsteps,), steps_done, and contact arrays when record_contacts."""
@@ -265,10 +266,10 @@ class Trajectory:
         solved_lemke (Lemke on the LCP as assembled: the default path), solved_equilibrated (Lemke on the
         exactly equilibrated LCP), solved_strict (as assembled, stricter pivot tolerances), solved_velocity
         (position forms: the island's normal rows in the velocity form, so that step neither corrects penetration
-        nor linearizes about q + h v; docs/method.md, "Certified solves"), pgs_uncertified (no method was certified: PGS's answer was
-        used and the step is a failure); fp_change (the fixed point's last change of the linearization pose),
-        pgs_update (PGS's largest impulse change in its last sweep: its convergence), status (0 ok, 1 LCP failed,
-        2 non-finite); energy (T,) J.
+        nor linearizes about q + h v; docs/method.md, "Certified solves"), pgs_uncertified (no method was
+        certified: PGS's answer was used and the step is a failure); fp_change (the fixed point's last change of the
+        linearization pose), pgs_update (PGS's largest impulse change in its last sweep: its convergence), status
+        (0 ok, 1 LCP failed, 2 non-finite); energy (T,) J.
     contacts : dict of per-step contact arrays (count (T-1,), then (T-1, C[, 2]): pair, phi, normal, point, cn, ft,
         vt, mode with mode 0 separated, 1 sticking, 2 sliding) and `shape_pairs` naming each pair's bodies. The
         rows of a step are the contacts in the order they were found (not matched across steps). vt and mode use the
