@@ -45,7 +45,7 @@ def test_random_scene_runs_to_the_end_certified(seed):
         assert np.all(np.isfinite(tr.q)) and np.all(np.isfinite(tr.v)), where
         assert tr.stats["pgs_uncertified"].sum() == 0 and not tr.failures, where
         assert tr.stats["penetration"][-1] <= FINAL_PENETRATION_BOUND, where
-        # every island that had an LCP was solved by exactly one certified method
+        # every step that had an LCP was solved by certified methods (none uncertified: checked above)
         solved = sum(tr.stats[k] for k in ("warm_starts", "solved_lemke", "solved_equilibrated", "solved_strict",
                                            "solved_velocity"))
         assert np.all((solved > 0) == (tr.stats["lcp_size"] > 0)), where
