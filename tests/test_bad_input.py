@@ -33,6 +33,16 @@ def cli(*argv, cwd=None, timeout=300):
     return p.returncode, p.stdout, p.stderr, time.perf_counter() - t0
 
 
+def assert_scene_refused(path, msg):
+    """A bad scene file: load_scene raises SceneError with exactly `msg`, and `planar-lcp simulate` exits 2 with that
+    one line and prints nothing else."""
+    with pytest.raises(SceneError) as e:
+        load_scene(path)
+    assert str(e.value) == msg
+    rc, out, err, _ = cli("simulate", path)
+    assert error_line(rc, err) == msg and out == ""
+
+
 def error_line(rc, err, prog="planar-lcp simulate"):
     """The one line of a bad-input error: exit status 2, no traceback, a single line on stderr."""
     assert rc == 2, err
@@ -51,11 +61,7 @@ def test_utf16_scene_file_is_named_not_utf8(tmp_path):
     path.write_text(Path(ROD).read_text(), encoding="utf-16")
     msg = (f"{path}: the scene file must be UTF-8 text, got a UTF-16 (little-endian) byte-order mark at byte "
            "offset 0 (save the file as UTF-8)")
-    with pytest.raises(SceneError) as e:
-        load_scene(path)
-    assert str(e.value) == msg
-    rc, out, err, _ = cli("simulate", path)
-    assert error_line(rc, err) == msg and out == ""
+    assert_scene_refused(path, msg)
 
 
 def test_latin1_byte_is_named_with_its_offset_and_line(tmp_path):
@@ -67,11 +73,7 @@ def test_latin1_byte_is_named_with_its_offset_and_line(tmp_path):
     line = text[:offset].count("\n") + 1
     msg = (f"{path}: the scene file must be UTF-8 text, got byte 0xe9 at byte offset {offset} (line {line}: invalid "
            "continuation byte; save the file as UTF-8)")
-    with pytest.raises(SceneError) as e:
-        load_scene(path)
-    assert str(e.value) == msg
-    rc, out, err, _ = cli("simulate", path)
-    assert error_line(rc, err) == msg
+    assert_scene_refused(path, msg)
 
 
 def test_utf8_byte_order_mark_is_accepted(tmp_path):
@@ -136,11 +138,7 @@ def test_scene_file_limits(tmp_path, key, value, msg):
     assert "\nh = 0.0025\n" in text
     path.write_text(text.replace("\nh = 0.0025\n", f"\nh = 0.0025\n{key} = {value!r}\n" if key != "h" else
                                  f"\nh = {value!r}\n", 1))
-    with pytest.raises(SceneError) as e:
-        load_scene(path)
-    assert str(e.value) == f"{path}: {msg}"
-    rc, out, err, _ = cli("simulate", path)
-    assert error_line(rc, err) == f"{path}: {msg}"
+    assert_scene_refused(path, f"{path}: {msg}")
 
 
 def _many_disks(n):
