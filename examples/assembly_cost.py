@@ -10,11 +10,11 @@ import time
 import numpy as np
 from numba import njit
 
-import planar_lcp.kernels.step as S
-from planar_lcp.kernels.assemble import assemble_lcp
-from planar_lcp.kernels.lemke import lemke_kernel, make_lemke_work
+import planar_lcp.engine.step as S
+from planar_lcp.engine.assemble import assemble_lcp
+from planar_lcp.engine.solvers.lemke import lemke_kernel, make_lemke_work
 from planar_lcp.model import compile_scene
-from planar_lcp.scene import load_scene
+from planar_lcp.spec.scene import load_scene
 from planar_lcp.sim import SimOptions, Simulator
 
 sc = load_scene("falling_rod")

@@ -8,9 +8,9 @@ import time
 import numpy as np
 from numba import njit
 
-import planar_lcp.kernels.step as S
+import planar_lcp.engine.step as S
 from planar_lcp.model import compile_scene
-from planar_lcp.scene import load_scene
+from planar_lcp.spec.scene import load_scene
 from planar_lcp.sim import SimOptions, Simulator
 
 

@@ -1,4 +1,4 @@
-"""The random-scene set (planar_lcp.random_scenes) under each formulation: aborted runs, non-finite states, final
+"""The random-scene set (planar_lcp.spec.random_scenes) under each formulation: aborted runs, non-finite states, final
 penetration, the largest per-step energy gain and where it comes from, and how the islands were solved.
 
     python examples/random_scene_scan.py [N_SCENES]        (default 200, as tests/test_reliability.py)
@@ -15,8 +15,8 @@ import numpy as np
 
 from planar_lcp import simulate
 from planar_lcp.model import compile_scene
-from planar_lcp.random_scenes import random_scene
-from planar_lcp.scene import parse_scene
+from planar_lcp.spec.random_scenes import random_scene
+from planar_lcp.spec.scene import parse_scene
 from planar_lcp.sim import energy_changes
 
 FORMULATIONS = ("position", "fixed_point", "velocity")

@@ -7,7 +7,7 @@ import time
 from numba import njit
 from planar_lcp import load_scene
 from planar_lcp.model import compile_scene
-from planar_lcp.kernels.structs import model_struct
+from planar_lcp.engine.layout import model_struct
 m = model_struct(compile_scene(load_scene("push_t")).arrays)
 @njit
 def field_in_loop(m, n):

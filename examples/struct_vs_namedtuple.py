@@ -17,8 +17,8 @@ import numpy as np
 from planar_lcp import load_scene
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
-from planar_lcp.kernels.rollout import rollout_kernel
-from planar_lcp.kernels.step import NSTAT
+from planar_lcp.engine.rollout import rollout_kernel
+from planar_lcp.engine.step import NSTAT
 
 kind, name = sys.argv[1], sys.argv[2]
 sc = load_scene(name)

@@ -6,7 +6,7 @@ Used for docs/limits.md:  python examples/tunnelling_threshold.py
 import numpy as np
 
 from planar_lcp import simulate
-from planar_lcp.scene import parse_scene
+from planar_lcp.spec.scene import parse_scene
 
 
 def passes_through(speed, h, y0=0.5):

@@ -5,9 +5,9 @@
     traj.to_csv("rod.csv")
 """
 
-from .lcp import LCPResult, lemke
-from .scene import Scene, SceneError, list_scenes, load_scene
-from .sim import SimOptions, SimulationError, Simulator, Trajectory, simulate
+from planar_lcp.lcp import LCPResult, lemke
+from planar_lcp.spec.scene import Scene, SceneError, list_scenes, load_scene
+from planar_lcp.sim import SimOptions, SimulationError, Simulator, Trajectory, simulate
 
 __all__ = ["LCPResult", "Scene", "SceneError", "SimOptions", "SimulationError", "Simulator", "Trajectory",
            "lemke", "list_scenes", "load_scene", "simulate"]

@@ -14,10 +14,10 @@ def _cmd_demo(args):
 
     import numpy as np
 
-    from .lcp import lemke
-    from .lcp_corpus import find_corpus_dir, load_corpus
-    from .sim import SimulationError, simulate
-    from .viz import plot_trajectory
+    from planar_lcp.lcp import lemke
+    from planar_lcp.experiments.lcp_corpus import find_corpus_dir, load_corpus
+    from planar_lcp.sim import SimulationError, simulate
+    from planar_lcp.viz import plot_trajectory
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -108,7 +108,7 @@ def _demo_plan(out, written):
 
 
 def _cmd_bench(args):
-    from .bench import run_bench
+    from planar_lcp.experiments.bench import run_bench
     run_bench(args.what, json_path=args.json)
     return 0
 
@@ -188,7 +188,7 @@ SIMULATE_FLAGS = {"h": "--h", "t_end": "--t-end", "solver": "--solver", "formula
 
 
 def _cmd_scenes(args):
-    from .scene import SceneError, list_scenes, scenes_dir
+    from planar_lcp.spec.scene import SceneError, list_scenes, scenes_dir
 
     try:
         scenes = list_scenes()
@@ -218,8 +218,8 @@ def _simulate(args):
 
     import numpy as np
 
-    from .scene import SceneError, load_scene, sim_settings
-    from .sim import SimulationError, simulate
+    from planar_lcp.spec.scene import SceneError, load_scene, sim_settings
+    from planar_lcp.sim import SimulationError, simulate
 
     for path, option in ((args.csv, "--csv"), (args.plot, "--plot"), (args.animate, "--animate")):
         if path is not None:
@@ -278,7 +278,7 @@ def _simulate(args):
             traj.to_csv(args.csv)
             wrote.append(args.csv)
         if args.plot or args.animate:
-            from .viz import animate_trajectory, plot_trajectory
+            from planar_lcp.viz import animate_trajectory, plot_trajectory
             if args.plot:
                 plot_trajectory(traj, args.plot)
                 wrote.append(args.plot)
@@ -295,14 +295,14 @@ def _simulate(args):
 
 #: Modules that add subcommands: each has `register(subparsers)`, which adds its parsers with set_defaults(func=...)
 #: and must import heavy or optional libraries (matplotlib, pymunk, ompl) only inside the command's function.
-COMMAND_MODULES = ["planar_lcp.compare", "planar_lcp.studies", "planar_lcp.tradeoff"]
+COMMAND_MODULES = ["planar_lcp.experiments.compare", "planar_lcp.experiments.studies", "planar_lcp.experiments.tradeoff"]
 #: Other installed packages add subcommands the same way through this entry-point group (`register(subparsers)`):
 #: planners (plan, replay, plan-bench) does, in pyproject.toml. planar_lcp itself never names them.
 COMMAND_ENTRY_POINTS = "planar_lcp.commands"
 
 
 def build_parser():
-    from .scene import MAX_FIXED_POINT_ITERATIONS, MAX_FRICTION_DIRECTIONS, MAX_STEPS
+    from planar_lcp.spec.scene import MAX_FIXED_POINT_ITERATIONS, MAX_FRICTION_DIRECTIONS, MAX_STEPS
 
     p = argparse.ArgumentParser(prog="planar-lcp", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)

@@ -1,13 +1,13 @@
 """Public LCP solvers: find z >= 0 with w = M z + q >= 0 and z.w = 0.
 
-`lemke` validates its arguments and calls the numba kernel in `planar_lcp.kernels.lemke`.
+`lemke` validates its arguments and calls the numba kernel in `planar_lcp.engine.solvers.lemke`.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from .kernels.lemke import STATUS_NAMES, lcp_scale, lemke_solve
+from planar_lcp.engine.solvers.lemke import STATUS_NAMES, lcp_scale, lemke_solve
 
 #: Default tolerances (see docs/lcp.md for what each one governs).
 DEFAULT_PIV_TOL = 1e-9

@@ -12,11 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .massprops import body_mass_properties, default_support_points
-from .scene import Scene, SceneError
+from planar_lcp.spec.massprops import body_mass_properties, default_support_points
+from planar_lcp.spec.scene import Scene, SceneError
 
-from .kernels.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC, PLANE_HORIZONTAL,  # noqa: F401
-                                PLANE_VERTICAL, SHAPE_CORE, SHAPE_HALFPLANE)
+from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC,  # noqa: F401
+                                         PLANE_HORIZONTAL, PLANE_VERTICAL, SHAPE_CORE, SHAPE_HALFPLANE)
 
 #: Arrays handed to the numba kernels (a namedtuple of arrays and scalars, which numba accepts as one argument).
 ModelArrays = namedtuple("ModelArrays", [
@@ -109,8 +109,8 @@ START_OVERLAP_TOL = 1e-6
 
 def _check_start_overlaps(scene, model):
     """Reject a scene whose bodies interpenetrate at the start by more than START_OVERLAP_TOL."""
-    from .kernels.contacts import body_poses, find_contacts, world_vertices
-    from .kernels.structs import model_struct
+    from planar_lcp.engine.contacts import body_poses, find_contacts, world_vertices
+    from planar_lcp.engine.layout import model_struct
     a = model.arrays
     nbody = a.body_kind.shape[0]
     npair = a.pair_a.shape[0]

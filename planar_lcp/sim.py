@@ -12,17 +12,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .kernels.lemke import STATUS_NAMES
-from .kernels.rollout import rollout_kernel, rollout_kernel_lemke
-from .kernels.step import (FORM_FIXED_POINT, FORM_POSITION, FORM_VELOCITY, NSTAT, SOLVER_LEMKE, SOLVER_PGS,
-                           ST_FP_CHANGE, ST_FP_ITERS, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_RETRIES, ST_LEMKE_STATUS,
-                           ST_NCON, ST_NISLAND, ST_PENETRATION, ST_PGS_UPDATE, ST_PIVOTS, ST_RESIDUAL, ST_RESOLVES,
-                           ST_WARM_STARTS, ST_BY_LEMKE, ST_BY_EQUILIBRATED, ST_BY_STRICT, ST_BY_VELOCITY, ST_BY_PGS,
-                           STEP_LCP_FAILED, STEP_NEEDS_FALLBACK, STEP_NONFINITE, STEP_OK,
-                           StepOptions, make_step_work, step_kernel, step_kernel_lemke)
-from .kernels.structs import model_struct, work_struct
-from .model import Model, compile_scene
-from .scene import Scene, SceneError, load_scene, sim_settings
+from planar_lcp.engine.solvers.lemke import STATUS_NAMES
+from planar_lcp.engine.rollout import rollout_kernel, rollout_kernel_lemke
+from planar_lcp.engine.step import (FORM_FIXED_POINT, FORM_POSITION, FORM_VELOCITY, NSTAT, SOLVER_LEMKE, SOLVER_PGS,
+                                    ST_FP_CHANGE, ST_FP_ITERS, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_RETRIES,
+                                    ST_LEMKE_STATUS, ST_NCON, ST_NISLAND, ST_PENETRATION, ST_PGS_UPDATE, ST_PIVOTS,
+                                    ST_RESIDUAL, ST_RESOLVES, ST_WARM_STARTS, ST_BY_LEMKE, ST_BY_EQUILIBRATED,
+                                    ST_BY_STRICT, ST_BY_VELOCITY, ST_BY_PGS, STEP_LCP_FAILED, STEP_NEEDS_FALLBACK,
+                                    STEP_NONFINITE, STEP_OK, StepOptions, make_step_work, step_kernel,
+                                    step_kernel_lemke)
+from planar_lcp.engine.layout import model_struct, work_struct
+from planar_lcp.model import Model, compile_scene
+from planar_lcp.spec.scene import Scene, SceneError, load_scene, sim_settings
 
 SOLVER_OSQP = 2  # never reaches the kernels: Simulator runs osqp_step (Python) instead
 SOLVERS = {"lemke": SOLVER_LEMKE, "pgs": SOLVER_PGS, "osqp": SOLVER_OSQP}
@@ -120,7 +121,7 @@ class Simulator:
 
     def _step_into(self, q, v, qk, vk, q_out, v_out, qk_out, stats):
         if self.kopt.solver == SOLVER_OSQP:
-            from .osqp_step import osqp_step
+            from planar_lcp.engine.solvers.osqp import osqp_step
             return osqp_step(self.model.arrays, self.kmodel, q, v, qk, vk, self.h, self.kopt, self.work, self.kwork,
                              q_out, v_out, qk_out, stats)
         if self._fast_kernel:

@@ -344,7 +344,7 @@ def draw_scene(ax, scene, poses_dyn, poses_kin, *, alpha=1.0, labels=False):
     Parameters
     ----------
     ax : matplotlib Axes
-    scene : planar_lcp.scene.Scene
+    scene : planar_lcp.spec.scene.Scene
     poses_dyn : (ndyn, 3) array-like, m and rad
         Body-FRAME poses (x, y, theta) of the dynamic bodies in scene order (a row of `Trajectory.q`).
     poses_kin : (nkin, 3) array-like

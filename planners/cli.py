@@ -34,7 +34,7 @@ def register(sub):
     r = one_line_errors(sub.add_parser(
         "replay", help="re-simulate a plan's controls open loop and check the goal",
         description="Re-simulate the controls of PLAN.json open loop (our LCP simulator, or pymunk through "
-                    "planar_lcp.pymunk_bridge), report the final goal error, write replay.png. Exit status 0 "
+                    "planar_lcp.experiments.pymunk_bridge), report the final goal error, write replay.png. Exit status 0 "
                     "only when the goal holds at the end."))
     r.add_argument("plan", metavar="PLAN.json")
     r.add_argument("--simulator", choices=["lcp", "pymunk"], default="lcp")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from planar_lcp.scene import display_source
+from planar_lcp.spec.scene import display_source
 
 from .tasks import TaskError, TaskModel, get_task
 
@@ -216,14 +216,14 @@ def animate_plan(tm, X, path, fps=20, max_frames=120):
 
 
 def replay_pymunk(plan, tm=None):
-    """Re-simulate the plan's controls open loop in pymunk (planar_lcp.pymunk_bridge), from the scene's start.
+    """Re-simulate the plan's controls open loop in pymunk (planar_lcp.experiments.pymunk_bridge), from the scene's start.
 
     The pusher's velocity is set to each control in turn; the space is stepped with the scene's h. Returns the
     same dict as `replay_lcp` (the goal is judged by the same task test)."""
     try:
-        from planar_lcp.pymunk_bridge import build_space, read_state
+        from planar_lcp.experiments.pymunk_bridge import build_space, read_state
     except ImportError as e:  # the bridge, or pymunk itself
-        raise ImportError(f"planar_lcp.pymunk_bridge cannot be used ({e})") from None
+        raise ImportError(f"planar_lcp.experiments.pymunk_bridge cannot be used ({e})") from None
     tm = tm if tm is not None else TaskModel(plan["task"])
     space, hd = build_space(tm.scene, h=tm.h)
     pusher = hd.bodies[tm.task.pusher]

@@ -87,7 +87,7 @@ class Task:
     description: str = ""
 
     def load_scene(self):
-        from planar_lcp.scene import load_scene
+        from planar_lcp.spec.scene import load_scene
         p = Path(self.scene)
         if not p.suffix and (SCENES_DIR / f"{self.scene}.toml").exists():
             p = SCENES_DIR / f"{self.scene}.toml"

@@ -2,7 +2,7 @@ import os
 
 import pytest
 
-from planar_lcp.lcp_corpus import find_corpus_dir, load_corpus
+from planar_lcp.experiments.lcp_corpus import find_corpus_dir, load_corpus
 
 JIT_DISABLED = os.environ.get("NUMBA_DISABLE_JIT", "0") == "1"
 

@@ -18,12 +18,12 @@ import os
 import numpy as np
 import pytest
 
-from planar_lcp.kernels import assemble as AS
-from planar_lcp.kernels import contacts as C
-from planar_lcp.kernels.step import ST_NCON
+from planar_lcp.engine import assemble as AS
+from planar_lcp.engine import contacts as C
+from planar_lcp.engine.step import ST_NCON
 from planar_lcp.lcp import lemke
 from planar_lcp.model import BODY_DYNAMIC, BODY_KINEMATIC, compile_scene
-from planar_lcp.scene import list_scenes, load_scene, parse_scene
+from planar_lcp.spec.scene import list_scenes, load_scene, parse_scene
 from planar_lcp.sim import SimOptions, Simulator
 
 JIT_DISABLED = os.environ.get("NUMBA_DISABLE_JIT", "0") == "1"

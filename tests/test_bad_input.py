@@ -15,8 +15,8 @@ import pytest
 
 import planar_lcp.sim as sim_module
 from planar_lcp.model import compile_scene
-from planar_lcp.scene import (MAX_FIXED_POINT_ITERATIONS, MAX_FRICTION_DIRECTIONS, MAX_PGS_ITERATIONS, MAX_STEPS,
-                              SceneError, load_scene, parse_scene, scenes_dir)
+from planar_lcp.spec.scene import (MAX_FIXED_POINT_ITERATIONS, MAX_FRICTION_DIRECTIONS, MAX_PGS_ITERATIONS, MAX_STEPS,
+                                   SceneError, load_scene, parse_scene, scenes_dir)
 from planar_lcp.sim import SimulationError, Simulator, check_run_size, estimate_run_bytes, simulate
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from planar_lcp import bench
-from planar_lcp.bench import (_alternate, _ratio_stats, bench_lcp, bench_scaling, bench_step, format_lcp_table,
-                              format_scaling_table, format_step_table)
+from planar_lcp.experiments.bench import (_alternate, _ratio_stats, bench_lcp, bench_scaling, bench_step,
+                                          format_lcp_table, format_scaling_table, format_step_table)
 
 # the real runs time compiled code; without the JIT QuantEcon's Lemke alone runs for hours on the cycling instances
 slow = pytest.mark.slow

@@ -13,7 +13,7 @@ import pytest
 
 from planar_lcp import cli
 from planar_lcp.cli import main
-from planar_lcp.scene import list_scenes, load_scene, scenes_dir
+from planar_lcp.spec.scene import list_scenes, load_scene, scenes_dir
 from planar_lcp.sim import SimulationError, simulate
 
 SHIPPED = ["block_on_incline", "box_push", "box_stack", "box_tip", "falling_rod", "four_disks", "painleve_rod",

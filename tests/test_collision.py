@@ -1,4 +1,4 @@
-"""Contact generation (planar_lcp.kernels.collision) against oracles.
+"""Contact generation (planar_lcp.engine.collision) against oracles.
 
 Oracles:
 - separated pairs: shapely's exact distance between the cores minus the radii (exact for inflated convex cores);
@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from shapely.geometry import LineString, Point, Polygon
 
-from planar_lcp.kernels.collision import aabb_core, contact_core_core, contact_core_halfplane, transform_core
+from planar_lcp.engine.collision import aabb_core, contact_core_core, contact_core_halfplane, transform_core
 
 TOL = 1e-9
 BIG_MARGIN = 10.0
@@ -616,8 +616,8 @@ def test_transform_and_aabb():
 _SCRIPT = r"""
 import json, sys
 import numpy as np
-from planar_lcp.kernels import collision
-from planar_lcp.kernels.collision import contact_core_core, contact_core_halfplane
+from planar_lcp.engine import collision
+from planar_lcp.engine.collision import contact_core_core, contact_core_halfplane
 cases = json.loads(sys.stdin.read())
 out = []
 for c in cases:

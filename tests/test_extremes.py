@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from planar_lcp.scene import load_scene, parse_scene
+from planar_lcp.spec.scene import load_scene, parse_scene
 from planar_lcp.sim import simulate
 
 G = 9.81

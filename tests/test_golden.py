@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from planar_lcp.model import compile_scene
-from planar_lcp.scene import list_scenes, load_scene
+from planar_lcp.spec.scene import list_scenes, load_scene
 from planar_lcp.sim import STEP_OK, SimOptions, Simulator
-from planar_lcp.kernels.step import ST_PIVOTS
+from planar_lcp.engine.step import ST_PIVOTS
 
 GOLDEN_DIR = Path(__file__).resolve().parent / "golden"
 FORMULATIONS = ("position", "fixed_point", "velocity")

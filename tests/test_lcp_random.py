@@ -130,7 +130,7 @@ def test_input_validation_names_the_argument():
 
 def test_kernel_reports_invalid_input_instead_of_raising():
     """The stepper calls the kernel directly: non-finite data must come back as a status, not an exception."""
-    from planar_lcp.kernels.lemke import STATUS_INVALID, lemke_solve
+    from planar_lcp.engine.solvers.lemke import STATUS_INVALID, lemke_solve
     z, w, status, pivots, res = lemke_solve(np.array([[np.nan]]), np.array([-1.0]), 10, 1e-12, 1e-12, 1e-9, False)
     assert status == STATUS_INVALID and pivots == 0
 
@@ -146,7 +146,7 @@ def test_trivial_cases():
 @given(seed=seeds, n=sizes)
 def test_basis_refinement_matches_numpy_solve_on_the_support(seed, n):
     """The refinement step re-solves the final complementary basis from the original data; oracle: numpy."""
-    from planar_lcp.kernels.lemke import _refine_from_basis, lemke_kernel, make_lemke_work
+    from planar_lcp.engine.solvers.lemke import _refine_from_basis, lemke_kernel, make_lemke_work
     rng = np.random.default_rng(seed)
     A = rng.normal(size=(n, n))
     S = rng.normal(size=(n, n))

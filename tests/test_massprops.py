@@ -8,9 +8,9 @@ from scipy.integrate import quad
 from shapely.geometry import LineString, Point, Polygon
 from shapely.ops import unary_union
 
-from planar_lcp.massprops import (body_area_properties, body_mass_properties, default_support_points, shape_area,
-                                  shape_centroid, shape_polar_moment)
-from planar_lcp.scene import BodySpec, ShapeSpec, load_scene
+from planar_lcp.spec.massprops import (body_area_properties, body_mass_properties, default_support_points, shape_area,
+                                       shape_centroid, shape_polar_moment)
+from planar_lcp.spec.scene import BodySpec, ShapeSpec, load_scene
 
 
 # --- independent oracles ----------------------------------------------------------------------------------------

@@ -1,6 +1,6 @@
 """The pymunk bridge and `planar-lcp compare` (issue C).
 
-Oracles: our mass properties (planar_lcp.massprops), exact area formulas (pymunk's shape areas against ours), free
+Oracles: our mass properties (planar_lcp.spec.massprops), exact area formulas (pymunk's shape areas against ours), free
 flight of our own integrator (the frame conventions), Coulomb's law for a sliding box (friction actually applied).
 """
 
@@ -14,10 +14,10 @@ import pytest
 
 pymunk = pytest.importorskip("pymunk")
 
-from planar_lcp.massprops import body_area_properties, body_mass_properties  # noqa: E402
-from planar_lcp.pymunk_bridge import (build_space, contact_pairs, friction_assignment, read_state,  # noqa: E402
-                                      simulate_pymunk)
-from planar_lcp.scene import list_scenes, load_scene, parse_scene  # noqa: E402
+from planar_lcp.spec.massprops import body_area_properties, body_mass_properties  # noqa: E402
+from planar_lcp.experiments.pymunk_bridge import (build_space, contact_pairs, friction_assignment,  # noqa: E402
+                                                  read_state, simulate_pymunk)
+from planar_lcp.spec.scene import list_scenes, load_scene, parse_scene  # noqa: E402
 
 SHIPPED = [n for n, _ in list_scenes()]
 SHAPE_CLASS = {"disk": pymunk.Circle, "capsule": pymunk.Segment, "segment": pymunk.Segment, "box": pymunk.Poly,
@@ -194,7 +194,7 @@ def test_horizontal_plane_support_friction_is_coulomb_for_pure_sliding():
 
 def test_compare_writes_its_files_and_the_report_has_the_promised_columns(tmp_path, capsys):
     from planar_lcp.cli import main
-    from planar_lcp.compare import REPORT_COLUMNS
+    from planar_lcp.experiments.compare import REPORT_COLUMNS
     out = tmp_path / "cmp"
     assert main(["compare", "falling_rod", "--out", str(out), "--t-end", "0.05", "--iterations", "5"]) == 0
     for f in ("report.md", "report.csv", "trajectories.png", "frames.png", "side_by_side.gif"):
@@ -227,7 +227,7 @@ def test_compare_rejects_a_bad_scene_name_with_exit_2(tmp_path, capsys):
 
 
 def test_cli_and_bridge_imports_do_not_pull_in_pymunk_or_matplotlib():
-    code = ("import sys, planar_lcp, planar_lcp.cli, planar_lcp.compare, planar_lcp.pymunk_bridge\n"
+    code = ("import sys, planar_lcp, planar_lcp.cli, planar_lcp.experiments.compare, planar_lcp.experiments.pymunk_bridge\n"
             "planar_lcp.cli.build_parser()\n"
             "print(','.join(m for m in ('pymunk', 'matplotlib') if m in sys.modules))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()

@@ -1,4 +1,4 @@
-"""Reliability on scenes nobody wrote by hand: seeded random scenes (planar_lcp.random_scenes), each run with the
+"""Reliability on scenes nobody wrote by hand: seeded random scenes (planar_lcp.spec.random_scenes), each run with the
 three formulations under the defaults (on_failure="raise"). Required: no aborted run, no non-finite state, a bounded
 final penetration, and every island answer certified (no uncertified PGS fallback). A failing seed prints its scene
 as TOML, to be saved as a regression case.
@@ -10,8 +10,8 @@ rigid-body solution (the pusher has no force limit), and the run stops with that
 import numpy as np
 import pytest
 
-from planar_lcp.random_scenes import random_scene, scene_to_toml
-from planar_lcp.scene import load_scene, parse_scene
+from planar_lcp.spec.random_scenes import random_scene, scene_to_toml
+from planar_lcp.spec.scene import load_scene, parse_scene
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimulationError, energy_changes, simulate
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from shapely.geometry import LineString, Point, Polygon
 
-from planar_lcp.scene import (BodySpec, Scene, SceneError, ShapeSpec, SimSpec, WorldSpec, list_scenes, load_scene,
-                              parse_scene, scenes_dir)
+from planar_lcp.spec.scene import (BodySpec, Scene, SceneError, ShapeSpec, SimSpec, WorldSpec, list_scenes, load_scene,
+                                   parse_scene, scenes_dir)
 
 SHIPPED = ["block_on_incline", "box_push", "box_stack", "box_tip", "falling_rod", "four_disks", "painleve_rod",
            "push_t"]

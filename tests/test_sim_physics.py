@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from planar_lcp.scene import parse_scene
+from planar_lcp.spec.scene import parse_scene
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, SimulationError, Simulator, simulate
 
@@ -259,7 +259,7 @@ def test_osqp_matches_lemke_without_sliding():
 # --- scenes that cannot start --------------------------------------------------------------------------------------
 
 def test_bodies_interpenetrating_at_the_start_are_rejected():
-    from planar_lcp.scene import SceneError
+    from planar_lcp.spec.scene import SceneError
     sc = scene([{"name": "box", "type": "dynamic", "mass": 1.0, "position": [0.0, 0.04],
                  "shapes": [{"type": "box", "width": 0.2, "height": 0.1}]}, table()])
     with pytest.raises(SceneError, match=r"<dict>: bodies\[0\]\.shapes\[0\] \('box'\) and bodies\[1\]\.shapes\[0\] "
@@ -280,7 +280,7 @@ def test_seed_friction_arm_puts_the_friction_moment_arm_at_the_end_cap_centre():
     """The seed's rod: d = [+-1, 0, +-(l/2) sin theta], i.e. friction applied at the end-cap centre. Our default
     applies it at the contact point (r lower still); seed_friction_arm reproduces the seed for comparison."""
     from planar_lcp.model import compile_scene
-    from planar_lcp.scene import load_scene
+    from planar_lcp.spec.scene import load_scene
     from planar_lcp.sim import SimOptions, Simulator
     sc = load_scene("falling_rod")
     for seed_arm, extra in ((True, 0.0), (False, 0.05)):
@@ -308,9 +308,9 @@ def test_nearly_degenerate_flat_rod_lcp_false_ray_and_its_certified_solutions():
     second method) solves it, as does the stricter pivot tolerance of its third. The LCP is the kernel's own assembly
     of that step. With the (optional) warm start, the previous step's basis solves it without Lemke."""
     from planar_lcp import lemke
-    from planar_lcp.kernels.step import ST_LCP_SIZE
-    from planar_lcp.scene import load_scene
-    from planar_lcp.studies.common import shift_scene
+    from planar_lcp.engine.step import ST_LCP_SIZE
+    from planar_lcp.spec.scene import load_scene
+    from planar_lcp.experiments.studies.common import shift_scene
     sc = shift_scene(load_scene("falling_rod"), 0.017148085531751386)
     tr = simulate(sc, h=0.005)   # raises on failure
     assert tr.stats["solved_equilibrated"][108] == 1 and tr.stats["lemke_retries"][108] == 1

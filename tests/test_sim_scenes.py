@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from planar_lcp.model import compile_scene
-from planar_lcp.scene import list_scenes, load_scene
+from planar_lcp.spec.scene import list_scenes, load_scene
 from planar_lcp.sim import SimOptions, Simulator, simulate
 
 SCENES = [name for name, _ in list_scenes()]

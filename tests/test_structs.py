@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from planar_lcp import load_scene
-from planar_lcp.kernels.step import ST_NCON, StepWork, make_step_work
-from planar_lcp.kernels.structs import MODEL_FIELDS, WORK_FIELDS, model_struct, work_struct
+from planar_lcp.engine.step import ST_NCON, StepWork, make_step_work
+from planar_lcp.engine.layout import MODEL_FIELDS, WORK_FIELDS, model_struct, work_struct
 from planar_lcp.model import ModelArrays, compile_scene
 from planar_lcp.sim import SimOptions, Simulator
 

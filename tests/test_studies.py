@@ -10,7 +10,7 @@ import pytest
 from scipy.optimize import brentq
 
 from planar_lcp.cli import main
-from planar_lcp.scene import load_scene
+from planar_lcp.spec.scene import load_scene
 from planar_lcp.sim import simulate
 
 pytestmark = pytest.mark.slow

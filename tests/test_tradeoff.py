@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from planar_lcp.cli import main
 from planar_lcp.sim import simulate
-from planar_lcp.tradeoff import COLUMNS, _errors, pareto_front
+from planar_lcp.experiments.tradeoff import COLUMNS, _errors, pareto_front
 
 
 @settings(max_examples=100, deadline=None)

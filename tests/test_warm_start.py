@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from planar_lcp import load_scene, simulate
-from planar_lcp.kernels.lemke import lemke_from_basis, lemke_kernel, make_lemke_work
-from planar_lcp.kernels.step import ST_WARM_STARTS
+from planar_lcp.engine.solvers.lemke import lemke_from_basis, lemke_kernel, make_lemke_work
+from planar_lcp.engine.step import ST_WARM_STARTS
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL
 from planar_lcp.model import compile_scene
-from planar_lcp.scene import list_scenes
+from planar_lcp.spec.scene import list_scenes
 from planar_lcp.sim import SimOptions, Simulator
 
 
@@ -182,7 +182,7 @@ def test_lemke_rollout_with_python_fallback_equals_the_full_kernel_bit_for_bit(w
     """Solver lemke runs `rollout_kernel_lemke` (no PGS compiled in) and hands a step on which Lemke fails to
     `step_kernel` from Python. res_tol = 0 makes Lemke 'fail' on many steps (a controlled failure), so the stitched
     rollout is compared with the one-kernel `rollout_kernel` on every output, and with a loop of `step`."""
-    from planar_lcp.kernels.rollout import rollout_kernel
+    from planar_lcp.engine.rollout import rollout_kernel
     sc = load_scene("falling_rod")
     opts = SimOptions(h=sc.sim.h, res_tol=0.0, warm_start=warm)
     sim, ref = Simulator(compile_scene(sc), opts), Simulator(compile_scene(sc), opts)
@@ -210,7 +210,7 @@ def test_lemke_rollout_with_python_fallback_equals_the_full_kernel_bit_for_bit(w
 
 def test_lemke_rollout_stops_at_the_first_failure_like_the_full_kernel():
     """stop_on_failure: the stitched rollout stops after the same step, with the same states and statuses."""
-    from planar_lcp.kernels.rollout import rollout_kernel
+    from planar_lcp.engine.rollout import rollout_kernel
     sc = load_scene("falling_rod")
     opts = SimOptions(h=sc.sim.h, res_tol=0.0)
     sim, ref = Simulator(compile_scene(sc), opts), Simulator(compile_scene(sc), opts)

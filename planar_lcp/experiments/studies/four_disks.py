@@ -9,7 +9,7 @@ import os
 
 import numpy as np
 
-from . import common
+from planar_lcp.experiments.studies import common
 
 SCENE = "four_disks"
 FIGURE_H = 0.0025
@@ -86,7 +86,7 @@ def analytic_times(scene):
 
 def plot_trajectories(traj, path):
     """Elevation view (the seed's Figure 7): the centres' paths and the disks at a few times."""
-    from ..viz import draw_scene
+    from planar_lcp.viz import draw_scene
 
     ev = events(traj)
     times = [0.0, 0.2, ev["t_ground"], ev["t_first_disk_contact"], traj.t[-1]]
@@ -117,7 +117,7 @@ def plot_impulses(traj, path):
     Arrows start at the contact point, just inside the body they act on: cn n (red) and ft t (blue) on body A, their
     negatives on body B (none on the static table). Poses are those at the start of the step.
     """
-    from ..viz import draw_scene
+    from planar_lcp.viz import draw_scene
 
     k = cascade_step(traj)
     act = common.all_contacts(traj, k)
@@ -190,7 +190,7 @@ def plot_velocity(trajs, path):
 
 def run(out, quick=False):
     """Run the study and write its files into `out`; returns the runs, events, cascade and convergence rows."""
-    from ..scene import load_scene
+    from planar_lcp.spec.scene import load_scene
 
     common.ensure_dir(out)
     scene = load_scene(SCENE)

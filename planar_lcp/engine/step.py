@@ -17,12 +17,12 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from .assemble import apply_impulses, assemble_lcp, contact_column, delassus
-from .constants import BODY_DYNAMIC, BODY_STATIC
-from .contacts import body_poses, find_contacts, world_vertices
-from .islands import contact_island, find_islands
-from .lemke import STATUS_RAY, STATUS_SOLVED, lemke_from_basis, lemke_kernel
-from .pgs import assemble_pgs, solve_pgs
+from planar_lcp.engine.assemble import apply_impulses, assemble_lcp, contact_column, delassus
+from planar_lcp.engine.constants import BODY_DYNAMIC, BODY_STATIC
+from planar_lcp.engine.contacts import body_poses, find_contacts, world_vertices
+from planar_lcp.engine.islands import contact_island, find_islands
+from planar_lcp.engine.solvers.lemke import STATUS_RAY, STATUS_SOLVED, lemke_from_basis, lemke_kernel
+from planar_lcp.engine.solvers.pgs import assemble_pgs, solve_pgs
 
 # Compile time: the stages below are inline='always' into step_kernel. Every separately compiled numba function links
 # in and machine-codes its callees' code again, so a stack of stage functions over the collision, assembly and Lemke

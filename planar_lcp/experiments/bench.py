@@ -11,9 +11,9 @@ import time
 
 import numpy as np
 
-from .kernels.lemke import STATUS_NAMES, lemke_kernel, make_lemke_work
-from .lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, default_max_pivots, lemke
-from .lcp_corpus import load_corpus
+from planar_lcp.engine.solvers.lemke import STATUS_NAMES, lemke_kernel, make_lemke_work
+from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, default_max_pivots, lemke
+from planar_lcp.experiments.lcp_corpus import load_corpus
 
 
 #: The clock of every timed round: CPU time of the calling thread. Wall clock on a shared machine counts the time
@@ -276,7 +276,7 @@ class _PymunkRun:
         self.scene, self.n, self.h, self.spaces = scene, n, scene.sim.h, []
 
     def prepare(self, k):
-        from .pymunk_bridge import build_space
+        from planar_lcp.experiments.pymunk_bridge import build_space
         self.spaces = [build_space(self.scene, h=self.h)[0] for _ in range(k)]
 
     def __call__(self):
@@ -286,23 +286,23 @@ class _PymunkRun:
             step(h)
 
     def _fresh(self):
-        from .pymunk_bridge import build_space
+        from planar_lcp.experiments.pymunk_bridge import build_space
         return build_space(self.scene, h=self.h)[0]
 
 
 def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_ROUND_S):
     """Microseconds per step of our stepper (one jitted rollout over the scene's duration, warm JIT), with its defaults
     and with the LCP warm start the planners use, and, in the same process, of pymunk on the same scene and h through
-    planar_lcp.pymunk_bridge (10 iterations, its defaults).
+    planar_lcp.experiments.pymunk_bridge (10 iterations, its defaults).
 
     The three are timed in `rounds` alternating rounds of thread CPU time (`_alternate`): ours, ours warm-started,
     pymunk, ours, ... each round a fixed number of whole runs. `ratio` (`warm_ratio`) is the median over rounds of
     ours (warm-started) / pymunk measured back to back, with its spread in ratio_min, ratio_q1, ratio_q3,
     ratio_max; the µs per step are medians over rounds."""
-    from .model import compile_scene
-    from .scene import load_scene
-    from .sim import SimOptions, Simulator
-    from .kernels.step import ST_WARM_STARTS
+    from planar_lcp.model import compile_scene
+    from planar_lcp.spec.scene import load_scene
+    from planar_lcp.sim import SimOptions, Simulator
+    from planar_lcp.engine.step import ST_WARM_STARTS
     rows = []
     for name in scenes:
         sc = load_scene(name)
@@ -360,7 +360,7 @@ def format_step_table(rows, compile_times=None):
         lines.append(f"CPU time of other threads during the rounds: at most {100 * other:.1f} % of the timed "
                      "thread's (not counted in the times)")
     if any("ratio" in r for r in rows):
-        lines.append("target: ratio <= 1.0 on each scene (pymunk through planar_lcp.pymunk_bridge, 10 iterations); "
+        lines.append("target: ratio <= 1.0 on each scene (pymunk through planar_lcp.experiments.pymunk_bridge, 10 iterations); "
                      "ours with the defaults, then with SimOptions(warm_start=True) as the planners run it")
     if compile_times:
         lines.append("")
@@ -382,7 +382,7 @@ SCALING_ROUNDS = 7
 def _scaling_scene(n, kind):
     """n boxes (0.2 x 0.1 m, 1 kg) on a table: a tower (one island: every box touches the next) or a row of
     separate boxes 0.5 m apart (n islands)."""
-    from .scene import parse_scene
+    from planar_lcp.spec.scene import parse_scene
     bodies = []
     for i in range(n):
         pos = [0.0, 0.05 + 0.1 * i] if kind == "pile" else [0.5 * i, 0.05]
@@ -403,8 +403,8 @@ def bench_scaling(sizes=SCALING_SIZES, steps=20, rounds=SCALING_ROUNDS, min_roun
     4, ..., 1, 2, 4, ...; each round a fixed number of `steps`-step rollouts), the exponent is fitted in every round
     and `fits` is its median over rounds, `fit_spread` its min, q1, q3 and max. Each row's us_per_step is the
     median over rounds, with us_min and us_max."""
-    from .model import compile_scene
-    from .sim import SimOptions, Simulator
+    from planar_lcp.model import compile_scene
+    from planar_lcp.sim import SimOptions, Simulator
     rows, fits, fit_spread = [], {}, {}
     for kind in ("pile", "islands"):
         runners, outs = {}, {}

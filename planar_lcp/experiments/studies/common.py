@@ -60,7 +60,7 @@ def run_steps(scene, hs, *, desc, **kwargs):
     """simulate(scene, h=h) for each h with a tqdm progress bar on stderr; {h: Trajectory}."""
     from tqdm import tqdm
 
-    from ..sim import simulate
+    from planar_lcp.sim import simulate
 
     out = {}
     for h in tqdm(list(hs), desc=desc, unit="run", leave=False):
@@ -259,7 +259,7 @@ def phase_averaged(scene, hs, t_end, *, phases=PHASES, refine=8, seed=0, desc="p
     """
     from tqdm import tqdm
 
-    from ..sim import simulate
+    from planar_lcp.sim import simulate
 
     hs = sorted(hs, reverse=True)
     h_ref = min(hs) / refine

@@ -13,7 +13,7 @@ Static and kinematic bodies carry no unknowns: their velocity enters the constan
 import numpy as np
 from numba import njit
 
-from .constants import BODY_DYNAMIC, BODY_KINEMATIC
+from planar_lcp.engine.constants import BODY_DYNAMIC, BODY_KINEMATIC
 
 
 @njit(cache=True)

@@ -7,7 +7,7 @@ back to Python, which runs that one step with `step_kernel` and resumes (`Simula
 
 from numba import njit
 
-from .step import ST_NCON, STEP_NEEDS_FALLBACK, STEP_OK, step_kernel, step_kernel_lemke
+from planar_lcp.engine.step import ST_NCON, STEP_NEEDS_FALLBACK, STEP_OK, step_kernel, step_kernel_lemke
 
 
 @njit(cache=True, inline='always')

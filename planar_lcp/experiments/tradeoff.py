@@ -29,7 +29,7 @@ COLUMNS = ["scene", "h", "solver", "pgs_iterations", "formulation", "friction_di
 
 
 def _settings(scene, quick):
-    from .scene import load_scene
+    from planar_lcp.spec.scene import load_scene
     sc = load_scene(scene)
     h0 = sc.sim.h
     horizontal = sc.world.plane == "horizontal"
@@ -59,7 +59,7 @@ def _settings(scene, quick):
 
 
 def _run(sc, s, t_end):
-    from .sim import simulate
+    from planar_lcp.sim import simulate
     kw = dict(h=s["h"], t_end=t_end, solver=s["solver"], formulation=s["formulation"], on_failure="record",
               record_contacts=False)
     if s["pgs_iterations"]:
@@ -170,8 +170,8 @@ def plot_pareto(rows, path, title):
 def _cmd(args):
     import sys
 
-    from .cli import _InputError, prepare_output_dir
-    from .scene import list_scenes
+    from planar_lcp.cli import _InputError, prepare_output_dir
+    from planar_lcp.spec.scene import list_scenes
     known = [n for n, _ in list_scenes()]
     bad = [n for n in args.scenes if n not in known]
     if bad:

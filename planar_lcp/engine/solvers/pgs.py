@@ -9,8 +9,8 @@ converged in general - the iteration count is the speed/accuracy knob.
 import numpy as np
 from numba import njit
 
-from .assemble import (column_dot, contact_column, delassus, friction_column, kinematic_velocity_along,
-                       support_column)
+from planar_lcp.engine.assemble import (column_dot, contact_column, delassus, friction_column, kinematic_velocity_along,
+                                        support_column)
 
 
 @njit(cache=True)

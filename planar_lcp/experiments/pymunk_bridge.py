@@ -1,6 +1,6 @@
 """Build a pymunk (Chipmunk2D) space from a planar_lcp Scene and run it, for apples-to-apples comparisons.
 
-pymunk is imported inside the functions only: `import planar_lcp.pymunk_bridge` does not need pymunk.
+pymunk is imported inside the functions only: `import planar_lcp.experiments.pymunk_bridge` does not need pymunk.
 
 Mapping (docs/pymunk-comparison.md says more):
 
@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .massprops import body_mass_properties, default_support_points
-from .scene import Scene, load_scene
+from planar_lcp.spec.massprops import body_mass_properties, default_support_points
+from planar_lcp.spec.scene import Scene, load_scene
 
 #: pymunk's defaults (slop 0.1, for pixels) are far too large in metres; these are SI-sensible.
 DEFAULT_ITERATIONS = 10            # solver iterations per step (pymunk's default)

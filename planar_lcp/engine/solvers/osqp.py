@@ -20,11 +20,11 @@ import sys
 
 import numpy as np
 
-from .kernels.assemble import apply_impulses, assemble_lcp
-from .kernels.lemke import STATUS_INACCURATE, STATUS_SOLVED
-from .kernels.step import (FORM_VELOCITY, SOLVER_PGS, _contact_velocities, _solve_island, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_STATUS, ST_RESIDUAL, _problem_sizes,
-                           _record_impulses, begin_step, finish_step, integrate_positions, needs_another_solve,
-                           prepare_contacts)
+from planar_lcp.engine.assemble import apply_impulses, assemble_lcp
+from planar_lcp.engine.solvers.lemke import STATUS_INACCURATE, STATUS_SOLVED
+from planar_lcp.engine.step import (FORM_VELOCITY, SOLVER_PGS, _contact_velocities, _solve_island, ST_LCP_MAX,
+                                    ST_LCP_SIZE, ST_LEMKE_STATUS, ST_RESIDUAL, _problem_sizes, _record_impulses,
+                                    begin_step, finish_step, integrate_positions, needs_another_solve, prepare_contacts)
 
 
 @contextlib.contextmanager

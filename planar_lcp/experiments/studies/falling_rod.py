@@ -9,7 +9,7 @@ import os
 
 import numpy as np
 
-from . import common
+from planar_lcp.experiments.studies import common
 
 SCENE = "falling_rod"
 STROBE_H = 0.0025          # the seed's Figure 2
@@ -111,7 +111,7 @@ def events(traj):
 
 def plot_strobe(traj, path, every=8):
     """The seed's Figure 2: the rod every `every` steps until it rests (and at the end), time at the + end."""
-    from ..viz import draw_scene
+    from planar_lcp.viz import draw_scene
 
     half, r = rod_geometry(traj.scene)
     ev = events(traj)
@@ -183,7 +183,7 @@ def plot_seed_arm(ours, seed, path):
 
 def run(out, quick=False, progress=True):
     """Run the study and write its files into `out`; returns a dict with the runs, events and convergence rows."""
-    from ..scene import load_scene
+    from planar_lcp.spec.scene import load_scene
 
     common.ensure_dir(out)
     scene = load_scene(SCENE)

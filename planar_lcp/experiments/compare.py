@@ -7,7 +7,7 @@ Writes to DIR:
 - report.csv: one row per (simulator, dynamic body), columns `REPORT_COLUMNS`;
 - report.md: the same numbers as tables, with the settings and the command line.
 
-Both runs are measured on the same geometry: gaps come from our collision code (`planar_lcp.kernels.contacts`)
+Both runs are measured on the same geometry: gaps come from our collision code (`planar_lcp.engine.contacts`)
 evaluated at each simulator's recorded poses, so "first contact" and "penetration" mean the same for both.
 matplotlib and pymunk are imported inside the functions only.
 """
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .scene import display_source
+from planar_lcp.spec.scene import display_source
 
 #: Columns of report.csv, in order.
 REPORT_COLUMNS = ("scene", "simulator", "body", "h_s", "steps", "first_contact_t_s", "max_penetration_m",
@@ -36,8 +36,8 @@ def _pose_gaps(model, q_com, qk):
 
     q_com (T, ndyn, 3) centre-of-mass poses, qk (T, nkin, 3). Returns (T,); +inf when the scene has no pairs.
     """
-    from .kernels.contacts import body_poses, find_contacts, world_vertices
-    from .kernels.structs import model_struct
+    from planar_lcp.engine.contacts import body_poses, find_contacts, world_vertices
+    from planar_lcp.engine.layout import model_struct
 
     a = model.arrays
     km = model_struct(a)
@@ -64,7 +64,7 @@ def _pose_gaps(model, q_com, qk):
 
 def _time_ours(model, options, nsteps, repeats=3):
     """Microseconds per step of Simulator.rollout over nsteps steps, best of `repeats`, after a warm-up."""
-    from .sim import Simulator
+    from planar_lcp.sim import Simulator
 
     simr = Simulator(model, options)
     q0, v0, qk0, vk0 = simr.initial_state()
@@ -140,7 +140,7 @@ def _set_limits(ax, view):
 
 def plot_overlay(path, scene, t, q_ours, q_pm, names, h, iterations):
     """x, y, theta of each dynamic body against time: ours solid, pymunk dashed."""
-    from .viz import _new_figure
+    from planar_lcp.viz import _new_figure
 
     nd = len(names)
     fig = _new_figure((max(7.0, 4.2 * nd + 1.0), 6.4), dpi=90)
@@ -173,7 +173,7 @@ def plot_overlay(path, scene, t, q_ours, q_pm, names, h, iterations):
 
 def plot_frames(path, scene, t, runs, nframes=4):
     """The scene at `nframes` evenly spaced times, one row per run: runs = [(label, q, qk), ...]."""
-    from .viz import _new_figure, draw_scene
+    from planar_lcp.viz import _new_figure, draw_scene
 
     view = _view(scene, [r[1] for r in runs], [r[2] for r in runs])
     idx = np.unique(np.round(np.linspace(0, len(t) - 1, nframes)).astype(int))
@@ -196,7 +196,7 @@ def animate_side_by_side(path, scene, t, runs, fps=20, max_frames=60):
     """A GIF, one panel per run (runs = [(label, q, qk), ...]), redrawn per frame with our draw_scene."""
     from matplotlib.animation import PillowWriter
 
-    from .viz import _new_figure, draw_scene
+    from planar_lcp.viz import _new_figure, draw_scene
 
     view = _view(scene, [r[1] for r in runs], [r[2] for r in runs])
     frames = np.unique(np.round(np.linspace(0, len(t) - 1, min(len(t), max_frames))).astype(int))
@@ -231,10 +231,10 @@ def run_compare(scene, out, *, h=None, t_end=None, iterations=None, collision_sl
     Returns a dict: rows (list of dicts, the CSV), files (paths written), ours (Trajectory), pymunk
     (PymunkTrajectory).
     """
-    from . import pymunk_bridge as pb
-    from .model import compile_scene
-    from .scene import Scene, load_scene
-    from .sim import simulate
+    from planar_lcp.experiments import pymunk_bridge as pb
+    from planar_lcp.model import compile_scene
+    from planar_lcp.spec.scene import Scene, load_scene
+    from planar_lcp.sim import simulate
 
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
@@ -328,8 +328,8 @@ def run_compare(scene, out, *, h=None, t_end=None, iterations=None, collision_sl
 
 
 def _cmd_compare(args):
-    from .scene import SceneError, load_scene
-    from .sim import SimulationError
+    from planar_lcp.spec.scene import SceneError, load_scene
+    from planar_lcp.sim import SimulationError
 
     prog = "planar-lcp compare"
     try:
@@ -342,8 +342,8 @@ def _cmd_compare(args):
     except SceneError as e:
         print(f"{prog}: error: {e}", file=sys.stderr)
         return 2
-    from .cli import SIMULATE_FLAGS, _InputError, prepare_output_dir
-    from .scene import sim_settings
+    from planar_lcp.cli import SIMULATE_FLAGS, _InputError, prepare_output_dir
+    from planar_lcp.spec.scene import sim_settings
     out = Path(args.out)
     try:
         sim_settings(scene, {"h": args.h, "t_end": args.t_end}, SIMULATE_FLAGS)  # before any work, named by flag
@@ -385,7 +385,7 @@ def _cmd_compare(args):
 
 
 def register(subparsers):
-    from .cli import finite_number, one_line_errors
+    from planar_lcp.cli import finite_number, one_line_errors
 
     c = one_line_errors(subparsers.add_parser(
         "compare", help="run a scene in planar_lcp and in pymunk with the same time step; plots, GIF, report",

@@ -18,8 +18,8 @@ import numba
 def _kernel_source_hash():
     h = hashlib.sha256()
     here = Path(__file__).resolve().parent
-    for p in sorted(here.glob("*.py")):
-        h.update(p.name.encode())
+    for p in sorted(here.rglob("*.py")):
+        h.update(str(p.relative_to(here)).encode())
         h.update(p.read_bytes())
     h.update(numba.__version__.encode())
     return h.hexdigest()[:16]

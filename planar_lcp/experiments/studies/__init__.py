@@ -20,7 +20,7 @@ def _runner(module_name):
     def run(args):
         import importlib
 
-        from ..cli import _InputError, prepare_output_dir
+        from planar_lcp.cli import _InputError, prepare_output_dir
         try:
             prepare_output_dir(args.out, "--out")
         except _InputError as e:

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .scene import BodySpec, ShapeSpec
+    from planar_lcp.spec.scene import BodySpec, ShapeSpec
 
 
 def _check_shape(shape) -> None:

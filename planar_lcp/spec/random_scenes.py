@@ -1,6 +1,6 @@
 """Seeded random scenes: the simulator tried on scenes nobody wrote by hand.
 
-`random_scene(seed)` returns a scene as a TOML-shaped dict (`planar_lcp.scene.parse_scene` validates it,
+`random_scene(seed)` returns a scene as a TOML-shaped dict (`planar_lcp.spec.scene.parse_scene` validates it,
 `scene_to_toml` writes it to a file), so a failing seed can be saved as a regression scene as it is. Two kinds:
 
 - "drop" (vertical plane): 1 to 12 convex bodies (disks, capsules, boxes, rounded boxes, polygons) dropped onto the

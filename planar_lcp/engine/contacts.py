@@ -6,8 +6,8 @@ Numba only. Buffers are passed in; nothing is allocated.
 import numpy as np
 from numba import njit
 
-from .collision import contact_core_core, contact_core_halfplane
-from .constants import BODY_DYNAMIC, BODY_KINEMATIC, SHAPE_CORE, SHAPE_HALFPLANE
+from planar_lcp.engine.collision import contact_core_core, contact_core_halfplane
+from planar_lcp.engine.constants import BODY_DYNAMIC, BODY_KINEMATIC, SHAPE_CORE, SHAPE_HALFPLANE
 
 
 @njit(cache=True)

@@ -110,7 +110,7 @@ class BodySpec:
     """A rigid body: its shapes (body frame) and initial state.
 
     `position` and `velocity` are those of the body-frame ORIGIN (world frame, m and m/s); the dynamics use the
-    centre of mass that `planar_lcp.massprops.body_mass_properties` computes from the shapes.
+    centre of mass that `planar_lcp.spec.massprops.body_mass_properties` computes from the shapes.
     """
 
     name: str
@@ -190,7 +190,7 @@ def scenes_dir() -> Path:
     env = os.environ.get("PLANAR_LCP_SCENES")
     if env:
         return Path(env)
-    return Path(__file__).resolve().parents[1] / "scenes"
+    return Path(__file__).resolve().parents[2] / "scenes"
 
 
 def _shipped_files() -> list[Path]:

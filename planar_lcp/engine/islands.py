@@ -6,7 +6,7 @@ table friction) is integrated without one.
 
 from numba import njit
 
-from .constants import BODY_DYNAMIC
+from planar_lcp.engine.constants import BODY_DYNAMIC
 
 
 @njit(cache=True)
