@@ -4,7 +4,7 @@ penetration, the largest per-step energy gain and where it comes from, and how t
     python examples/random_scene_scan.py [N_SCENES]        (default 200, as tests/test_reliability.py)
 
 Energy is measured with the ground (y = 0) as the datum, relative to the run's initial energy E0 (> 0: every body
-starts above the ground), and split by `planar_lcp.sim.energy_changes` into what the contact impulses add to the
+starts above the ground), and split by `planar_lcp.trajectory.energy_changes` into what the contact impulses add to the
 kinetic energy and what the velocity form's projection adds to the potential energy.
 Runs are made with on_failure="record" so that a failure is counted, not raised.
 """
@@ -17,7 +17,7 @@ from planar_lcp import simulate
 from planar_lcp.model import compile_scene
 from planar_lcp.spec.random_scenes import random_scene
 from planar_lcp.spec.scene import parse_scene
-from planar_lcp.sim import energy_changes
+from planar_lcp.trajectory import energy_changes
 
 FORMULATIONS = ("position", "fixed_point", "velocity")
 

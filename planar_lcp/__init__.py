@@ -7,7 +7,8 @@
 
 from planar_lcp.lcp import LCPResult, lemke
 from planar_lcp.spec.scene import Scene, SceneError, list_scenes, load_scene
-from planar_lcp.sim import SimOptions, SimulationError, Simulator, Trajectory, simulate
+from planar_lcp.sim import SimOptions, SimulationError, Simulator, simulate
+from planar_lcp.trajectory import Trajectory
 
 __all__ = ["LCPResult", "Scene", "SceneError", "SimOptions", "SimulationError", "Simulator", "Trajectory",
            "lemke", "list_scenes", "load_scene", "simulate"]

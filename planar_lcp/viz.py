@@ -413,7 +413,7 @@ def plot_trajectory(traj, path, *, every=None):
 
     Parameters
     ----------
-    traj : planar_lcp.sim.Trajectory
+    traj : planar_lcp.trajectory.Trajectory
     path : str or os.PathLike
         The PNG to write (PNG whatever the extension).
     every : int, optional
@@ -502,7 +502,7 @@ def animate_trajectory(traj, path, *, fps=30, max_frames=150):
 
     Parameters
     ----------
-    traj : planar_lcp.sim.Trajectory
+    traj : planar_lcp.trajectory.Trajectory
     path : str or os.PathLike
         The GIF to write (matplotlib's PillowWriter).
     fps : int

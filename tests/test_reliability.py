@@ -13,7 +13,8 @@ import pytest
 from planar_lcp.spec.random_scenes import random_scene, scene_to_toml
 from planar_lcp.spec.scene import load_scene, parse_scene
 from planar_lcp.model import compile_scene
-from planar_lcp.sim import SimulationError, energy_changes, simulate
+from planar_lcp.sim import SimulationError, simulate
+from planar_lcp.trajectory import energy_changes
 
 N_SCENES = 200
 FORMULATIONS = ("position", "fixed_point", "velocity")

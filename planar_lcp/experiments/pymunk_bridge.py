@@ -293,7 +293,7 @@ def read_state(handles):
 
 @dataclass
 class PymunkTrajectory:
-    """A pymunk run, in the same conventions as `planar_lcp.sim.Trajectory`.
+    """A pymunk run, in the same conventions as `planar_lcp.trajectory.Trajectory`.
 
     t (T,) s; q, v (T, ndyn, 3) body-FRAME origin pose and velocity of the dynamic bodies in scene order; q_com,
     v_com (T, ndyn, 3) the centre-of-mass poses and velocities; qk (T, nkin, 3) kinematic poses; body_names, kinematic_names; scene; h;

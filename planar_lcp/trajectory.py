@@ -1,0 +1,120 @@
+"""THE trajectory of a run: states per step (frame and centre of mass), diagnostics, contacts, and energy.
+
+`simulate` returns it; the pymunk bridge (experiments/pymunk_bridge.py) fills the same type from its runs.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planar_lcp.spec.scene import Scene
+
+if TYPE_CHECKING:  # sim.py imports this module
+    from planar_lcp.sim import SimOptions
+
+
+@dataclass
+class Trajectory:
+    """A simulated run.
+
+    Attributes
+    ----------
+    t : (T,) s, the first row at t = 0.
+    q, v : (T, ndyn, 3) pose (x, y, theta) and velocity (vx, vy, omega) of each dynamic body's FRAME ORIGIN (the
+        scene's `position`), in scene order; q_com, v_com the same for the centres of mass.
+    qk : (T, nkin, 3) kinematic body poses.
+    body_names : names of the dynamic bodies (columns of q and v).
+    stats : dict of (T-1,) arrays per step: lcp_size, lcp_max, pivots, n_contacts, n_islands, fp_iterations,
+        resolves, residual, penetration (deepest overlap at the end of the step, m), lemke_retries (further Lemke
+        solves after the first failed on an island); how the islands' LCPs were solved, one count per island LCP
+        solved (a fixed-point iteration or an active-set re-solve solves again), each answer certified by its
+        residual: warm_starts (on the previous step's LCP basis, with SimOptions(warm_start=True), no pivots),
+        solved_lemke (Lemke on the LCP as assembled: the default path), solved_equilibrated (Lemke on the
+        exactly equilibrated LCP), solved_strict (as assembled, stricter pivot tolerances), solved_velocity
+        (position forms: the island's normal rows in the velocity form, so that step neither corrects penetration
+        nor linearizes about q + h v; docs/method.md, "Certified solves"), pgs_uncertified (no method was
+        certified: PGS's answer was used and the step is a failure); fp_change (the fixed point's last change of the
+        linearization pose), pgs_update (PGS's largest impulse change in its last sweep: its convergence), status
+        (0 ok, 1 LCP failed, 2 non-finite); energy (T,) J.
+    contacts : dict of per-step contact arrays (count (T-1,), then (T-1, C[, 2]): pair, phi, normal, point, cn, ft,
+        vt, mode with mode 0 separated, 1 sticking, 2 sliding) and `shape_pairs` naming each pair's bodies. The
+        rows of a step are the contacts in the order they were found (not matched across steps). vt and mode use the
+        geometry the LCP was solved with (the linearization pose).
+    failures : list of (step index, t, cause) recorded with on_failure="record".
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    q_com: np.ndarray
+    v_com: np.ndarray
+    qk: np.ndarray
+    body_names: tuple
+    kinematic_names: tuple
+    stats: dict
+    contacts: dict
+    options: SimOptions
+    scene: Scene
+    failures: list = field(default_factory=list)
+
+    def to_csv(self, path):
+        """Header `t` then NAME.x, NAME.y, NAME.theta, NAME.vx, NAME.vy, NAME.omega per dynamic body; a row per step."""
+        header = ["t"]
+        for n in self.body_names:
+            header += [f"{n}.x", f"{n}.y", f"{n}.theta", f"{n}.vx", f"{n}.vy", f"{n}.omega"]
+        with open(path, "w", newline="") as f:
+            wr = csv.writer(f)
+            wr.writerow(header)
+            for i in range(len(self.t)):
+                row = [repr(float(self.t[i]))]
+                for b in range(len(self.body_names)):
+                    row += [repr(float(x)) for x in self.q[i, b]] + [repr(float(x)) for x in self.v[i, b]]
+                wr.writerow(row)
+
+
+def frame_velocity(model, q_com, v_com):
+    """Velocity of the body-frame origin from the COM velocity: v_o = v_c + omega x (o - c)."""
+    v = v_com.copy()
+    c, s = np.cos(q_com[..., 2]), np.sin(q_com[..., 2])
+    cx, cy = model.com_local[:, 0], model.com_local[:, 1]
+    rx, ry = -(c * cx - s * cy), -(s * cx + c * cy)
+    v[..., 0] = v_com[..., 0] - v_com[..., 2] * ry
+    v[..., 1] = v_com[..., 1] + v_com[..., 2] * rx
+    return v
+
+
+def _kinetic(model, v_com):
+    a = model.arrays
+    return (0.5 * a.dyn_mass * (v_com[..., 0] ** 2 + v_com[..., 1] ** 2) + 0.5 * a.dyn_inertia * v_com[..., 2] ** 2
+            ).sum(axis=-1)
+
+
+def _potential(model, q_com):
+    a = model.arrays
+    return -(a.dyn_mass * (a.gravity[0] * q_com[..., 0] + a.gravity[1] * q_com[..., 1])).sum(axis=-1)
+
+
+def energy(model, q_com, v_com):
+    """Kinetic + potential energy of the dynamic bodies (J) per row of (T, ndyn, 3) COM poses and velocities; the
+    potential is -m g.x (vertical plane; g = 0 in the horizontal plane)."""
+    return _kinetic(model, v_com) + _potential(model, q_com)
+
+
+def energy_changes(model, q_com, v_com, h):
+    """Where each step's energy change comes from (J, (T-1,) each), for a trajectory's COM states (T, ndyn, 3).
+
+    Returns (total, impulses, projection): total = E(k+1) - E(k); impulses = KE(v+) - KE(v + h g), the kinetic energy
+    the contact impulses add (gravity's own work is exchanged with potential energy by q+ = q + h v+); projection =
+    the potential energy of the position change beyond q + h v+ (the velocity form's projection; 0 otherwise). What is
+    left, total - impulses - projection = -(m/2) |g|^2 h^2 per body in free flight, is the integrator's own.
+    """
+    a = model.arrays
+    v_free = v_com[:-1].copy()
+    v_free[..., :2] += h * a.gravity
+    impulses = _kinetic(model, v_com[1:]) - _kinetic(model, v_free)
+    projection = _potential(model, q_com[1:]) - _potential(model, q_com[:-1] + h * v_com[1:])
+    return np.diff(energy(model, q_com, v_com)), impulses, projection
