@@ -3,9 +3,43 @@
 import argparse
 import importlib
 import importlib.metadata
+import importlib.util
 import math
 import os
 import sys
+
+#: Optional packages -> the extra of pyproject.toml ([project.optional-dependencies]) that installs each.
+OPTIONAL_PACKAGES = {"matplotlib": "plot", "shapely": "plot", "osqp": "osqp", "scipy": "osqp", "pymunk": "compare",
+                     "ompl": "plan", "tqdm": "studies", "quantecon": "bench"}
+
+
+class MissingPackage(Exception):
+    """An optional package a command needs is not installed: `main` prints one line naming it and its extra, exit
+    status 2."""
+
+    def __init__(self, package):
+        self.package = package
+        super().__init__(f"{package} is not installed; it comes with the extra '{OPTIONAL_PACKAGES[package]}': "
+                         f"pip install -e \".[{OPTIONAL_PACKAGES[package]}]\" in the repository (\".[dev]\" installs "
+                         "every extra)")
+
+
+def require(*packages):
+    """Before any work: raise MissingPackage for the first of `packages` (keys of OPTIONAL_PACKAGES) not installed."""
+    for name in packages:
+        if importlib.util.find_spec(name) is None:
+            raise MissingPackage(name)
+
+
+def _missing_optional(e):
+    """The optional package whose absence raised `e` (a ModuleNotFoundError or MissingPackage), else None."""
+    if isinstance(e, MissingPackage):
+        return e.package
+    if isinstance(e, ModuleNotFoundError):
+        top = (e.name or "").split(".")[0]
+        if top in OPTIONAL_PACKAGES:
+            return top
+    return None
 
 
 def _cmd_demo(args):
@@ -19,6 +53,8 @@ def _cmd_demo(args):
     from planar_lcp.sim import SimulationError, simulate
     from planar_lcp.viz import plot_trajectory
 
+    # Part 3 plans, parts 1 and 3 draw: checked before any work; ompl first, since its extra ("plan") has all three.
+    require("ompl", "matplotlib", "shapely")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     written = []
@@ -79,12 +115,6 @@ def _demo_plan(out, written):
     d = DEMO_PLAN
     print(f"3. Kinodynamic planning with OMPL: push_box ({d['planner']}, seed {d['seed']}, budget "
           f"{d['iterations']} iterations), our simulator as the forward model")
-    try:
-        import ompl  # noqa: F401
-        import shapely  # noqa: F401
-    except ImportError as e:
-        print(f"   skipped: {e.name} is not installed (pip install ompl shapely)")
-        return 0
     cmd = [sys.executable, "-c", "import sys; from planar_lcp.cli import main; sys.exit(main())", "plan",
            d["task"], "--planner", d["planner"], "--seed", str(d["seed"]), "--iterations", str(d["iterations"]),
            "--out", str(out)]
@@ -224,6 +254,8 @@ def _simulate(args):
     for path, option in ((args.csv, "--csv"), (args.plot, "--plot"), (args.animate, "--animate")):
         if path is not None:
             check_output_file(path, option, OUTPUT_SUFFIXES[option])
+    if args.plot or args.animate:
+        require("matplotlib", "shapely")
     try:
         scene = load_scene(args.scene)
     except SceneError as e:
@@ -373,6 +405,11 @@ def main(argv=None):
     try:
         return args.func(args)
     except Exception as e:
+        missing = _missing_optional(e)
+        if missing:
+            sys.stdout.flush()
+            print(f"planar-lcp {args.command}: error: {MissingPackage(missing)}", file=sys.stderr)
+            return 2
         # Ctrl-C while numba compiles: numba's clean-up then raises its own error ("no compiled object yet", while
         # saving the unfinished function to its cache) in place of the KeyboardInterrupt. Still an interrupt.
         if not _raised_while_interrupted(e):
