@@ -1,0 +1,72 @@
+"""The layers of docs/architecture.md, checked on the imports of every module (module level and inside functions):
+
+- planar_lcp/engine/ imports nothing of planar_lcp outside engine/ (it knows no Scene);
+- planar_lcp/spec/ imports nothing of planar_lcp outside spec/ (it runs no simulation);
+- the core (every other module of planar_lcp except viz, cli and experiments/) imports none of viz, cli,
+  experiments; nothing in planar_lcp imports planners (test_package.py also checks that it never names them).
+"""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PKG = Path(__file__).resolve().parents[1] / "planar_lcp"
+
+
+def module_name(path):
+    rel = path.relative_to(PKG.parent).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def imported_modules(path):
+    """Absolute names of the modules `path` imports (relative imports resolved)."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    package = module_name(path) if path.name == "__init__.py" else module_name(path).rpartition(".")[0]
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[:len(base) - (node.level - 1)]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module
+            out.add(mod)
+            out.update(f"{mod}.{a.name}" for a in node.names)   # `from planar_lcp import viz`
+    return out
+
+
+def layer(name):
+    parts = name.split(".")
+    if len(parts) > 1 and parts[1] in ("engine", "spec", "experiments", "viz", "cli"):
+        return parts[1]
+    return "core"
+
+
+MODULES = sorted(PKG.rglob("*.py"))
+#: layer -> layers of planar_lcp it may import
+ALLOWED = {"engine": {"engine"}, "spec": {"spec"},
+           "core": {"core", "engine", "spec"}}
+
+
+def test_every_module_is_found():
+    names = {module_name(p) for p in MODULES}
+    assert {"planar_lcp.sim", "planar_lcp.engine.step", "planar_lcp.spec.scene", "planar_lcp.cli"} <= names
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(PKG.parent)))
+def test_imports_respect_the_layers(path):
+    me = layer(module_name(path))
+    for mod in imported_modules(path):
+        top = mod.split(".")[0]
+        assert top != "planners", f"{path}: imports {mod}"
+        if top != "planar_lcp" or mod == "planar_lcp" or me not in ALLOWED:
+            continue
+        # `from planar_lcp import x` is recorded both as planar_lcp and as planar_lcp.x: judge the longer name
+        assert layer(mod) in ALLOWED[me], f"{path} ({me}) imports {mod} ({layer(mod)})"
