@@ -1,0 +1,118 @@
+"""The docs name what exists: paths, modules, functions and scenes in docs/*.md and README.md are checked against the
+tree, so a rename that leaves a page behind fails here (docs/architecture.md, README "Layout")."""
+
+import importlib
+import re
+from pathlib import Path
+
+import pytest
+
+from planar_lcp import list_scenes
+
+ROOT = Path(__file__).resolve().parent.parent
+PAGES = sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"]
+SOURCES = [p for p in ROOT.rglob("*.py") if ".git" not in p.parts] + sorted((ROOT / "scenes").glob("*.toml"))
+WORDS = set(re.findall(r"\w+", "\n".join(p.read_text() for p in SOURCES)))
+SCENES = sorted(name for name, _ in list_scenes())
+PYPROJECT = (ROOT / "pyproject.toml").read_text()
+#: names the docs use that no source defines: a corpus instance (../shared/data/lcp), numba's environment variable,
+#: a column of OMPL's benchmark database
+NOT_IN_THE_SOURCES = {"murty_ex2_11", "NUMBA_OPT", "simulated_steps_per_second"}
+
+
+def section(text, title):
+    m = re.search(rf"^##+ {re.escape(title)}\n(.*?)(?=^## |\Z)", text, re.M | re.S)
+    assert m, f"no section {title!r}"
+    return m.group(1)
+
+
+def ids(pages):
+    return [p.name for p in pages]
+
+
+@pytest.mark.parametrize("page", PAGES, ids=ids(PAGES))
+def test_paths_named_in_the_docs_exist(page):
+    text = page.read_text()
+    missing = []
+    for m in re.finditer(r"(?<![\w/.])((?:planar_lcp|planners|tests|examples|scenes|docs|engine|spec|experiments|kernels)"
+                         r"/[\w/.-]*\w)", text):
+        path = m.group(1).split("::")[0]
+        if path in ("scenes/x.toml", "scenes/NAME.toml"):       # placeholders in examples
+            continue
+        if not ((ROOT / path).exists() or (ROOT / "planar_lcp" / path).exists()):
+            missing.append(path)
+    assert not missing, f"{page.name} names paths that do not exist: {sorted(set(missing))}"
+
+
+@pytest.mark.parametrize("page", PAGES, ids=ids(PAGES))
+def test_links_between_pages_resolve(page):
+    text = page.read_text()
+    bad = [t for t in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", text)
+           if not t.startswith("http") and not (page.parent / t).exists()]
+    assert not bad, f"{page.name}: broken links {bad}"
+
+
+@pytest.mark.parametrize("page", PAGES, ids=ids(PAGES))
+def test_modules_and_names_in_the_docs_exist(page):
+    """`planar_lcp.a.b.name` imports; a `name_with_underscores` or `Name.attr` in backticks is defined somewhere in the
+    sources (a function, a constant, a stats key, a test)."""
+    text = page.read_text()
+    bad = []
+    for dotted in sorted(set(re.findall(r"\bplanar_lcp(?:\.\w+)+", text))):
+        if f'"{dotted}"' in PYPROJECT:                       # the entry-point group planar_lcp.commands
+            continue
+        parts = dotted.split(".")
+        for k in range(len(parts), 0, -1):
+            try:
+                obj = importlib.import_module(".".join(parts[:k]))
+                break
+            except ImportError:
+                continue
+        for attr in parts[k:]:
+            if not hasattr(obj, attr):
+                bad.append(dotted)
+                break
+            obj = getattr(obj, attr)
+    for token in re.findall(r"`([^`\n]+)`", text):
+        if not re.fullmatch(r"[A-Za-z_][\w.]*(\(.*\))?", token) or token.startswith("planar_lcp"):
+            continue
+        for name in re.findall(r"[A-Za-z_]\w*", token.split("(")[0]):
+            if ("_" in name.strip("_") or re.fullmatch(r"[A-Z][a-z]+[A-Z]\w*", name)) and name not in WORDS | NOT_IN_THE_SOURCES:
+                bad.append(token)
+    assert not bad, f"{page.name} names what the code does not define: {sorted(set(bad))}"
+
+
+@pytest.mark.parametrize("page", PAGES, ids=ids(PAGES))
+def test_example_scripts_named_in_the_docs_exist(page):
+    missing = [s for s in re.findall(r"python (examples/\w+\.py)", page.read_text()) if not (ROOT / s).is_file()]
+    assert not missing, f"{page.name}: {missing}"
+
+
+def test_the_readme_and_scene_format_list_every_shipped_scene():
+    readme = (ROOT / "README.md").read_text()
+    m = re.search(r"Shipped scenes \(`scenes/\*\.toml`(.*?)Scenes are found", readme, re.S)
+    assert m, "README has no 'Shipped scenes' sentence"
+    assert sorted(re.findall(r"`(\w+)`", m.group(1))) == SCENES
+    table = section((ROOT / "docs" / "scene-format.md").read_text(), "Shipped scenes")
+    assert sorted(re.findall(r"^\| `(\w+)` \|", table, re.M)) == SCENES
+
+
+def test_the_readme_layout_names_every_module_and_folder():
+    layout = section((ROOT / "README.md").read_text(), "Layout")
+    block = re.search(r"```\n(.*?)```", layout, re.S).group(1)
+    named = set(re.findall(r"[\w.]+/?", block))
+    for pkg in ("planar_lcp", "planners"):
+        for p in (ROOT / pkg).rglob("*"):
+            if "__pycache__" in p.parts or p.name == "__init__.py" and p.parent.name != "planar_lcp":
+                continue
+            if p.is_dir():
+                assert p.name + "/" in named, f"README Layout does not name the folder {p.relative_to(ROOT)}"
+            elif p.suffix == ".py":
+                assert p.name in named, f"README Layout does not name {p.relative_to(ROOT)}"
+    for top in ROOT.iterdir():
+        if top.name.startswith(".") and top.name != ".ci" or top.name in ("build", "dist") or top.suffix == ".egg-info":
+            continue
+        if top.is_dir() and any(top.iterdir()):
+            assert (top.name + "/") in named or f"{top.name}/run" in block, f"README Layout does not name {top.name}/"
+    for name in sorted(n for n in named if n.endswith(".py") or n.endswith("/")):
+        assert list(ROOT.rglob(name.rstrip("/"))), f"README Layout names {name}, which does not exist"
