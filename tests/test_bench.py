@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from planar_lcp import bench
+from planar_lcp.experiments import bench
 from planar_lcp.experiments.bench import (_alternate, _ratio_stats, bench_lcp, bench_scaling, bench_step,
                                           format_lcp_table, format_scaling_table, format_step_table)
 
