@@ -17,6 +17,8 @@ import math
 
 import numpy as np
 
+from planar_lcp.frames import rotation
+
 # Dynamic bodies cycle through these; kinematic bodies (pushers, fingers) are red, static ones grey.
 _DYN_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:pink", "tab:olive",
                "tab:cyan")
@@ -84,11 +86,9 @@ def _transform(xy, pose):
 
 def _halfplane_world(body, shape):
     """World point and unit normal of a half-plane of a static body (its point and normal are in the body frame)."""
-    a = float(body.angle)
-    c, s = math.cos(a), math.sin(a)
-    p = np.array([c * shape.point[0] - s * shape.point[1] + body.position[0],
-                  s * shape.point[0] + c * shape.point[1] + body.position[1]])
-    n = np.array([c * shape.normal[0] - s * shape.normal[1], s * shape.normal[0] + c * shape.normal[1]])
+    R = rotation(float(body.angle))
+    p = R @ np.asarray(shape.point, dtype=np.float64) + np.asarray(body.position, dtype=np.float64)
+    n = R @ np.asarray(shape.normal, dtype=np.float64)
     return p, n / np.linalg.norm(n)
 
 
