@@ -128,7 +128,7 @@ class SpaceHandles:
     settings: dict = field(default_factory=dict)
 
 
-def _make_shapes(pymunk, body, spec, static_pose=None):
+def _make_shapes(pymunk, body, spec):
     """pymunk shapes for one ShapeSpec on `body` (body-frame coordinates)."""
     t = spec.type
     if t == "halfplane":
