@@ -5,7 +5,7 @@
 """
 
 from planar_lcp import simulate
-from planar_lcp.spec.scene import load_scene
+from planar_lcp.spec.scene import FORMULATIONS, load_scene
 from planar_lcp.experiments.studies.common import shift_scene
 
 base = load_scene("falling_rod")
@@ -13,7 +13,7 @@ runs = failed = retried = 0
 for h in (0.02, 0.01, 0.005, 0.0025, 0.00125):
     for k in range(16):
         sc = shift_scene(base, 0.02 * k / 16 + 0.0001)
-        for form in ("position", "fixed_point", "velocity"):
+        for form in FORMULATIONS:
             tr = simulate(sc, h=h, formulation=form, on_failure="record", record_contacts=False)
             runs += 1
             failed += len(tr.failures)

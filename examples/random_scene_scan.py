@@ -16,10 +16,8 @@ import numpy as np
 from planar_lcp import simulate
 from planar_lcp.model import compile_scene
 from planar_lcp.spec.random_scenes import random_scene
-from planar_lcp.spec.scene import parse_scene
+from planar_lcp.spec.scene import FORMULATIONS, parse_scene
 from planar_lcp.trajectory import energy_changes
-
-FORMULATIONS = ("position", "fixed_point", "velocity")
 
 
 def body_sizes(scene):

@@ -7,13 +7,13 @@ Used for docs/performance.md ("Scaling"):
 import statistics
 import time
 
-from planar_lcp.experiments.bench import _scaling_scene
+from planar_lcp.experiments.bench import scaling_scene
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
 
 print("| bodies | µs / step | pivots / step | warm-started LCPs per step |\n|---:|---:|---:|---:|")
 for n in (1, 2, 4, 8, 16, 32):
-    sim = Simulator(compile_scene(_scaling_scene(n, "pile")), SimOptions(h=0.005, warm_start=True))
+    sim = Simulator(compile_scene(scaling_scene(n, "pile")), SimOptions(h=0.005, warm_start=True))
     q, v, qk, vk = sim.initial_state()
     sim.rollout(q, v, qk, vk[None], 2)
     steps, reps, times = 20, max(1, 200 // n), []

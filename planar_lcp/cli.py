@@ -143,7 +143,7 @@ def _cmd_bench(args):
     return 0
 
 
-class _InputError(Exception):
+class InputError(Exception):
     """Bad user input found after parsing: one line on stderr, exit status 2."""
 
 
@@ -178,37 +178,37 @@ OUTPUT_SUFFIXES = {"--csv": (".csv", ".txt"), "--plot": (".png",), "--animate": 
 
 def check_output_file(path, option, suffixes):
     """Before any work: `path` has one of `suffixes` and can be written (its directory exists and is writable, and
-    it is not a directory). Raises _InputError naming the option."""
+    it is not a directory). Raises InputError naming the option."""
     suffix = os.path.splitext(path)[1].lower()
     if suffix not in suffixes:
-        raise _InputError(f"{option} {path}: the file name must end in {' or '.join(suffixes)}, got "
+        raise InputError(f"{option} {path}: the file name must end in {' or '.join(suffixes)}, got "
                           f"{suffix or 'no extension'!r}")
     d = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(d):
-        raise _InputError(f"{option} {path}: the directory {d} does not exist")
+        raise InputError(f"{option} {path}: the directory {d} does not exist")
     if os.path.isdir(path):
-        raise _InputError(f"{option} {path}: must be a file name, got a directory")
+        raise InputError(f"{option} {path}: must be a file name, got a directory")
     existed = os.path.exists(path)
     try:
         with open(path, "ab"):   # opened to append: an existing file is left as it is
             pass
     except OSError as e:
-        raise _InputError(f"{option} {path}: must be a writable file, got: {e.strerror or e}") from None
+        raise InputError(f"{option} {path}: must be a writable file, got: {e.strerror or e}") from None
     if not existed:
         os.remove(path)
 
 
 def prepare_output_dir(path, option):
     """Before any work: create the output directory `path` if missing (as every command writing a directory does)
-    and check that it is a writable directory. Raises _InputError naming the option."""
+    and check that it is a writable directory. Raises InputError naming the option."""
     if os.path.exists(path) and not os.path.isdir(path):
-        raise _InputError(f"{option} {path}: must be a directory, got an existing file")
+        raise InputError(f"{option} {path}: must be a directory, got an existing file")
     try:
         os.makedirs(path, exist_ok=True)
     except OSError as e:
-        raise _InputError(f"{option} {path}: cannot create the directory: {e.strerror or e}") from None
+        raise InputError(f"{option} {path}: cannot create the directory: {e.strerror or e}") from None
     if not os.access(path, os.W_OK | os.X_OK):
-        raise _InputError(f"{option} {path}: must be a writable directory, got no write permission")
+        raise InputError(f"{option} {path}: must be a writable directory, got no write permission")
 
 
 #: How `simulate()`'s messages name the settings this command sets by flags.
@@ -238,7 +238,7 @@ def _cmd_scenes(args):
 def _cmd_simulate(args):
     try:
         return _simulate(args)
-    except _InputError as e:
+    except InputError as e:
         print(f"planar-lcp simulate: error: {e}", file=sys.stderr)
         return 2
 
@@ -259,13 +259,13 @@ def _simulate(args):
     try:
         scene = load_scene(args.scene)
     except SceneError as e:
-        raise _InputError(str(e)) from None
+        raise InputError(str(e)) from None
     settings = dict(t_end=args.t_end, h=args.h, solver=args.solver, formulation=args.formulation,
                     fixed_point_iterations=args.fixed_point_iterations, friction_directions=args.friction_directions)
     try:
         sim_settings(scene, settings, SIMULATE_FLAGS)             # checked again by simulate(); here so that
     except SceneError as e:                                           # nothing is printed before a bad setting
-        raise _InputError(str(e)) from None
+        raise InputError(str(e)) from None
     print(f"scene          {scene.name} ({scene.source})", flush=True)
     t0 = time.perf_counter()
     try:
@@ -275,10 +275,10 @@ def _simulate(args):
         return 1
     except SceneError as e:
         # a setting out of range or a run too large: the message names the scene file and the flag
-        raise _InputError(str(e)) from None
+        raise InputError(str(e)) from None
     except (ValueError, NotImplementedError) as e:
         # options the scene accepts but the simulator rejects (e.g. a solver not available there)
-        raise _InputError(f"{scene.source}: {e}") from None
+        raise InputError(f"{scene.source}: {e}") from None
     wall = time.perf_counter() - t0
 
     o = traj.options
@@ -327,14 +327,16 @@ def _simulate(args):
 
 #: Modules that add subcommands: each has `register(subparsers)`, which adds its parsers with set_defaults(func=...)
 #: and must import heavy or optional libraries (matplotlib, pymunk, ompl) only inside the command's function.
-COMMAND_MODULES = ["planar_lcp.experiments.compare", "planar_lcp.experiments.studies", "planar_lcp.experiments.tradeoff"]
+COMMAND_MODULES = ["planar_lcp.experiments.compare_cli", "planar_lcp.experiments.studies",
+                   "planar_lcp.experiments.tradeoff"]
 #: Other installed packages add subcommands the same way through this entry-point group (`register(subparsers)`):
 #: planners (plan, replay, plan-bench) does, in pyproject.toml. planar_lcp itself never names them.
 COMMAND_ENTRY_POINTS = "planar_lcp.commands"
 
 
 def build_parser():
-    from planar_lcp.spec.scene import MAX_FIXED_POINT_ITERATIONS, MAX_FRICTION_DIRECTIONS, MAX_STEPS
+    from planar_lcp.spec.scene import (FORMULATIONS, MAX_FIXED_POINT_ITERATIONS, MAX_FRICTION_DIRECTIONS, MAX_STEPS,
+                                       SOLVERS)
 
     p = argparse.ArgumentParser(prog="planar-lcp", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
@@ -360,8 +362,8 @@ def build_parser():
                    help=f"time step [s]; below the duration, and at most {MAX_STEPS} steps in all")
     s.add_argument("--t-end", type=finite_number(float, 0, True), metavar="T",
                    help=f"duration [s] (t_end / h <= {MAX_STEPS} steps)")
-    s.add_argument("--solver", choices=["lemke", "pgs", "osqp"], help="LCP solver")
-    s.add_argument("--formulation", choices=["position", "fixed_point", "velocity"],
+    s.add_argument("--solver", choices=SOLVERS, help="LCP solver")
+    s.add_argument("--formulation", choices=FORMULATIONS,
                    help="position (Stewart-Trinkle), fixed_point (re-linearized), velocity (Anitescu-Potra)")
     s.add_argument("--fixed-point-iterations", type=finite_number(int, 1, False), metavar="N",
                    help=f"iterations of the fixed_point formulation (1 to {MAX_FIXED_POINT_ITERATIONS})")

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planar_lcp.spec.massprops import body_mass_properties, default_support_points
+from planar_lcp.frames import com_to_frame, com_velocity, frame_to_com, rotation
+from planar_lcp.spec.massprops import body_mass_properties, support_points
 from planar_lcp.spec.scene import Scene, SceneError
 
 from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC,  # noqa: F401
@@ -80,27 +81,11 @@ class Model:
 
     def com_to_frame(self, q):
         """COM poses (..., ndyn, 3) -> body-frame origin poses, as the scene file describes bodies."""
-        q = np.asarray(q, dtype=float)
-        out = q.copy()
-        c, s = np.cos(q[..., 2]), np.sin(q[..., 2])
-        cx, cy = self.com_local[:, 0], self.com_local[:, 1]
-        out[..., 0] = q[..., 0] - (c * cx - s * cy)
-        out[..., 1] = q[..., 1] - (s * cx + c * cy)
-        return out
+        return com_to_frame(q, self.com_local)
 
     def frame_to_com(self, qf):
-        qf = np.asarray(qf, dtype=float)
-        out = qf.copy()
-        c, s = np.cos(qf[..., 2]), np.sin(qf[..., 2])
-        cx, cy = self.com_local[:, 0], self.com_local[:, 1]
-        out[..., 0] = qf[..., 0] + (c * cx - s * cy)
-        out[..., 1] = qf[..., 1] + (s * cx + c * cy)
-        return out
-
-
-def _rot(theta):
-    c, s = np.cos(theta), np.sin(theta)
-    return np.array([[c, -s], [s, c]])
+        """Body-frame origin poses (..., ndyn, 3) -> COM poses."""
+        return frame_to_com(qf, self.com_local)
 
 
 #: Largest overlap allowed between two bodies at the start (m); a scene that starts deeper is rejected.
@@ -168,11 +153,9 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
             com_local.append(com)
             dyn_mass.append(float(b.mass))
             dyn_inertia.append(float(inertia))
-            rc = _rot(b.angle) @ com
+            rc = rotation(b.angle) @ com
             q0.append([pose[0] + rc[0], pose[1] + rc[1], pose[2]])
-            # velocity of the COM from the body-frame origin's velocity: v_c = v_o + omega x r_c
-            v0.append([b.velocity[0] - b.angular_velocity * rc[1], b.velocity[1] + b.angular_velocity * rc[0],
-                       b.angular_velocity])
+            v0.append([*com_velocity(b.angle, b.velocity, b.angular_velocity, com), b.angular_velocity])
         elif b.type == "kinematic":
             body_slot[i] = len(kin_names)
             kin_names.append(b.name)
@@ -189,7 +172,7 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
             shape_body.append(i)
             if s.type == "halfplane":
                 shape_kind.append(SHAPE_HALFPLANE)
-                R = _rot(static_pose[i, 2])
+                R = rotation(static_pose[i, 2])
                 hp_p.append(R @ np.asarray(s.point, float) + static_pose[i, :2])
                 n = R @ np.asarray(s.normal, float)
                 hp_n.append(n / np.linalg.norm(n))
@@ -242,13 +225,7 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
             if body_kind[i] != BODY_DYNAMIC:
                 continue
             slot = body_slot[i]
-            if b.support_points is not None:
-                pts = np.asarray(b.support_points, float).reshape(-1, 2)
-                w = np.full(len(pts), 1.0 / len(pts))
-            else:
-                pts, w = default_support_points(b)
-                pts, w = np.asarray(pts, float).reshape(-1, 2), np.asarray(w, float)
-            mu = b.support_friction if b.support_friction is not None else scene.world.friction
+            pts, w, mu = support_points(b, scene.world)
             for p, wi in zip(pts - com_local[slot], w):
                 sup_dyn.append(slot)
                 sup_local.append(p)

@@ -23,7 +23,8 @@ from planar_lcp.engine.step import (FORM_FIXED_POINT, FORM_POSITION, FORM_VELOCI
 from planar_lcp.engine.layout import model_struct, work_struct
 from planar_lcp.model import Model, compile_scene
 from planar_lcp.spec.scene import Scene, SceneError, load_scene, sim_settings
-from planar_lcp.trajectory import Trajectory, energy, frame_velocity
+from planar_lcp.frames import frame_velocity
+from planar_lcp.trajectory import Trajectory, energy
 
 SOLVER_OSQP = 2  # never reaches the kernels: Simulator runs osqp_step (Python) instead
 SOLVERS = {"lemke": SOLVER_LEMKE, "pgs": SOLVER_PGS, "osqp": SOLVER_OSQP}
@@ -376,7 +377,7 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     contacts = {key_names.get(k, k[4:]): out[k][:done] for k in ("con_count", "con_pair", "con_phi", "con_n", "con_p",
                                                              "con_cn", "con_ft", "con_vt", "con_mode")}
     contacts["shape_pairs"] = pairs
-    return Trajectory(t=np.arange(T) * h, q=model.com_to_frame(q_com), v=frame_velocity(model, q_com, v_com),
-                      q_com=q_com, v_com=v_com, qk=out["qk"][:T], body_names=model.dyn_names,
+    return Trajectory(t=np.arange(T) * h, q=model.com_to_frame(q_com),
+                      v=frame_velocity(q_com, v_com, model.com_local), q_com=q_com, v_com=v_com, qk=out["qk"][:T], body_names=model.dyn_names,
                       kinematic_names=model.kin_names, stats=stats, contacts=contacts, options=opts, scene=scene,
                       failures=failures)

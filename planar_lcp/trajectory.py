@@ -1,6 +1,7 @@
 """THE trajectory of a run: states per step (frame and centre of mass), diagnostics, contacts, and energy.
 
-`simulate` returns it; the pymunk bridge (experiments/pymunk_bridge.py) fills the same type from its runs.
+`simulate` returns it; the pymunk bridge (experiments/pymunk_bridge.py) fills the same type from its runs. The
+body-frame <-> centre-of-mass conversions are planar_lcp.frames.
 """
 
 from __future__ import annotations
@@ -45,6 +46,11 @@ class Trajectory:
         rows of a step are the contacts in the order they were found (not matched across steps). vt and mode use the
         geometry the LCP was solved with (the linearization pose).
     failures : list of (step index, t, cause) recorded with on_failure="record".
+    options : the SimOptions of the run (a pymunk run: `pymunk_bridge.PymunkOptions`, with h, solver, formulation).
+    scene : the Scene simulated.
+
+    A pymunk run (`pymunk_bridge.simulate_pymunk`) fills the same fields; its stats are energy, n_contacts and
+    penetration, its contacts one row per touching shape pair (no vt, no mode).
     """
 
     t: np.ndarray
@@ -76,32 +82,25 @@ class Trajectory:
                 wr.writerow(row)
 
 
-def frame_velocity(model, q_com, v_com):
-    """Velocity of the body-frame origin from the COM velocity: v_o = v_c + omega x (o - c)."""
-    v = v_com.copy()
-    c, s = np.cos(q_com[..., 2]), np.sin(q_com[..., 2])
-    cx, cy = model.com_local[:, 0], model.com_local[:, 1]
-    rx, ry = -(c * cx - s * cy), -(s * cx + c * cy)
-    v[..., 0] = v_com[..., 0] - v_com[..., 2] * ry
-    v[..., 1] = v_com[..., 1] + v_com[..., 2] * rx
-    return v
+def _kinetic(mass, inertia, v_com):
+    return (0.5 * mass * (v_com[..., 0] ** 2 + v_com[..., 1] ** 2) + 0.5 * inertia * v_com[..., 2] ** 2).sum(axis=-1)
 
 
-def _kinetic(model, v_com):
-    a = model.arrays
-    return (0.5 * a.dyn_mass * (v_com[..., 0] ** 2 + v_com[..., 1] ** 2) + 0.5 * a.dyn_inertia * v_com[..., 2] ** 2
-            ).sum(axis=-1)
+def _potential(mass, gravity, q_com):
+    return -(mass * (gravity[0] * q_com[..., 0] + gravity[1] * q_com[..., 1])).sum(axis=-1)
 
 
-def _potential(model, q_com):
-    a = model.arrays
-    return -(a.dyn_mass * (a.gravity[0] * q_com[..., 0] + a.gravity[1] * q_com[..., 1])).sum(axis=-1)
+def mechanical_energy(mass, inertia, gravity, q_com, v_com):
+    """Kinetic + potential energy (J) per row of (T, nbody, 3) COM poses and velocities of bodies of mass (nbody,)
+    kg and inertia (nbody,) kg m^2 about the COM; the potential is -m g.x with gravity (2,) m/s^2."""
+    return _kinetic(mass, inertia, v_com) + _potential(mass, gravity, q_com)
 
 
 def energy(model, q_com, v_com):
     """Kinetic + potential energy of the dynamic bodies (J) per row of (T, ndyn, 3) COM poses and velocities; the
     potential is -m g.x (vertical plane; g = 0 in the horizontal plane)."""
-    return _kinetic(model, v_com) + _potential(model, q_com)
+    a = model.arrays
+    return mechanical_energy(a.dyn_mass, a.dyn_inertia, a.gravity, q_com, v_com)
 
 
 def energy_changes(model, q_com, v_com, h):
@@ -115,6 +114,7 @@ def energy_changes(model, q_com, v_com, h):
     a = model.arrays
     v_free = v_com[:-1].copy()
     v_free[..., :2] += h * a.gravity
-    impulses = _kinetic(model, v_com[1:]) - _kinetic(model, v_free)
-    projection = _potential(model, q_com[1:]) - _potential(model, q_com[:-1] + h * v_com[1:])
+    impulses = _kinetic(a.dyn_mass, a.dyn_inertia, v_com[1:]) - _kinetic(a.dyn_mass, a.dyn_inertia, v_free)
+    projection = (_potential(a.dyn_mass, a.gravity, q_com[1:])
+                  - _potential(a.dyn_mass, a.gravity, q_com[:-1] + h * v_com[1:]))
     return np.diff(energy(model, q_com, v_com)), impulses, projection

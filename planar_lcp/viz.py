@@ -17,6 +17,8 @@ import math
 
 import numpy as np
 
+from planar_lcp.frames import rotation
+
 # Dynamic bodies cycle through these; kinematic bodies (pushers, fingers) are red, static ones grey.
 _DYN_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:pink", "tab:olive",
                "tab:cyan")
@@ -39,13 +41,12 @@ def _outlines_body(shape):
         kind "poly" for a closed filled outline (the core inflated by the radius), "line" for an open polyline (a
         segment with radius 0, or the orientation mark of a disk: centre to rim, so that spin is visible).
     """
-    from shapely.geometry import LineString, Point, Polygon
+    from planar_lcp.geometry import shape_geometry
 
     core = np.asarray(shape.core_vertices_body(), dtype=np.float64).reshape(-1, 2)
     r = float(shape.radius)
     if r > 0.0:
-        base = Point(core[0]) if len(core) == 1 else LineString(core) if len(core) == 2 else Polygon(core)
-        geom = base.buffer(r, quad_segs=_QUAD_SEGS)
+        geom = shape_geometry(shape, quad_segs=_QUAD_SEGS)
         out = [("poly", np.asarray(geom.exterior.coords, dtype=np.float64))]
         if len(core) == 1:
             # the mark follows the shape's own x axis, rotated with the body
@@ -85,11 +86,9 @@ def _transform(xy, pose):
 
 def _halfplane_world(body, shape):
     """World point and unit normal of a half-plane of a static body (its point and normal are in the body frame)."""
-    a = float(body.angle)
-    c, s = math.cos(a), math.sin(a)
-    p = np.array([c * shape.point[0] - s * shape.point[1] + body.position[0],
-                  s * shape.point[0] + c * shape.point[1] + body.position[1]])
-    n = np.array([c * shape.normal[0] - s * shape.normal[1], s * shape.normal[0] + c * shape.normal[1]])
+    R = rotation(float(body.angle))
+    p = R @ np.asarray(shape.point, dtype=np.float64) + np.asarray(body.position, dtype=np.float64)
+    n = R @ np.asarray(shape.normal, dtype=np.float64)
     return p, n / np.linalg.norm(n)
 
 
@@ -195,7 +194,7 @@ def _with_margin(bounds, frac=0.08, minimum=0.02):
     return xmin - m, xmax + m, ymin - m, ymax + m
 
 
-def _set_view(ax, view):
+def set_view(ax, view):
     """Set limits containing `view` with the axes box's own aspect ratio, so that an equal aspect keeps them as
     given (adjustable "box" then has nothing to change). Returns the limits set (xmin, xmax, ymin, ymax)."""
     xmin, xmax, ymin, ymax = view
@@ -227,9 +226,14 @@ def _with_ground(geo, bounds):
     return xmin, xmax, ymin, ymax
 
 
+def fit_view(scene, poses_dyn_seq, poses_kin_seq, kinds=("dynamic", "kinematic")):
+    """A view (xmin, xmax, ymin, ymax), m, around the bodies of `kinds` of `scene` over all the poses given ((F,
+    ndyn, 3) and (F, nkin, 3) body-frame poses), with the ground in view and a margin; `set_view` shows it."""
+    return _fit_view(_SceneGeometry(scene), poses_dyn_seq, poses_kin_seq, kinds)
+
+
 def _fit_view(geo, poses_dyn_seq, poses_kin_seq, kinds=("dynamic", "kinematic")):
-    """A view (xmin, xmax, ymin, ymax) around the bodies of `kinds` over all the poses given, with the ground in
-    view and a margin."""
+    """`fit_view` on a _SceneGeometry."""
     b = geo.bounds(poses_dyn_seq, poses_kin_seq, kinds=kinds)
     if b is None:       # nothing moves: fit the static finite shapes
         b = geo.bounds(np.zeros((1, geo.ndyn, 3)), np.zeros((1, geo.nkin, 3)), kinds=("static",))
@@ -366,7 +370,7 @@ def draw_scene(ax, scene, poses_dyn, poses_kin, *, alpha=1.0, labels=False):
     poses_dyn = np.asarray(poses_dyn, dtype=np.float64).reshape(geo.ndyn, 3)
     poses_kin = np.asarray(poses_kin, dtype=np.float64).reshape(geo.nkin, 3)
     if ax.get_autoscale_on():
-        view = _set_view(ax, _fit_view(geo, poses_dyn[None], poses_kin[None],
+        view = set_view(ax, _fit_view(geo, poses_dyn[None], poses_kin[None],
                                        kinds=("dynamic", "kinematic", "static")))
     else:
         (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
@@ -385,7 +389,8 @@ def _title(traj):
             f"  ({len(traj.t) - 1} steps, t = 0 to {traj.t[-1]:.4g} s)")
 
 
-def _new_figure(figsize, dpi=100):
+def new_figure(figsize, dpi=100):
+    """A matplotlib Figure on the Agg canvas (no pyplot state, no GUI backend)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -440,7 +445,7 @@ def plot_trajectory(traj, path, *, every=None):
     if frames[-1] != T - 1:
         frames.append(T - 1)
 
-    fig = _new_figure((14, 7))
+    fig = new_figure((14, 7))
     gs = GridSpec(4, 2, figure=fig, width_ratios=(1.15, 1.0), hspace=0.12, wspace=0.22, left=0.06, right=0.98,
                   top=0.90, bottom=0.08)
     fig.suptitle(_title(traj), fontsize=12)
@@ -448,7 +453,7 @@ def plot_trajectory(traj, path, *, every=None):
     # -- strobe
     ax = fig.add_subplot(gs[:, 0])
     _style_axes(ax, scene)
-    view = _set_view(ax, _fit_view(geo, q, qk))
+    view = set_view(ax, _fit_view(geo, q, qk))
     _draw_halfplanes(ax, geo, view, labels=False)
     _BodyArtists(ax, geo, q[0], qk[0], kinds=("static",), zorder=1.8)
     n = len(frames)
@@ -527,13 +532,13 @@ def animate_trajectory(traj, path, *, fps=30, max_frames=150):
     qk = _kin_poses(traj)
     frames = np.unique(np.round(np.linspace(0, T - 1, min(T, int(max_frames)))).astype(int))
 
-    fig = _new_figure((6.4, 5.4), dpi=80)
+    fig = new_figure((6.4, 5.4), dpi=80)
     ax = fig.add_subplot(1, 1, 1)
     fig.subplots_adjust(left=0.12, right=0.97, bottom=0.1, top=0.86)
     o = traj.options
     fig.suptitle(f"{scene.name}: h = {o.h:g} s, {o.solver}, {o.formulation}", fontsize=10)
     _style_axes(ax, scene)
-    view = _set_view(ax, _fit_view(geo, q, qk))
+    view = set_view(ax, _fit_view(geo, q, qk))
     _draw_halfplanes(ax, geo, view)
     _BodyArtists(ax, geo, q[0], qk[0], kinds=("static",), zorder=1.8)
     bodies = _BodyArtists(ax, geo, q[0], qk[0], kinds=("dynamic", "kinematic"), labels=True)

@@ -182,12 +182,14 @@ class TaskModel:
     # ---- geometry ------------------------------------------------------------------------------------------
     def _geometry(self):
         import shapely
-        from shapely.geometry import Point, Polygon
+        from shapely.geometry import Polygon
         from shapely.ops import unary_union
+
+        from planar_lcp.geometry import shape_geometry
 
         sc = self.scene
         obj = sc.body(self.task.object)
-        self.object_poly_body = unary_union([_shape_poly(s, Point, Polygon) for s in obj.shapes])  # body frame
+        self.object_poly_body = unary_union([shape_geometry(s, quad_segs=8) for s in obj.shapes])  # body frame
         self.object_area = self.object_poly_body.area
         pb = sc.body(self.task.pusher)
         radii = [s.radius for s in pb.shapes if s.type == "disk"]
@@ -204,7 +206,7 @@ class TaskModel:
                     statics.append(Polygon([p + big * t, p - big * t, p - big * t - big * nrm,
                                             p + big * t - big * nrm]))
                 else:
-                    g = _shape_poly(s, Point, Polygon)
+                    g = shape_geometry(s, quad_segs=8)
                     statics.append(_place(g, b.position, b.angle))
         # where the pusher's centre may not be (statics inflated by the pusher radius less 1 mm of slack)
         self.forbidden = unary_union(statics).buffer(max(self.pusher_radius - 1e-3, 0.0)) if statics else None
@@ -379,20 +381,6 @@ class TaskModel:
         else:
             x[6], x[7] = rng(px0, px1), rng(py0, py1)
         return x
-
-
-def _shape_poly(s, Point, Polygon):
-    """A shapely geometry of a scene shape in its body frame (rounded shapes as buffers)."""
-    from shapely.geometry import LineString
-    core = np.asarray(s.core_vertices_body(), float)
-    r = float(getattr(s, "radius", 0.0) or 0.0)
-    if len(core) == 1:
-        g = Point(core[0])
-    elif len(core) == 2:
-        g = LineString(core)
-    else:
-        g = Polygon(core)
-    return g.buffer(r, quad_segs=8) if r > 0 else g
 
 
 def _place(g, pos, angle):

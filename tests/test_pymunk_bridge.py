@@ -180,6 +180,27 @@ def test_pymunk_falling_rod_comes_to_rest_on_the_table():
     assert abs(w) < 1e-2
 
 
+def test_a_pymunk_run_is_our_trajectory_with_contacts_and_energy():
+    """The resting rod: every step's table contact carries the weight's impulse m g h on the rod (n up, friction
+    zero), pymunk's overlap stays of the order of its slop, and the energy is m g y_com + kinetic."""
+    from planar_lcp.trajectory import Trajectory
+    scene = load_scene("falling_rod")
+    tr = simulate_pymunk(scene)
+    assert isinstance(tr, Trajectory) and tr.options.h == scene.sim.h and tr.options.iterations == 10
+    c, last = tr.contacts, slice(-40, None)
+    assert np.all(c["count"][last] == 1)
+    assert {c["shape_pairs"][i] for i in c["pair"][last, 0]} == {("rod", "table")}
+    m, g, h = scene.body("rod").mass, 9.81, scene.sim.h
+    assert np.allclose(c["cn"][last, 0], m * g * h, rtol=1e-3)
+    assert np.allclose(c["normal"][last, 0], [0.0, 1.0], atol=1e-12)
+    assert np.max(np.abs(c["ft"][last, 0])) < 1e-3 * m * g * h
+    assert np.all(tr.stats["penetration"][last] < 10 * tr.options.collision_slop)
+    assert np.all(tr.stats["n_contacts"][:100] == 0)      # free fall first
+    _, inertia = body_mass_properties(scene.body("rod"))
+    ke = 0.5 * m * (tr.v_com[:, 0, 0] ** 2 + tr.v_com[:, 0, 1] ** 2) + 0.5 * inertia * tr.v_com[:, 0, 2] ** 2
+    assert np.allclose(tr.stats["energy"], m * g * tr.q_com[:, 0, 1] + ke, rtol=1e-12, atol=1e-12)
+
+
 def test_horizontal_plane_support_friction_is_coulomb_for_pure_sliding():
     scene = parse_scene({"name": "slide", "world": {"plane": "horizontal", "friction": 0.35}, "bodies": [
         {"name": "box", "type": "dynamic", "mass": 1.0, "velocity": [0.5, 0.0],
@@ -227,7 +248,8 @@ def test_compare_rejects_a_bad_scene_name_with_exit_2(tmp_path, capsys):
 
 
 def test_cli_and_bridge_imports_do_not_pull_in_pymunk_or_matplotlib():
-    code = ("import sys, planar_lcp, planar_lcp.cli, planar_lcp.experiments.compare, planar_lcp.experiments.pymunk_bridge\n"
+    code = ("import sys, planar_lcp, planar_lcp.cli, planar_lcp.experiments.compare, planar_lcp.experiments.compare_cli\n"
+            "import planar_lcp.experiments.compare_plots, planar_lcp.experiments.pymunk_bridge, planar_lcp.geometry\n"
             "planar_lcp.cli.build_parser()\n"
             "print(','.join(m for m in ('pymunk', 'matplotlib') if m in sys.modules))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()

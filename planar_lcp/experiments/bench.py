@@ -17,7 +17,7 @@ from planar_lcp.experiments.lcp_corpus import load_corpus
 
 
 #: The clock of every timed round: CPU time of the calling thread. Wall clock on a shared machine counts the time
-#: other processes hold the core (ratios moved by 2x between two runs); thread CPU time does not. Every peer timed
+#: other processes hold the core (docs/performance.md); thread CPU time does not. Every peer timed
 #: here runs its work on the calling thread (numba kernels without parallel=True, QuantEcon's njit lcp_lemke,
 #: pymunk.Space() unthreaded: Chipmunk's cpSpaceStep in C through cffi), so thread CPU time counts all of it; each
 #: round also records the process's CPU time, and `other_threads_cpu_share` reports what other threads used.
@@ -87,7 +87,7 @@ def _ratio_stats(num, den):
 
 
 def _ratio_fields(prefix, st):
-    """Flat JSON fields for a ratio summary: `prefix` is the median (the old field name), then its spread."""
+    """Flat JSON fields for a ratio summary: `prefix` is the median, then its spread."""
     return {prefix: st["median"], f"{prefix}_min": st["min"], f"{prefix}_q1": st["q1"], f"{prefix}_q3": st["q3"],
             f"{prefix}_max": st["max"]}
 
@@ -210,6 +210,11 @@ def measure_compile_time():
                 warm_first_call_s=out[1][1], cold_first_call_cpu_s=out[0][3], warm_first_call_cpu_s=out[1][3])
 
 
+def _cpu_note(compile_times, key, digits):
+    """' (CPU time X s)' from compile_times[key] (older JSON files lack it: then '')."""
+    return f" (CPU time {compile_times[key]:.{digits}f} s)" if key in compile_times else ""
+
+
 def format_lcp_table(rows, compile_times=None):
     lines = [
         "| instance | n | ours: status | pivots | µs | QuantEcon: status | pivots | µs | ratio ours/QE median "
@@ -238,8 +243,7 @@ def format_lcp_table(rows, compile_times=None):
         lines.append(f"median ratio where both solve ({len(both)} instances): "
                      f"{statistics.median([r['ratio'] for r in both]):.3f}")
     if compile_times:
-        cpu = (f" (CPU time {compile_times['cold_first_call_cpu_s']:.2f} s)"
-               if "cold_first_call_cpu_s" in compile_times else "")
+        cpu = _cpu_note(compile_times, "cold_first_call_cpu_s", 2)
         lines.append(f"first-call JIT compile (fresh cache, wall clock of a child process): import "
                      f"{compile_times['cold_import_s']:.2f} s, first lemke() {compile_times['cold_first_call_s']:.2f} s"
                      f"{cpu};"
@@ -268,28 +272,6 @@ def measure_step_compile_time():
                 warm_first_simulate_cpu_s=out[1][3])
 
 
-class _PymunkRun:
-    """One unit of pymunk work: n steps of h on a fresh space of the scene, as `bench step` times ours (a whole run
-    from the initial state). The spaces are built by `prepare` before the round's clock starts."""
-
-    def __init__(self, scene, n):
-        self.scene, self.n, self.h, self.spaces = scene, n, scene.sim.h, []
-
-    def prepare(self, k):
-        from planar_lcp.experiments.pymunk_bridge import build_space
-        self.spaces = [build_space(self.scene, h=self.h)[0] for _ in range(k)]
-
-    def __call__(self):
-        space = self.spaces.pop() if self.spaces else self._fresh()
-        step, h = space.step, self.h
-        for _i in range(self.n):
-            step(h)
-
-    def _fresh(self):
-        from planar_lcp.experiments.pymunk_bridge import build_space
-        return build_space(self.scene, h=self.h)[0]
-
-
 def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_ROUND_S):
     """Microseconds per step of our stepper (one jitted rollout over the scene's duration, warm JIT), with its defaults
     and with the LCP warm start the planners use, and, in the same process, of pymunk on the same scene and h through
@@ -303,6 +285,7 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
     from planar_lcp.spec.scene import load_scene
     from planar_lcp.sim import SimOptions, Simulator
     from planar_lcp.engine.step import ST_WARM_STARTS
+    from planar_lcp.experiments.pymunk_bridge import PymunkRun
     rows = []
     for name in scenes:
         sc = load_scene(name)
@@ -316,7 +299,7 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
             runners["ours_warm" if warm else "ours"] = (
                 lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], n))
         if pymunk:
-            runners["pymunk"] = _PymunkRun(sc, n)
+            runners["pymunk"] = PymunkRun(sc, n)
         m = _alternate(runners, rounds=rounds, min_round_s=min_round_s)
         per = m["per_unit"]
         st, stw = stats[False], stats[True]
@@ -360,12 +343,12 @@ def format_step_table(rows, compile_times=None):
         lines.append(f"CPU time of other threads during the rounds: at most {100 * other:.1f} % of the timed "
                      "thread's (not counted in the times)")
     if any("ratio" in r for r in rows):
-        lines.append("target: ratio <= 1.0 on each scene (pymunk through planar_lcp.experiments.pymunk_bridge, 10 iterations); "
-                     "ours with the defaults, then with SimOptions(warm_start=True) as the planners run it")
+        lines.append("target: ratio <= 1.0 on each scene (pymunk through planar_lcp.experiments.pymunk_bridge, 10 "
+                     "iterations); ours with the defaults, then with SimOptions(warm_start=True) as the planners "
+                     "run it")
     if compile_times:
         lines.append("")
-        cpu = (f" (CPU time {compile_times['cold_first_simulate_cpu_s']:.1f} s)"
-               if "cold_first_simulate_cpu_s" in compile_times else "")
+        cpu = _cpu_note(compile_times, "cold_first_simulate_cpu_s", 1)
         lines.append(f"first simulate() with a fresh numba cache (compile, wall clock of a child process): "
                      f"{compile_times['cold_first_simulate_s']:.1f} s{cpu} (import "
                      f"{compile_times['cold_import_s']:.2f} s); with the cache warm: "
@@ -379,7 +362,7 @@ SCALING_SIZES = (1, 2, 4, 8, 16, 32, 64)
 SCALING_ROUNDS = 7
 
 
-def _scaling_scene(n, kind):
+def scaling_scene(n, kind):
     """n boxes (0.2 x 0.1 m, 1 kg) on a table: a tower (one island: every box touches the next) or a row of
     separate boxes 0.5 m apart (n islands)."""
     from planar_lcp.spec.scene import parse_scene
@@ -409,7 +392,7 @@ def bench_scaling(sizes=SCALING_SIZES, steps=20, rounds=SCALING_ROUNDS, min_roun
     for kind in ("pile", "islands"):
         runners, outs = {}, {}
         for n in sizes:
-            sim = Simulator(compile_scene(_scaling_scene(n, kind)), SimOptions(h=0.005))
+            sim = Simulator(compile_scene(scaling_scene(n, kind)), SimOptions(h=0.005))
             q, v, qk, vk = sim.initial_state()
             outs[n] = sim.rollout(q, v, qk, vk[None], steps)
             runners[n] = lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], steps)

@@ -26,10 +26,6 @@ class LCPInstance:
     def n(self) -> int:
         return self.q.shape[0]
 
-    @property
-    def expects_solution(self) -> bool:
-        return expectation(self.expected) == "solved"
-
 
 def expectation(expected: str) -> str:
     """Map the corpus's free-text `expected` field to what a Lemke solver with covering vector e must do.
@@ -87,19 +83,18 @@ class _Tokens:
         self.i += 1
         return t
 
-    def int(self, what: str) -> int:
+    def _number(self, what: str, kind, noun: str):
         t = self.take(what)
         try:
-            return int(t)
+            return kind(t)
         except ValueError:
-            raise DatFormatError(f"{self.path}: {what} must be an integer, got {t!r}") from None
+            raise DatFormatError(f"{self.path}: {what} must be {noun}, got {t!r}") from None
+
+    def int(self, what: str) -> int:
+        return self._number(what, int, "an integer")
 
     def float(self, what: str) -> float:
-        t = self.take(what)
-        try:
-            return float(t)
-        except ValueError:
-            raise DatFormatError(f"{self.path}: {what} must be a number, got {t!r}") from None
+        return self._number(what, float, "a number")
 
     def floats(self, count: int, what: str) -> np.ndarray:
         return np.array([self.float(f"{what}[{k}]") for k in range(count)])

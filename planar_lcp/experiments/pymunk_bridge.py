@@ -32,8 +32,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planar_lcp.spec.massprops import body_mass_properties, default_support_points
+from planar_lcp.frames import com_velocity, frame_to_com
+from planar_lcp.spec.massprops import body_mass_properties, support_points
 from planar_lcp.spec.scene import Scene, load_scene
+from planar_lcp.trajectory import Trajectory, mechanical_energy
 
 #: pymunk's defaults (slop 0.1, for pixels) are far too large in metres; these are SI-sensible.
 DEFAULT_ITERATIONS = 10            # solver iterations per step (pymunk's default)
@@ -126,12 +128,7 @@ class SpaceHandles:
     settings: dict = field(default_factory=dict)
 
 
-def _rot(theta):
-    c, s = np.cos(theta), np.sin(theta)
-    return np.array([[c, -s], [s, c]])
-
-
-def _make_shapes(pymunk, body, spec, static_pose=None):
+def _make_shapes(pymunk, body, spec):
     """pymunk shapes for one ShapeSpec on `body` (body-frame coordinates)."""
     t = spec.type
     if t == "halfplane":
@@ -223,9 +220,7 @@ def build_space(scene, *, iterations=DEFAULT_ITERATIONS, collision_slop=DEFAULT_
         w = float(b.angular_velocity)
         vo = np.asarray(b.velocity, float)
         if b.type == "dynamic":
-            # pymunk's velocity is the centre of gravity's: v_c = v_o + omega x (c - o)
-            rc = _rot(b.angle) @ com_local[b.name]
-            body.velocity = (vo[0] - w * rc[1], vo[1] + w * rc[0])
+            body.velocity = com_velocity(b.angle, vo, w, com_local[b.name])  # pymunk's is the centre of gravity's
         else:
             body.velocity = tuple(vo)
         body.angular_velocity = w
@@ -239,12 +234,7 @@ def build_space(scene, *, iterations=DEFAULT_ITERATIONS, collision_slop=DEFAULT_
             if b.type != "dynamic":
                 continue
             body = bodies[b.name]
-            mu = b.support_friction if b.support_friction is not None else scene.world.friction
-            if b.support_points is not None:
-                pts = np.asarray(b.support_points, float).reshape(-1, 2)
-                wts = np.full(len(pts), 1.0 / len(pts))
-            else:
-                pts, wts = default_support_points(b)
+            pts, wts, mu = support_points(b, scene.world)
             arm = float(np.sum(np.asarray(wts) * np.linalg.norm(np.asarray(pts) - com_local[b.name], axis=1)))
             cog_world = body.local_to_world(body.center_of_gravity)
             pivot = pymunk.PivotJoint(space.static_body, body, tuple(cog_world), tuple(body.center_of_gravity))
@@ -291,42 +281,56 @@ def read_state(handles):
     return q, v, qk, vc
 
 
-@dataclass
-class PymunkTrajectory:
-    """A pymunk run, in the same conventions as `planar_lcp.trajectory.Trajectory`.
+@dataclass(frozen=True)
+class PymunkOptions:
+    """The settings of a pymunk run, as `Trajectory.options` (a SimOptions for our runs): h (s), Chipmunk's
+    iterations, collision_slop (m) and collision_bias, and the friction rule ("product" or "pre_solve")."""
 
-    t (T,) s; q, v (T, ndyn, 3) body-FRAME origin pose and velocity of the dynamic bodies in scene order; q_com,
-    v_com (T, ndyn, 3) the centre-of-mass poses and velocities; qk (T, nkin, 3) kinematic poses; body_names, kinematic_names; scene; h;
-    settings (iterations, collision_slop, collision_bias); friction_mode ("product" or "pre_solve").
-    """
-
-    t: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    q_com: np.ndarray
-    v_com: np.ndarray
-    qk: np.ndarray
-    body_names: tuple
-    kinematic_names: tuple
-    scene: Scene
     h: float
-    settings: dict
+    iterations: int
+    collision_slop: float
+    collision_bias: float
     friction_mode: str
+    solver: str = "pymunk"
+    formulation: str = "sequential impulses"
 
 
-def frame_to_com(q, com_local):
-    """Body-frame poses (..., ndyn, 3) -> centre-of-mass poses, com_local (ndyn, 2) in the body frame."""
-    q = np.asarray(q, float)
-    out = q.copy()
-    c, s = np.cos(q[..., 2]), np.sin(q[..., 2])
-    cx, cy = com_local[:, 0], com_local[:, 1]
-    out[..., 0] = q[..., 0] + c * cx - s * cy
-    out[..., 1] = q[..., 1] + s * cx + c * cy
-    return out
+def _record_contacts(handles, pair_index, k, con):
+    """Step k's touching shape pairs from the pymunk arbiters (after `space.step`), one row per pair: our
+    conventions (body A the arbiter's first shape, n onto A, t = (-n_y, n_x), cn and ft the impulse on A, N s;
+    phi the deepest point's distance, m; point the midpoint of the contact points). Chipmunk does not expose each
+    contact point's impulse, only the pair's total."""
+    seen = set()
+
+    def visit(arb):
+        s1, s2 = arb.shapes
+        key = frozenset((s1, s2))
+        pts = arb.contact_point_set.points
+        if key in seen or not pts:
+            return
+        seen.add(key)
+        j = int(con["count"][k])
+        n = -np.array(arb.normal)            # pymunk's normal points from the first shape to the second
+        imp = np.array(arb.total_impulse)    # the impulse on the first shape's body
+        con["pair"][k, j] = pair_index[(handles.shape_body[s1], handles.shape_body[s2])]
+        con["phi"][k, j] = min(p.distance for p in pts)
+        con["normal"][k, j] = n
+        con["point"][k, j] = np.mean([(np.array(p.point_a) + np.array(p.point_b)) / 2 for p in pts], axis=0)
+        con["cn"][k, j] = imp @ n
+        con["ft"][k, j] = imp @ np.array([-n[1], n[0]])
+        con["count"][k] = j + 1
+
+    for name in handles.dynamic_names:
+        handles.bodies[name].each_arbiter(visit)
 
 
-def simulate_pymunk(scene, *, t_end=None, h=None, **settings) -> PymunkTrajectory:
+def simulate_pymunk(scene, *, t_end=None, h=None, **settings) -> Trajectory:
     """Run the scene in pymunk with a fixed step h (default the scene's) to t_end (default the scene's).
+
+    Returns a `planar_lcp.trajectory.Trajectory` with `options` a PymunkOptions; stats holds what pymunk gives:
+    energy (T,) J, n_contacts (T-1,) touching shape pairs and penetration (T-1,) its deepest overlap (m) at the end
+    of each step; contacts holds count, pair, phi, normal, point, cn, ft per touching shape pair (see
+    `_record_contacts`) and shape_pairs.
 
     Note Chipmunk's order within `space.step(h)`: positions are integrated FIRST with the velocities of the end of
     the previous step (q+ = q + h v), then collisions are detected and velocities updated and solved. Ours updates
@@ -348,29 +352,65 @@ def simulate_pymunk(scene, *, t_end=None, h=None, **settings) -> PymunkTrajector
     nd, nk = len(hd.dynamic_names), len(hd.kinematic_names)
     q, v, qk = np.zeros((n + 1, nd, 3)), np.zeros((n + 1, nd, 3)), np.zeros((n + 1, nk, 3))
     vc = np.zeros((n + 1, nd, 3))
+    shape_pairs = [p for a, b in hd.pair_mu for p in ((a, b), (b, a))]   # both orders: A is the arbiter's first
+    pair_index = {p: i for i, p in enumerate(shape_pairs)}
+    C = max(1, sum(len(hd.shapes[a]) * len(hd.shapes[b]) for a, b in hd.pair_mu))
+    con = dict(count=np.zeros(n, np.int64), pair=np.zeros((n, C), np.int64), phi=np.zeros((n, C)),
+               normal=np.zeros((n, C, 2)), point=np.zeros((n, C, 2)), cn=np.zeros((n, C)), ft=np.zeros((n, C)))
     q[0], v[0], qk[0], vc[0] = read_state(hd)
     for i in range(n):
         space.step(h)
         q[i + 1], v[i + 1], qk[i + 1], vc[i + 1] = read_state(hd)
+        _record_contacts(hd, pair_index, i, con)
     com = np.array([hd.com_local[nm] for nm in hd.dynamic_names]).reshape(nd, 2)
-    return PymunkTrajectory(t=np.arange(n + 1) * h, q=q, v=v, q_com=frame_to_com(q, com), v_com=vc, qk=qk,
-                            body_names=hd.dynamic_names, kinematic_names=hd.kinematic_names, scene=scene, h=h,
-                            settings=dict(hd.settings), friction_mode=hd.friction_mode)
+    q_com = frame_to_com(q, com)
+    dyn = [scene.body(nm) for nm in hd.dynamic_names]
+    gravity = np.zeros(2) if scene.world.plane == "horizontal" else np.asarray(scene.world.gravity, float)
+    mass = np.array([b.mass for b in dyn], float)
+    inertia = np.array([body_mass_properties(b)[1] for b in dyn], float)
+    recorded = np.arange(C)[None, :] < con["count"][:, None]
+    stats = dict(energy=mechanical_energy(mass, inertia, gravity, q_com, vc), n_contacts=con["count"].copy(),
+                 penetration=np.maximum(0.0, np.where(recorded, -con["phi"], 0.0).max(axis=1)))
+    con["shape_pairs"] = shape_pairs
+    options = PymunkOptions(h=h, friction_mode=hd.friction_mode, **hd.settings)
+    return Trajectory(t=np.arange(n + 1) * h, q=q, v=v, q_com=q_com, v_com=vc, qk=qk, body_names=hd.dynamic_names,
+                      kinematic_names=hd.kinematic_names, stats=stats, contacts=con, options=options, scene=scene)
+
+
+class PymunkRun:
+    """One unit of pymunk work to time: `nsteps` steps of h on a fresh space of the scene, a whole run from the
+    initial state as our rollout is timed, without recording. `prepare(k)` builds the spaces of the next k units, so
+    that a caller can keep building them out of its clock (`experiments.bench` calls it before each round)."""
+
+    def __init__(self, scene, nsteps, *, h=None, **settings):
+        self.scene = scene if isinstance(scene, Scene) else load_scene(scene)
+        self.nsteps, self.settings = int(nsteps), settings
+        self.h = float(self.scene.sim.h if h is None else h)
+        self.spaces = []
+
+    def prepare(self, k):
+        self.spaces = [self._fresh() for _ in range(k)]
+
+    def __call__(self):
+        space = self.spaces.pop() if self.spaces else self._fresh()
+        step, h = space.step, self.h
+        for _i in range(self.nsteps):
+            step(h)
+
+    def _fresh(self):
+        return build_space(self.scene, h=self.h, **self.settings)[0]
 
 
 def time_pymunk(scene, nsteps, *, h=None, repeats=3, **settings):
-    """Microseconds per `space.step(h)` (best of `repeats` fresh spaces, nsteps steps each, no recording)."""
+    """Microseconds per `space.step(h)`: the best of `repeats` PymunkRun units (each space built before the clock
+    starts)."""
     import time
 
-    if not isinstance(scene, Scene):
-        scene = load_scene(scene)
-    h = float(scene.sim.h if h is None else h)
+    run = PymunkRun(scene, nsteps, h=h, **settings)
     best = np.inf
     for _ in range(max(1, int(repeats))):
-        space, _hd = build_space(scene, h=h, **settings)
-        step = space.step
+        run.prepare(1)
         t0 = time.perf_counter()
-        for _i in range(int(nsteps)):
-            step(h)
+        run()
         best = min(best, time.perf_counter() - t0)
     return 1e6 * best / max(1, int(nsteps))

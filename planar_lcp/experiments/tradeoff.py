@@ -3,11 +3,10 @@
 For each scene, every setting (step size h, solver and its iteration count, formulation, and in the horizontal plane
 the number of support-friction directions) is run and compared with a reference solution: the finest run of Lemke
 with the fixed-point formulation (h_ref = the smallest swept h / 2, 16 friction directions in the horizontal plane).
-Per setting: the velocity error integral over [0, t_end] of ||v_h - v_ref|| dt (the seed paper's Table 1 measure,
-infinity norm over all dynamic bodies' velocity components, sampled at the setting's own step times), the sup-norm
-position error, the deepest penetration, the energy drift (largest rise of the energy above its starting value, J;
-0 when the energy only decreases, as it must without external work), and the CPU cost per simulated second (wall
-time of a warm run / t_end).
+Per setting: the velocity error integral over [0, t_end] of ||v_h - v_ref|| dt and the sup-norm position error (the
+seed paper's Table 1 measures, `accuracy.table1_errors`), the deepest penetration, the energy drift (largest rise of
+the energy above its starting value, J; 0 when the energy only decreases, as it must without external work), and
+the CPU cost per simulated second (wall time of a warm run / t_end).
 """
 
 import csv
@@ -16,11 +15,11 @@ import math
 import time
 from pathlib import Path
 
-import numpy as np
+from planar_lcp.experiments.accuracy import table1_errors
+from planar_lcp.spec.scene import FORMULATIONS, SOLVERS
 
 DEFAULT_SCENES = ("falling_rod", "four_disks", "box_push")
 SOLVER_SETTINGS = (("lemke", None), ("pgs", 5), ("pgs", 20), ("pgs", 100), ("osqp", None))
-FORMULATIONS = ("position", "fixed_point", "velocity")
 FRICTION_DIRECTIONS = (4, 8, 16, 32)
 H_FACTORS = (4.0, 2.0, 1.0, 0.5, 0.25)
 
@@ -72,18 +71,6 @@ def _run(sc, s, t_end):
     return tr, time.perf_counter() - t0
 
 
-def _errors(tr, ref):
-    """Velocity error integral and sup position error of tr against ref, sampled at tr's step times."""
-    ratio = tr.options.h / ref.options.h
-    k = int(round(ratio))
-    if abs(ratio - k) > 1e-9:
-        raise ValueError(f"the reference step {ref.options.h} must divide h = {tr.options.h}")
-    n = min(len(tr.t), (len(ref.t) - 1) // k + 1)
-    dv = np.abs(tr.v[:n] - ref.v[: (n - 1) * k + 1: k]).reshape(n, -1).max(axis=1)
-    dq = np.abs(tr.q[:n] - ref.q[: (n - 1) * k + 1: k]).reshape(n, -1).max(axis=1)
-    return float(np.sum(dv[1:]) * tr.options.h), float(dq.max())
-
-
 def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progress=True):
     """Run the sweep; write tradeoff.csv and one Pareto plot per scene into out_dir. Returns the rows."""
     from tqdm import tqdm
@@ -102,7 +89,7 @@ def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progres
             for s in settings:
                 bar.set_postfix_str(f"{name} {s['solver']} {s['formulation']} h={s['h']:g}")
                 tr, wall = _run(sc, s, t_end)
-                verr, qerr = _errors(tr, ref)
+                verr, qerr = table1_errors(tr, ref, t_end)
                 e = tr.stats["energy"]
                 rows.append(dict(scene=name, h=s["h"], solver=s["solver"], pgs_iterations=s["pgs_iterations"] or "",
                                  formulation=s["formulation"], friction_directions=s["friction_directions"] or "",
@@ -138,12 +125,13 @@ def _label(r):
 
 
 def plot_pareto(rows, path, title):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(9, 6))
-    markers = {"lemke": "o", "pgs": "s", "osqp": "^"}
-    colors = {"position": "C0", "fixed_point": "C1", "velocity": "C2"}
+    from matplotlib.lines import Line2D
+
+    from planar_lcp.viz import new_figure
+    fig = new_figure((9, 6))
+    ax = fig.add_subplot(1, 1, 1)
+    markers = dict(zip(SOLVERS, ("o", "s", "^")))
+    colors = dict(zip(FORMULATIONS, ("C0", "C1", "C2")))
     floor = 1e-12
     pts = [(r["cpu_s_per_sim_s"], max(r["velocity_error"], floor)) for r in rows]
     for r, (c, e) in zip(rows, pts):
@@ -157,20 +145,18 @@ def plot_pareto(rows, path, title):
     ax.set_xlabel("CPU seconds per simulated second")
     ax.set_ylabel("velocity error  integral ||v_h - v_ref|| dt")
     ax.set_title(f"{title}: speed/accuracy (marker = solver, colour = formulation; line = Pareto front)")
-    from matplotlib.lines import Line2D
     handles = [Line2D([], [], marker=m, ls="", color="gray", label=k) for k, m in markers.items()]
     handles += [Line2D([], [], marker="o", ls="", color=c, label=k) for k, c in colors.items()]
     ax.legend(handles=handles, fontsize=8, loc="upper right")
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def _cmd(args):
     import sys
 
-    from planar_lcp.cli import _InputError, prepare_output_dir
+    from planar_lcp.cli import InputError, prepare_output_dir
     from planar_lcp.spec.scene import list_scenes
     known = [n for n, _ in list_scenes()]
     bad = [n for n in args.scenes if n not in known]
@@ -179,7 +165,7 @@ def _cmd(args):
         return 2
     try:
         prepare_output_dir(args.out, "--out")
-    except _InputError as e:
+    except InputError as e:
         print(f"planar-lcp tradeoff: error: {e}", file=sys.stderr)
         return 2
     rows = run_tradeoff(scenes=tuple(args.scenes), quick=args.quick, out_dir=args.out, progress=not args.no_progress)
@@ -198,7 +184,8 @@ def _cmd(args):
 def register(sub):
     p = sub.add_parser("tradeoff", help="measure the speed/accuracy trade of h, solver, formulation, friction "
                                         "directions")
-    p.add_argument("--scenes", nargs="+", default=list(DEFAULT_SCENES), metavar="SCENE", help=f"scenes to sweep (default: {' '.join(DEFAULT_SCENES)})")
+    p.add_argument("--scenes", nargs="+", default=list(DEFAULT_SCENES), metavar="SCENE",
+                   help=f"scenes to sweep (default: {' '.join(DEFAULT_SCENES)})")
     p.add_argument("--quick", action="store_true", help="two step sizes, lemke and pgs(20), position form only")
     p.add_argument("--out", default="tradeoff", metavar="DIR", help="output directory (default ./tradeoff)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")

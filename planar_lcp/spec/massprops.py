@@ -17,6 +17,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planar_lcp.frames import rotation
+
 if TYPE_CHECKING:  # pragma: no cover
     from planar_lcp.spec.scene import BodySpec, ShapeSpec
 
@@ -162,8 +164,7 @@ def _grid_2x2(w: float, h: float) -> np.ndarray:
 
 
 def _to_body(shape, local: np.ndarray) -> np.ndarray:
-    c, s = math.cos(shape.angle), math.sin(shape.angle)
-    return local @ np.array([[c, s], [-s, c]]) + np.asarray(shape.offset, dtype=np.float64)
+    return local @ rotation(shape.angle).T + np.asarray(shape.offset, dtype=np.float64)
 
 
 def _shape_support(shape):
@@ -234,3 +235,18 @@ def default_support_points(body: BodySpec):
     pts = np.concatenate([p for _, p, _ in parts])
     w = np.concatenate([a / total * ws for a, _, ws in parts])
     return pts, w
+
+
+def support_points(body: BodySpec, world):
+    """How the table carries a dynamic body in the horizontal plane: `default_support_points` and the body-table
+    Coulomb coefficient (`body.support_friction`, else `world.friction`).
+
+    Returns
+    -------
+    points : (P, 2) float64, m, body frame
+    weights : (P,) float64, summing to 1 (each point's share of the load m g)
+    mu : float
+    """
+    pts, w = default_support_points(body)
+    mu = body.support_friction if body.support_friction is not None else world.friction
+    return pts, w, float(mu)

@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from planar_lcp.frames import rotation
+
 SHAPE_TYPES = ("disk", "capsule", "box", "polygon", "segment", "halfplane")
 BODY_TYPES = ("dynamic", "static", "kinematic")
 PLANES = ("vertical", "horizontal")
@@ -44,11 +46,6 @@ _SUPPORT_REL_TOL = 1e-6
 
 class SceneError(ValueError):
     """A scene file or dict is invalid; the message names the source, the field and the expected value."""
-
-
-def _rot(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, -s], [s, c]])
 
 
 @dataclass(frozen=True)
@@ -102,7 +99,7 @@ class ShapeSpec:
             segment: a, b. A halfplane raises ValueError.
         """
         local = self.core_vertices_local()
-        return local @ _rot(self.angle).T + np.asarray(self.offset, dtype=np.float64)
+        return local @ rotation(self.angle).T + np.asarray(self.offset, dtype=np.float64)
 
 
 @dataclass(frozen=True)

@@ -20,14 +20,19 @@ def _runner(module_name):
     def run(args):
         import importlib
 
-        from planar_lcp.cli import _InputError, prepare_output_dir
+        from planar_lcp.cli import InputError, prepare_output_dir
         try:
             prepare_output_dir(args.out, "--out")
-        except _InputError as e:
+        except InputError as e:
             print(f"planar-lcp study: error: {e}", file=sys.stderr)
             return 2
         module = importlib.import_module(f"{__name__}.{module_name}")
-        return module.cmd(args)
+        from planar_lcp.experiments.studies.common import print_phase_table_and_files
+        print(module.TITLE + (" --quick" if args.quick else ""))
+        res = module.run(args.out, quick=args.quick)
+        module.print_summary(res)
+        print_phase_table_and_files(res, args.out)
+        return 0
     return run
 
 

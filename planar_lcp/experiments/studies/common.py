@@ -10,6 +10,8 @@ import sys
 
 import numpy as np
 
+from planar_lcp.experiments.accuracy import table1_errors
+
 #: The seed paper's step sizes (Table 1); the finest is the reference solution.
 SEED_STEPS = (0.02, 0.01, 0.005, 0.0025, 0.00125)
 #: `--quick`: two step sizes, each compared against a reference run at half the finer one.
@@ -24,11 +26,6 @@ def step_sizes(quick):
     return SEED_STEPS[:-1], SEED_STEPS[-1]
 
 
-def contact_array(contacts, name):
-    """A per-step contact array of Trajectory.contacts by its documented name ("normal", "point", "cn", ...)."""
-    return contacts[name]
-
-
 def active_contacts(traj, k, min_cn=0.0):
     """The contacts of step k (from t[k] to t[k+1]) with a normal impulse > min_cn.
 
@@ -38,7 +35,7 @@ def active_contacts(traj, k, min_cn=0.0):
     mode (0 separated, 1 sticking, 2 sliding). The impulse on body A is cn n + ft t, on body B its negative.
     """
     c = traj.contacts
-    nrm, pnt = contact_array(c, "normal"), contact_array(c, "point")
+    nrm, pnt = c["normal"], c["point"]
     out = []
     for i in range(int(c["count"][k])):
         cn = float(c["cn"][k, i])
@@ -56,6 +53,17 @@ def all_contacts(traj, k):
     return active_contacts(traj, k, min_cn=-np.inf)
 
 
+def start(out, scene_name, quick, t_end, *, desc):
+    """A study's first part: create `out`, load the scene and run it to t_end over the study's step sizes and the
+    reference. Returns (scene, step sizes with an error, reference step size, {h: Trajectory})."""
+    from planar_lcp.spec.scene import load_scene
+
+    ensure_dir(out)
+    scene = load_scene(scene_name)
+    hs, h_ref = step_sizes(quick)
+    return scene, hs, h_ref, run_steps(scene, list(hs) + [h_ref], desc=desc, t_end=t_end)
+
+
 def run_steps(scene, hs, *, desc, **kwargs):
     """simulate(scene, h=h) for each h with a tqdm progress bar on stderr; {h: Trajectory}."""
     from tqdm import tqdm
@@ -70,21 +78,14 @@ def run_steps(scene, hs, *, desc, **kwargs):
     return out
 
 
-def _ratio(h, h_ref):
-    r = int(round(h / h_ref))
-    if r < 1 or abs(r * h_ref - h) > 1e-9 * h:
-        raise ValueError(f"step size {h} is not a multiple of the reference step size {h_ref}")
-    return r
-
-
 def convergence(trajs, ref, t_end):
     """The seed paper's Table 1 measures for each trajectory against the reference `ref`.
 
     All norms are the infinity norm over every coordinate of every dynamic body (n = 3 nbody), as in the seed.
     The comparison is at the common times t_i = i h, i = 0..round(t_end / h), of the coarser step h.
 
-    - vel_err = integral over [0, t_end] of ||v_h(t) - v_ref(t)|| dt (trapezoidal rule on the grid of h)
-    - pos_err = max_i ||q_h(t_i) - q_ref(t_i)||
+    - vel_err = integral over [0, t_end] of ||v_h(t) - v_ref(t)|| dt, pos_err = max_i ||q_h(t_i) - q_ref(t_i)||
+      (`accuracy.table1_errors`)
     - vel_var = total variation of v_h on its own grid, sum_k ||v_h(t_k+1) - v_h(t_k)||
     - order_vel, order_pos = log2(err(2h) / err(h)) against the previous (twice coarser) row, NaN on the first row
 
@@ -102,15 +103,8 @@ def convergence(trajs, ref, t_end):
     h_ref = ref.options.h
     rows = []
     for h in sorted(trajs, reverse=True):
-        tr = trajs[h]
-        r = _ratio(h, h_ref)
-        n = int(round(t_end / h))
-        if len(tr.t) < n + 1 or len(ref.t) < n * r + 1:
-            raise ValueError(f"run with h = {h} is shorter than t_end = {t_end}")
-        dv = np.abs(tr.v[:n + 1] - ref.v[:n * r + 1:r]).reshape(n + 1, -1).max(axis=1)
-        dq = np.abs(tr.q[:n + 1] - ref.q[:n * r + 1:r]).reshape(n + 1, -1).max(axis=1)
-        vel_err = h * (dv.sum() - 0.5 * (dv[0] + dv[-1]))
-        rows.append(dict(h=h, vel_err=float(vel_err), pos_err=float(dq.max()), vel_var=_variation(tr, t_end)))
+        vel_err, pos_err = table1_errors(trajs[h], ref, t_end)
+        rows.append(dict(h=h, vel_err=vel_err, pos_err=pos_err, vel_var=_variation(trajs[h], t_end)))
     rows.append(dict(h=h_ref, vel_err=math.nan, pos_err=math.nan, vel_var=_variation(ref, t_end)))
     for i, row in enumerate(rows):
         for key in ("vel", "pos"):
@@ -175,21 +169,12 @@ def convergence_md(rows, title, note=""):
 
 
 CONVERGENCE_NOTE = """
-vel. error = integral over [0, {t_end:g}] s of ||v_h(t) - v_ref(t)||_inf dt (trapezoidal rule at t = multiples of h);
+vel. error = integral over [0, {t_end:g}] s of ||v_h(t) - v_ref(t)||_inf dt (v_h(t) = v_h(t_k+1) over each step
+(t_k, t_k+1], as the time stepping's velocity; v_ref sampled at the same t_k+1);
 pos. error = max over t = multiples of h of ||q_h(t) - q_ref(t)||_inf; vel. variation = sum over the steps of
 ||v_h(t_k+1) - v_h(t_k)||_inf; order = log2(err(2h) / err(h)). Reference: h = {h_ref:g} s (its row has no error).
 q = (x, y, theta) and v = (vx, vy, omega) of {bodies}, in m, rad, m/s, rad/s.
 """
-
-
-def new_figure(figsize, dpi=100):
-    """A matplotlib Figure on the Agg canvas (no pyplot state)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=figsize, dpi=dpi)
-    FigureCanvasAgg(fig)
-    return fig
 
 
 def save_png(fig, path, limit=300_000):
@@ -293,6 +278,22 @@ def phase_md(rows, h_ref, t_end):
     return text + md_table(PHASE_COLUMNS, rows, head,
                            spec=dict(h="g", vel_err_mean=".4f", vel_err_max=".4f", pos_err_mean=".4f",
                                      pos_err_max=".4f", order_vel=".2f", order_pos=".2f")) + "\n"
+
+
+def write_convergence(out, scene, trajs, hs, h_ref, t_end, *, title, bodies, desc):
+    """convergence.csv, convergence_phase.csv and convergence.md (both tables) of a study in `out`: the Table 1
+    measures of the runs trajs[h], h in hs, against trajs[h_ref], and their grid-phase averages. Returns (rows,
+    phase rows)."""
+    rows = convergence({h: trajs[h] for h in hs}, trajs[h_ref], t_end)
+    write_csv(os.path.join(out, "convergence.csv"), CONVERGENCE_COLUMNS, rows)
+    phase_rows, phase_ref = phase_averaged(scene, hs, t_end, desc=desc)
+    write_csv(os.path.join(out, "convergence_phase.csv"), PHASE_COLUMNS, phase_rows)
+    with open(os.path.join(out, "convergence.md"), "w") as f:
+        f.write(convergence_md(rows, f"{title}: errors and variations (analogue of the seed's Table 1)",
+                               CONVERGENCE_NOTE.format(t_end=t_end, h_ref=h_ref, bodies=bodies)))
+        f.write("\n## The same errors averaged over the phase of the time grid\n\n")
+        f.write(phase_md(phase_rows, phase_ref, t_end))
+    return rows, phase_rows
 
 
 def print_phase_table_and_files(res, out):

@@ -10,7 +10,9 @@ import os
 import numpy as np
 
 from planar_lcp.experiments.studies import common
+from planar_lcp.viz import new_figure
 
+TITLE = "falling rod (seed 4.1)"
 SCENE = "falling_rod"
 STROBE_H = 0.0025          # the seed's Figure 2
 REST_TOL = 1e-6            # m/s and rad/s: "at rest"
@@ -119,7 +121,7 @@ def plot_strobe(traj, path, every=8):
     idx = [i for i in range(0, len(traj.t), every) if traj.t[i] <= t_stop + 1e-12]
     if idx[-1] != len(traj.t) - 1:
         idx.append(len(traj.t) - 1)
-    fig = common.new_figure((7.5, 9.0))
+    fig = new_figure((7.5, 9.0))
     ax = fig.add_subplot(1, 1, 1)
     xs, ys = traj.q[idx, 0, 0], traj.q[idx, 0, 1]
     ax.set_xlim(float(xs.min()) - half - 0.12, float(xs.max()) + half + 0.12)
@@ -144,7 +146,7 @@ def plot_strobe(traj, path, every=8):
 def plot_velocity(trajs, comp, path, label, seed_fig):
     """One velocity component against time, a curve per h: full run and a zoom on the contact phase."""
     colors = common.h_colors(trajs)
-    fig = common.new_figure((11, 4.2))
+    fig = new_figure((11, 4.2))
     axes = [fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)]
     for ax, (t0, t1) in zip(axes, ((0.0, T_END), (0.36, 0.62))):
         for h in sorted(trajs, reverse=True):
@@ -163,7 +165,7 @@ def plot_velocity(trajs, comp, path, label, seed_fig):
 
 def plot_seed_arm(ours, seed, path):
     """vy, omega, vx at one h: friction at the contact point (ours) vs at the end-cap centre (the seed's d)."""
-    fig = common.new_figure((12, 3.8))
+    fig = new_figure((12, 3.8))
     for j, (comp, label) in enumerate(((1, "vy [m/s]"), (2, "omega [rad/s]"), (0, "vx [m/s]"))):
         ax = fig.add_subplot(1, 3, j + 1)
         ax.plot(ours.t, ours.v[:, 0, comp], color="tab:blue", lw=1.2, label="contact point (ours)")
@@ -181,14 +183,9 @@ def plot_seed_arm(ours, seed, path):
 
 # ---------------------------------------------------------------------------------------------------------- study
 
-def run(out, quick=False, progress=True):
+def run(out, quick=False):
     """Run the study and write its files into `out`; returns a dict with the runs, events and convergence rows."""
-    from planar_lcp.spec.scene import load_scene
-
-    common.ensure_dir(out)
-    scene = load_scene(SCENE)
-    hs, h_ref = common.step_sizes(quick)
-    trajs = common.run_steps(scene, list(hs) + [h_ref], desc="falling rod", t_end=T_END)
+    scene, hs, h_ref, trajs = common.start(out, SCENE, quick, T_END, desc="falling rod")
     seed_arm = common.run_steps(scene, [STROBE_H], desc="falling rod, seed arm", t_end=T_END,
                                 seed_friction_arm=True)[STROBE_H]
     ref = trajs[h_ref]
@@ -212,16 +209,8 @@ def run(out, quick=False, progress=True):
         f.write("\n\nSeed paper (h not stated for these times; its Figure 2 uses h = 0.0025): impact t = 0.383, the "
                 "tip slides right, stops, slides left; slap-down t = 0.548; slides left for 0.02 s; then rest.\n")
 
-    rows = common.convergence({h: trajs[h] for h in hs}, ref, T_END)
-    common.write_csv(os.path.join(out, "convergence.csv"), common.CONVERGENCE_COLUMNS, rows)
-    with open(os.path.join(out, "convergence.md"), "w") as f:
-        f.write(common.convergence_md(rows, "Falling rod: errors and variations (analogue of the seed's Table 1)",
-                                      common.CONVERGENCE_NOTE.format(t_end=T_END, h_ref=h_ref, bodies="the rod")))
-    phase_rows, phase_ref = common.phase_averaged(scene, hs, T_END, desc="falling rod, grid phases")
-    common.write_csv(os.path.join(out, "convergence_phase.csv"), common.PHASE_COLUMNS, phase_rows)
-    with open(os.path.join(out, "convergence.md"), "a") as f:
-        f.write("\n## The same errors averaged over the phase of the time grid\n\n")
-        f.write(common.phase_md(phase_rows, phase_ref, T_END))
+    rows, phase_rows = common.write_convergence(out, scene, trajs, hs, h_ref, T_END, title="Falling rod",
+                                                bodies="the rod", desc="falling rod, grid phases")
 
     strobe_h = STROBE_H if STROBE_H in trajs else min(trajs)
     plot_strobe(trajs[strobe_h], os.path.join(out, "strobe.png"))
@@ -230,8 +219,8 @@ def run(out, quick=False, progress=True):
                                         (0, "vx.png", "vx [m/s]", "Figure 5")):
         plot_velocity(trajs, comp, os.path.join(out, name), label, fig_name)
     plot_seed_arm(trajs[STROBE_H], seed_arm, os.path.join(out, "seed_arm.png"))
-    return dict(trajs=trajs, ref=ref, seed_arm=seed_arm, events=ev_rows, convergence=rows, phase=phase_rows, t_exact=t_exact,
-                files=sorted(os.listdir(out)))
+    return dict(trajs=trajs, ref=ref, seed_arm=seed_arm, events=ev_rows, convergence=rows, phase=phase_rows,
+                t_exact=t_exact, files=sorted(os.listdir(out)))
 
 
 EVENTS_NOTE = """\
@@ -249,7 +238,8 @@ started h earlier. Exact free-flight impact time (brentq on the parabola): {t_ex
 """
 
 
-def print_summary(res, out):
+def print_summary(res):
+    """The study's own summary lines (the runner adds the phase table and the files)."""
     for e in res["events"]:
         print(f"  h = {e['h']:<8g} {e['friction_arm']:<22s} impact {e['t_impact']:.4f}  slap-down "
               f"{e['t_slap_down']:.4f}  rest {e['t_rest']:.4f}  x_final {e['x_final']:.4f}")
@@ -257,11 +247,4 @@ def print_summary(res, out):
         if math.isfinite(r["vel_err"]):
             print(f"  h = {r['h']:<8g} vel. error {r['vel_err']:.4f}  pos. error {r['pos_err']:.4f}  "
                   f"order {common.fmt(r['order_vel'], '.2f')}")
-    common.print_phase_table_and_files(res, out)
 
-
-def cmd(args):
-    print("falling rod (seed 4.1)" + (" --quick" if args.quick else ""))
-    res = run(args.out, quick=args.quick)
-    print_summary(res, args.out)
-    return 0

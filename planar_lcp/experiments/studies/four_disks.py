@@ -10,11 +10,12 @@ import os
 import numpy as np
 
 from planar_lcp.experiments.studies import common
+from planar_lcp.viz import new_figure
 
+TITLE = "four disks (seed 4.2, elevation)"
 SCENE = "four_disks"
 FIGURE_H = 0.0025
 T_END = 1.0
-CHAIN = (("thrown", "d1"), ("d1", "d2"), ("d2", "d3"))
 
 EVENT_COLUMNS = ("h", "t_ground", "t_first_disk_contact", "cascade_step", "active_contacts", "active_disk_disk",
                  "active_table")
@@ -90,7 +91,7 @@ def plot_trajectories(traj, path):
 
     ev = events(traj)
     times = [0.0, 0.2, ev["t_ground"], ev["t_first_disk_contact"], traj.t[-1]]
-    fig = common.new_figure((11, 4.5))
+    fig = new_figure((11, 4.5))
     ax = fig.add_subplot(1, 1, 1)
     ax.set_xlim(-0.15, float(traj.q[:, :, 0].max()) + 0.2)
     ax.set_ylim(-0.05, 1.15)
@@ -121,7 +122,7 @@ def plot_impulses(traj, path):
 
     k = cascade_step(traj)
     act = common.all_contacts(traj, k)
-    fig = common.new_figure((12, 5.2))
+    fig = new_figure((12, 5.2))
     ax = fig.add_subplot(1, 1, 1)
     ax.set_xlim(0.62, 1.58)
     ax.set_ylim(-0.09, 0.3)
@@ -164,7 +165,7 @@ def plot_velocity(trajs, path):
     """vx, vy, omega of each disk against time at the figure's h, with the other step sizes' thrown disk dashed."""
     h0 = FIGURE_H if FIGURE_H in trajs else min(trajs)
     tr = trajs[h0]
-    fig = common.new_figure((12, 7.5))
+    fig = new_figure((12, 7.5))
     labels = ("vx [m/s]", "vy [m/s]", "omega [rad/s]")
     colors = common.h_colors(trajs)
     for c in range(3):
@@ -190,12 +191,7 @@ def plot_velocity(trajs, path):
 
 def run(out, quick=False):
     """Run the study and write its files into `out`; returns the runs, events, cascade and convergence rows."""
-    from planar_lcp.spec.scene import load_scene
-
-    common.ensure_dir(out)
-    scene = load_scene(SCENE)
-    hs, h_ref = common.step_sizes(quick)
-    trajs = common.run_steps(scene, list(hs) + [h_ref], desc="four disks", t_end=T_END)
+    scene, hs, h_ref, trajs = common.start(out, SCENE, quick, T_END, desc="four disks")
     ref = trajs[h_ref]
     t_land, t_hit, v_roll = analytic_times(scene)
 
@@ -222,16 +218,8 @@ def run(out, quick=False):
                                  "mode"], spec=dict(h="g", t_start=".5f", t_end=".5f", cn=".5f", ft="+.5f")))
         f.write("\n")
 
-    rows = common.convergence({h: trajs[h] for h in hs}, ref, T_END)
-    common.write_csv(os.path.join(out, "convergence.csv"), common.CONVERGENCE_COLUMNS, rows)
-    phase_rows, phase_ref = common.phase_averaged(scene, hs, T_END, desc="four disks, grid phases")
-    common.write_csv(os.path.join(out, "convergence_phase.csv"), common.PHASE_COLUMNS, phase_rows)
-    with open(os.path.join(out, "convergence.md"), "w") as f:
-        f.write(common.convergence_md(rows, "Four disks: errors and variations (analogue of the seed's Table 1)",
-                                      common.CONVERGENCE_NOTE.format(t_end=T_END, h_ref=h_ref,
-                                                                     bodies="the four disks (n = 12)")))
-        f.write("\n## The same errors averaged over the phase of the time grid\n\n")
-        f.write(common.phase_md(phase_rows, phase_ref, T_END))
+    rows, phase_rows = common.write_convergence(out, scene, trajs, hs, h_ref, T_END, title="Four disks",
+                                                bodies="the four disks (n = 12)", desc="four disks, grid phases")
 
     fig_h = FIGURE_H if FIGURE_H in trajs else min(trajs)
     plot_trajectories(trajs[fig_h], os.path.join(out, "trajectories.png"))
@@ -250,17 +238,11 @@ frictional landing leaves the disk rolling at {v_roll:.4f} m/s, reaching d1 at {
 """
 
 
-def print_summary(res, out):
+def print_summary(res):
+    """The study's own summary lines (the runner adds the phase table and the files)."""
     a = res["analytic"]
     print(f"  analytic (2D rigid): landing {a['t_land']:.4f} s, first disk contact {a['t_hit']:.4f} s")
     for e in res["events"]:
         print(f"  h = {e['h']:<8g} ground {e['t_ground']:.4f}  first disk contact {e['t_first_disk_contact']:.4f}  "
               f"active: {e['active_disk_disk']} disk-disk + {e['active_table']} table")
-    common.print_phase_table_and_files(res, out)
 
-
-def cmd(args):
-    print("four disks (seed 4.2, elevation)" + (" --quick" if args.quick else ""))
-    res = run(args.out, quick=args.quick)
-    print_summary(res, args.out)
-    return 0
