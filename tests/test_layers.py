@@ -1,7 +1,9 @@
 """The layers of docs/architecture.md, checked on the imports of every module (module level and inside functions):
 
 - planar_lcp/engine/ imports nothing of planar_lcp outside engine/ (it knows no Scene);
-- planar_lcp/spec/ imports nothing of planar_lcp outside spec/ (it runs no simulation);
+- planar_lcp/frames.py (rotations, body frame <-> centre of mass) imports nothing of planar_lcp: every layer above
+  the engine may use it;
+- planar_lcp/spec/ imports nothing of planar_lcp outside spec/ but frames.py (it runs no simulation);
 - the core (every other module of planar_lcp except viz, cli and experiments/) imports none of viz, cli,
   experiments; nothing in planar_lcp imports planners (test_package.py also checks that it never names them) or
   ompl (the planners alone do).
@@ -45,15 +47,15 @@ def imported_modules(path):
 
 def layer(name):
     parts = name.split(".")
-    if len(parts) > 1 and parts[1] in ("engine", "spec", "experiments", "viz", "cli"):
+    if len(parts) > 1 and parts[1] in ("engine", "spec", "experiments", "viz", "cli", "frames"):
         return parts[1]
     return "core"
 
 
 MODULES = sorted(PKG.rglob("*.py"))
 #: layer -> layers of planar_lcp it may import
-ALLOWED = {"engine": {"engine"}, "spec": {"spec"},
-           "core": {"core", "engine", "spec"}}
+ALLOWED = {"engine": {"engine"}, "frames": set(), "spec": {"spec", "frames"},
+           "core": {"core", "engine", "spec", "frames"}}
 
 
 def test_every_module_is_found():
