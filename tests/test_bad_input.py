@@ -33,8 +33,8 @@ def assert_scene_refused(path, msg):
 def error_line(r, prog="planar-lcp simulate"):
     """The one line of a bad-input error of the finished CLI run r: exit status 2, no traceback, a single line on
     stderr."""
-    rc, err = r.returncode, r.stderr
-    assert rc == 2, err
+    err = r.stderr
+    assert r.returncode == 2, err
     assert "Traceback" not in err, err
     lines = err.strip().splitlines()
     assert len(lines) == 1, err
@@ -198,8 +198,7 @@ def test_cli_memory_limit(tmp_path):
 ])
 def test_output_extension_refused_before_the_run(tmp_path, option, name, msg):
     # 400000 steps would take tens of seconds: the refusal comes first
-    r = run_cli("simulate", "falling_rod", "--t-end", "1000", "--csv", "run.csv", option, name,
-                 cwd=tmp_path)
+    r = run_cli("simulate", "falling_rod", "--t-end", "1000", "--csv", "run.csv", option, name, cwd=tmp_path)
     assert error_line(r) == msg and r.stdout == ""
     assert r.seconds < 15.0
     assert sorted(p.name for p in tmp_path.iterdir()) == []
