@@ -330,17 +330,6 @@ def _closest_vertex_edge(v1, n1, v2, n2, best, p1x, p1y, p2x, p2y):
 
 
 @njit(cache=True)
-def _core_distance(va, na, vb, nb):
-    """Distance between two DISJOINT cores: min over (vertex of one, edge of the other) pairs.
-
-    Returns (d, pax, pay, pbx, pby) with the witness points on A and on B. (For intersecting cores this is not
-    0; the caller only uses it when the SAT says the cores are apart.)"""
-    best, pax, pay, pbx, pby = _closest_vertex_edge(va, na, vb, nb, np.inf, va[0, 0], va[0, 1], vb[0, 0], vb[0, 1])
-    best, pbx, pby, pax, pay = _closest_vertex_edge(vb, nb, va, na, best, pbx, pby, pax, pay)
-    return math.hypot(pax - pbx, pay - pby), pax, pay, pbx, pby
-
-
-@njit(cache=True)
 def _segment_point(c1x, c1y, c2x, c2y, s):
     """c1 + s (c2 - c1) for s in [0, 1], with the endpoints themselves (not a rounded sum) at s = 0 and s = 1."""
     if s == 0.0:
@@ -432,7 +421,13 @@ def _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_poi
         smin = s2
 
     if sep > -tol:
-        d, pax, pay, pbx, pby = _core_distance(va, na, vb, nb)
+        # the distance d between the cores, with its witness points pa on A and pb on B: the closest (vertex, edge)
+        # pair, A's vertices first. For intersecting cores d is not 0: it is computed only when the SAT finds the cores
+        # apart or touching (sep > -tol).
+        best, pax, pay, pbx, pby = _closest_vertex_edge(va, na, vb, nb, np.inf, va[0, 0], va[0, 1], vb[0, 0],
+                                                        vb[0, 1])
+        best, pbx, pby, pax, pay = _closest_vertex_edge(vb, nb, va, na, best, pbx, pby, pax, pay)
+        d = math.hypot(pax - pbx, pay - pby)
         if d > tol:
             # separated cores: the face manifold is right only if it reaches the true distance
             if not (cnt > 0 and smin <= d + tol):
