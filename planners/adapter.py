@@ -2,9 +2,17 @@
 
 The OMPL state is the full physics state, so propagation is a pure function of (state, control, duration):
 
-    CompoundStateSpace = SE2 (object centre of mass x, y, theta)  weight 1.0
-                       + R^3 (object vx, vy, omega)               weight 0.05
-                       + R^2 (pusher x, y)                        weight 0.2
+    CompoundStateSpace = SE2 (object centre of mass x, y, theta)
+                       + R^3 (object vx, vy, omega)
+                       + R^2 (pusher x, y)
+
+with the task's distance weights `Task.weights = (w_pos, w_ang, w_vel, w_pus)` (the shipped tasks' values are in
+planners/tasks.py, the reasons in docs/planning.md), so that OMPL's distance between two states is
+
+    w_pos |dxy| + w_ang |dtheta| + w_vel |(dvx, dvy, domega)| + w_pus |dpusher|
+
+(|.| Euclidean, dtheta the shorter way round). SE2 is itself compound (R^2 weight 1, SO2 weight 0.5): it enters with
+weight w_pos and its SO2 part with w_ang / w_pos. tests/test_planning.py checks this formula against OMPL.
 
 Controls: R^2, the pusher velocity (m/s). Each propagate() call is ONE jitted rollout of
 `duration / h` simulator steps (`TaskModel.advance`); the object angle is wrapped there and nowhere else.
@@ -23,22 +31,23 @@ allocated at the same address, and nanobind returned the stale CompoundState wra
 wrapper locals are deleted leaks no wrapper, whatever else leaks.
 """
 
+import signal
+import threading
+import time
 
 import numpy as np
+from ompl import base as ob
+from ompl import control as oc
+from ompl import util as ou
 
-from .tasks import TaskError, TaskModel
+from .tasks import TaskError, TaskModel, check_planner
 
-PLANNERS = ("RRT", "EST", "KPIECE1", "SyclopRRT", "SyclopEST")
 INVALID_X = 1.0e9        # object x written for a state whose propagation failed (outside every workspace)
-
-
-def check_planner(name):
-    if name not in PLANNERS:
-        raise TaskError(f"unknown planner {name!r}; valid planners: {', '.join(PLANNERS)}")
-    return name
+SYCLOP_GRID = 10         # Syclop's decomposition: SYCLOP_GRID x SYCLOP_GRID cells over the object's workspace
 
 
 def read_state(s):
+    """The flat state (8,) of an OMPL state; one slice per vector part, as each element read costs a binding call."""
     o, v, p = s[0], s[1], s[2]
     vv = v[0:3]
     pp = p[0:2]
@@ -46,10 +55,19 @@ def read_state(s):
 
 
 def write_state(s, x):
+    """Write EVERY component of the flat state x (8,) into the OMPL state s (OMPL does not clear `result`)."""
     s[0].setXY(float(x[0]), float(x[1]))
     s[0].setYaw(float(x[2]))
     s[1][0:3] = [float(x[3]), float(x[4]), float(x[5])]
     s[2][0:2] = [float(x[6]), float(x[7])]
+
+
+def bounds(low, high):
+    """An ob.RealVectorBounds with the given per-dimension low and high values."""
+    b = ob.RealVectorBounds(len(low))
+    b.low = [float(v) for v in low]
+    b.high = [float(v) for v in high]
+    return b
 
 
 class Propagator:
@@ -73,127 +91,103 @@ class Propagator:
         del result
 
 
-def _goal_class():
-    from ompl import base as ob
+class TaskGoal(ob.GoalSampleableRegion):
+    """The task's goal region (threshold 1 on TaskModel.goal_distance); sampleable, so RRT's goal bias works (a
+    plain GoalRegion cannot be sampled and the bias would do nothing)."""
 
-    class TaskGoal(ob.GoalSampleableRegion):
-        """The task's goal region (threshold 1 on TaskModel.goal_distance); sampleable, so goal bias works."""
+    def __init__(self, si, tm):
+        super().__init__(si)
+        self.tm = tm
+        self.setThreshold(1.0)
+        self.rng = ou.RNG()                      # seeded by ou.RNG.setSeed like the planner's: plans reproduce
 
-        def __init__(self, si, tm):
-            super().__init__(si)
-            self.tm = tm
-            self.setThreshold(1.0)
-            from ompl import util as ou
-            self.rng = ou.RNG()
+    def distanceGoal(self, state):
+        x = read_state(state)
+        del state                                # no wrapper may outlive this call (module docstring)
+        return float(self.tm.goal_distance(x))
 
-        def distanceGoal(self, state):
-            x = read_state(state)
-            del state                            # no wrapper may outlive this call (module docstring)
-            return float(self.tm.goal_distance(x))
+    def sampleGoal(self, state):
+        write_state(state, self.tm.sample_goal(self.rng.uniformReal))
+        del state
 
-        def sampleGoal(self, state):
-            write_state(state, self.tm.sample_goal(self.rng.uniformReal))
-            del state
+    def maxSampleCount(self):
+        return 1 << 30                           # a continuous region: no finite set of goal states
 
-        def maxSampleCount(self):
-            return 1 << 30
-
-        def couldSample(self):
-            return True
-
-    return TaskGoal
+    def couldSample(self):
+        return True
 
 
-def _projection_class():
-    from ompl import base as ob
+class ObjectXY(ob.ProjectionEvaluator):
+    """KPIECE1's projection: the object's position, in square cells of `cell` m (a CompoundStateSpace has no
+    default projection and KPIECE1 refuses to run without one)."""
 
-    class ObjectXY(ob.ProjectionEvaluator):
-        """KPIECE1's projection: the object's position."""
+    def __init__(self, space, cell):
+        super().__init__(space)
+        self.cell = cell
 
-        def __init__(self, space, cell):
-            super().__init__(space)
-            self.cell = cell
+    def getDimension(self):
+        return 2
 
-        def getDimension(self):
-            return 2
+    def defaultCellSizes(self):
+        self.setCellSizes([self.cell, self.cell])
 
-        def defaultCellSizes(self):
-            self.setCellSizes([self.cell, self.cell])
-
-        def project(self, state, out):
-            o = state[0]
-            out[0] = o.getX()
-            out[1] = o.getY()
-            del state, out, o                    # no wrapper may outlive this call (module docstring)
-
-    return ObjectXY
+    def project(self, state, out):
+        o = state[0]
+        out[0] = o.getX()
+        out[1] = o.getY()
+        del state, out, o                        # no wrapper may outlive this call (module docstring)
 
 
-def _decomposition_class():
-    from ompl import control as oc
+class ObjectGrid(oc.GridDecomposition):
+    """Syclop's decomposition: a grid over the object's position."""
 
-    class ObjectGrid(oc.GridDecomposition):
-        """Syclop's decomposition: a grid over the object's position."""
+    def __init__(self, length, grid_bounds):
+        super().__init__(length, 2, grid_bounds)
 
-        def __init__(self, length, bounds):
-            super().__init__(length, 2, bounds)
+    def project(self, s, coord):
+        coord[0] = s[0].getX()
+        coord[1] = s[0].getY()
+        del s, coord                             # no wrapper may outlive this call (module docstring)
 
-        def project(self, s, coord):
-            coord[0] = s[0].getX()
-            coord[1] = s[0].getY()
-            del s, coord                         # no wrapper may outlive this call (module docstring)
+    def sampleFullState(self, sampler, coord, s):
+        sampler.sampleUniform(s)
+        s[0].setXY(coord[0], coord[1])
+        del sampler, coord, s
 
-        def sampleFullState(self, sampler, coord, s):
-            sampler.sampleUniform(s)
-            s[0].setXY(coord[0], coord[1])
-            del sampler, coord, s
 
-    return ObjectGrid
+def state_space(t):
+    """The weighted CompoundStateSpace of task t (module docstring: SE2 + R^3 + R^2 and the distance formula)."""
+    (ox0, ox1), (oy0, oy1) = t.object_bounds
+    (px0, px1), (py0, py1) = t.pusher_bounds
+    se2 = ob.SE2StateSpace()
+    se2.setBounds(bounds([ox0, oy0], [ox1, oy1]))
+    vel = ob.RealVectorStateSpace(3)
+    vel.setBounds(bounds([-t.speed_max, -t.speed_max, -t.omega_max], [t.speed_max, t.speed_max, t.omega_max]))
+    pusher = ob.RealVectorStateSpace(2)
+    pusher.setBounds(bounds([px0, py0], [px1, py1]))
+    w_pos, w_ang, w_vel, w_pus = t.weights
+    se2.setSubspaceWeight(1, w_ang / w_pos)      # SE2 is scaled by w_pos below: its angle then weighs w_ang
+    space = ob.CompoundStateSpace()
+    space.addSubspace(se2, w_pos)
+    space.addSubspace(vel, w_vel)
+    space.addSubspace(pusher, w_pus)
+    return space
 
 
 class Problem:
     """An OMPL SimpleSetup for a task with a named planner. Call `ou.RNG.setSeed` before building it."""
 
     def __init__(self, task, planner="KPIECE1", tm=None):
-        from ompl import base as ob, control as oc
-
         check_planner(planner)
         self.tm = tm = tm if tm is not None else TaskModel(task)
         t = tm.task
         self.task = t
         self.planner_name = planner
-        space = ob.CompoundStateSpace()
-        se2 = ob.SE2StateSpace()
-        b = ob.RealVectorBounds(2)
-        (ox0, ox1), (oy0, oy1) = t.object_bounds
-        b.low = [ox0, oy0]
-        b.high = [ox1, oy1]
-        se2.setBounds(b)
-        vel = ob.RealVectorStateSpace(3)
-        vb = ob.RealVectorBounds(3)
-        vb.low = [-t.speed_max, -t.speed_max, -t.omega_max]
-        vb.high = [t.speed_max, t.speed_max, t.omega_max]
-        vel.setBounds(vb)
-        pus = ob.RealVectorStateSpace(2)
-        pb = ob.RealVectorBounds(2)
-        (px0, px1), (py0, py1) = t.pusher_bounds
-        pb.low = [px0, py0]
-        pb.high = [px1, py1]
-        pus.setBounds(pb)
-        w_pos, w_ang, w_vel, w_pus = t.weights
-        # SE2 is itself compound (R^2 weight 1, SO2 weight 0.5): scale it by w_pos, set the angle's own weight
-        se2.setSubspaceWeight(1, w_ang / w_pos)
-        space.addSubspace(se2, w_pos)
-        space.addSubspace(vel, w_vel)
-        space.addSubspace(pus, w_pus)
-        cell = t.kpiece_cell
-        self.projection = _projection_class()(space, cell)
-        space.registerDefaultProjection(self.projection)
+        space = state_space(t)
+        self.projection = ObjectXY(space, t.kpiece_cell)
+        space.registerDefaultProjection(self.projection)     # before setup(): KPIECE1 reads it there
         cspace = oc.RealVectorControlSpace(space, 2)
-        cb = ob.RealVectorBounds(2)
-        cb.setLow(-t.control_max)
-        cb.setHigh(t.control_max)
-        cspace.setBounds(cb)
+        cspace.setBounds(bounds([-t.control_max] * 2, [t.control_max] * 2))
         ss = oc.SimpleSetup(cspace)
         si = ss.getSpaceInformation()
         self.propagator = Propagator(tm)
@@ -215,35 +209,33 @@ class Problem:
         start = space.allocState()
         write_state(start, tm.initial_state())
         ss.setStartState(start)
-        self.goal = _goal_class()(si, tm)
+        self.goal = TaskGoal(si, tm)
         ss.setGoal(self.goal)
-        if planner == "RRT":
-            p = oc.RRT(si)
-            p.setGoalBias(t.goal_bias)
-        elif planner == "EST":
-            p = oc.EST(si)
-        elif planner == "KPIECE1":
-            p = oc.KPIECE1(si)
-        else:
-            gb = ob.RealVectorBounds(2)
-            gb.low = [ox0, oy0]
-            gb.high = [ox1, oy1]
-            self.decomposition = _decomposition_class()(10, gb)
-            p = (oc.SyclopRRT if planner == "SyclopRRT" else oc.SyclopEST)(si, self.decomposition)
+        p = self._planner(planner, si)
         ss.setPlanner(p)
+        # keep every Python object OMPL refers to alive as long as the setup (the bindings do not own them)
         self.space, self.cspace, self.ss, self.si, self.planner, self._start = space, cspace, ss, si, p, start
         ss.setup()
+
+    def _planner(self, name, si):
+        """The named planner; RRT and Syclop get their settings from the task (the others have no setters in
+        the 2.0.1 bindings)."""
+        if name == "RRT":
+            p = oc.RRT(si)
+            p.setGoalBias(self.task.goal_bias)
+            return p
+        if name == "EST":
+            return oc.EST(si)
+        if name == "KPIECE1":
+            return oc.KPIECE1(si)
+        (ox0, ox1), (oy0, oy1) = self.task.object_bounds
+        self.decomposition = ObjectGrid(SYCLOP_GRID, bounds([ox0, oy0], [ox1, oy1]))
+        return (oc.SyclopRRT if name == "SyclopRRT" else oc.SyclopEST)(si, self.decomposition)
 
     def solve(self, time_limit=None, iterations=None):
         """Solve with a wall-clock limit or an iteration budget (reproducible); stops at the first exact solution.
 
         Returns a dict: exact, approximate, solve_time, iterations, propagations, sim_steps."""
-        import signal
-        import threading
-        import time
-
-        from ompl import base as ob
-
         if (time_limit is None) == (iterations is None):
             raise TaskError("give exactly one of a time limit and an iteration budget")
         pdef = self.ss.getProblemDefinition()

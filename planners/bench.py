@@ -19,9 +19,15 @@ from datetime import datetime
 from pathlib import Path
 
 import numpy as np
+from ompl import base as ob
 
-STATUS_ENUM = ("status|Unknown status|Invalid start|Invalid goal|Unrecognized goal type|Timeout|"
-               "Approximate solution|Exact solution|Crash|Abort|Infeasible")
+#: OMPL's planner statuses; a run's `status ENUM` column holds the value of one of them
+STATUS = ob.PlannerStatus.PlannerStatusType
+#: the label of each status value in order, the log's enum line as OMPL's Benchmark writes it (spelled out: the
+#: 2.0.1 bindings' PlannerStatus.asString() says "Unknown status" for ABORT and INFEASIBLE too)
+STATUS_LABELS = ("Unknown status", "Invalid start", "Invalid goal", "Unrecognized goal type", "Timeout",
+                 "Approximate solution", "Exact solution", "Crash", "Abort", "Infeasible")
+STATUS_ENUM = "status|" + "|".join(STATUS_LABELS)
 # run properties in the log: (name TYPE, key in the run record)
 RUN_FIELDS = [("time REAL", "solve_time"), ("memory REAL", None), ("status ENUM", "status"),
               ("solved BOOLEAN", "exact"), ("approximate solution BOOLEAN", "approximate"),
@@ -41,11 +47,12 @@ def _run_one(task, planner, seed, time_limit):
         plan = plan_task(task, planner, seed=seed, time_limit=time_limit)
     except Exception as e:  # noqa: BLE001 - a crashed run is a result (status Crash), not the end of the benchmark
         return dict(planner=planner, seed=seed, exact=False, approximate=False, solve_time=time.perf_counter() - t0,
-                    status=7, error=repr(e), goal_distance=float("nan"), path_duration=float("nan"), segments=0,
-                    propagations=0, iterations=0, sim_steps=0, steps_per_second=float("nan"))
+                    status=STATUS.CRASH.value, error=repr(e), goal_distance=float("nan"), path_duration=float("nan"),
+                    segments=0, propagations=0, iterations=0, sim_steps=0, steps_per_second=float("nan"))
     exact, approx = plan["exact"], plan["approximate"]
     return dict(planner=planner, seed=seed, exact=exact, approximate=approx, solve_time=plan["solve_time"],
-                status=6 if exact else (5 if approx else 4),
+                status=(STATUS.EXACT_SOLUTION if exact else STATUS.APPROXIMATE_SOLUTION if approx
+                        else STATUS.TIMEOUT).value,       # the time limit ended a run without a solution
                 goal_distance=plan.get("goal", {}).get("goal_distance", float("nan")),
                 path_duration=plan["path_duration"] if (exact or approx) else float("nan"),
                 segments=len(plan["controls"]), propagations=plan["propagations"], iterations=plan["iterations"],
@@ -103,6 +110,11 @@ def make_database(log, db):
     return db
 
 
+def _quartiles(a):
+    """[q1, median, q3] of a, NaNs for an empty a (a planner without an exact run)."""
+    return np.percentile(a, [25, 50, 75]).tolist() if len(a) else [float("nan")] * 3
+
+
 def summarize(records, planners, time_limit):
     rows = []
     for p in planners:
@@ -111,9 +123,8 @@ def summarize(records, planners, time_limit):
         ts = np.array([r["solve_time"] for r in ex])
         ds = np.array([r["path_duration"] for r in ex])
         sps = np.array([r["steps_per_second"] for r in rs if np.isfinite(r["steps_per_second"])])
-        q = (lambda a: np.percentile(a, [25, 50, 75]).tolist() if len(a) else [float("nan")] * 3)
         rows.append(dict(planner=p, runs=len(rs), exact=len(ex), success_rate=len(ex) / max(len(rs), 1),
-                         time_q1_med_q3=q(ts), duration_q1_med_q3=q(ds),
+                         time_q1_med_q3=_quartiles(ts), duration_q1_med_q3=_quartiles(ds),
                          steps_per_second_median=float(np.median(sps)) if len(sps) else float("nan")))
     return rows
 

@@ -9,8 +9,7 @@ from pathlib import Path
 
 from planar_lcp.cli import finite_number, one_line_errors
 
-from .adapter import PLANNERS
-from .tasks import TASKS, TaskError
+from .tasks import PLANNERS, TASKS, TaskError, check_planner
 
 
 def register(sub):
@@ -26,7 +25,8 @@ def register(sub):
                    help="wall-clock limit (default 60 s unless --iterations is given)")
     p.add_argument("--iterations", type=finite_number(int, 0, True), default=None, metavar="N",
                    help="iteration budget instead of a time limit: with --seed the plan is reproducible")
-    p.add_argument("--seed", type=finite_number(int, 0, True), default=1, metavar="N", help="OMPL random seed (>= 1, default 1)")
+    p.add_argument("--seed", type=finite_number(int, 0, True), default=1, metavar="N",
+                   help="OMPL random seed (>= 1, default 1)")
     p.add_argument("--out", default="plan_out", metavar="DIR", help="output directory (default ./plan_out)")
     p.add_argument("--no-gif", action="store_true", help="skip plan.gif")
     p.set_defaults(func=cmd_plan)
@@ -34,8 +34,8 @@ def register(sub):
     r = one_line_errors(sub.add_parser(
         "replay", help="re-simulate a plan's controls open loop and check the goal",
         description="Re-simulate the controls of PLAN.json open loop (our LCP simulator, or pymunk through "
-                    "planar_lcp.experiments.pymunk_bridge), report the final goal error, write replay.png. Exit status 0 "
-                    "only when the goal holds at the end."))
+                    "planar_lcp.experiments.pymunk_bridge), report the final goal error, write replay.png. Exit "
+                    "status 0 only when the goal holds at the end."))
     r.add_argument("plan", metavar="PLAN.json")
     r.add_argument("--simulator", choices=["lcp", "pymunk"], default="lcp")
     r.add_argument("--out", default=None, metavar="DIR", help="where to write replay.png (default: the plan's dir)")
@@ -48,9 +48,12 @@ def register(sub):
     b.add_argument("task", metavar="TASK", help=f"one of: {tasks}")
     b.add_argument("--planners", nargs="+", default=list(PLANNERS), metavar="NAME",
                    help=f"planners to compare (default: all of {', '.join(PLANNERS)})")
-    b.add_argument("--runs", type=finite_number(int, 0, True), default=10, metavar="N", help="runs per planner, seeds 1..N")
-    b.add_argument("--time", type=finite_number(float, 0, True), default=60.0, metavar="T", help="seconds per run (default 60)")
-    b.add_argument("--jobs", type=finite_number(int, 0, True), default=None, metavar="J", help="worker processes (default: CPUs)")
+    b.add_argument("--runs", type=finite_number(int, 0, True), default=10, metavar="N",
+                   help="runs per planner, seeds 1..N")
+    b.add_argument("--time", type=finite_number(float, 0, True), default=60.0, metavar="T",
+                   help="seconds per run (default 60)")
+    b.add_argument("--jobs", type=finite_number(int, 0, True), default=None, metavar="J",
+                   help="worker processes (default: CPUs)")
     b.add_argument("--out", default=None, metavar="DIR", help="output directory (default ./bench_TASK)")
     b.set_defaults(func=cmd_bench)
 
@@ -64,7 +67,6 @@ def _err(cmd, msg, code=2):
 
 
 def cmd_plan(args):
-    from .adapter import check_planner
     from .plan import animate_plan, plan_task, plot_plan, save_plan
     from .tasks import TaskModel, get_task
 
@@ -143,7 +145,6 @@ def cmd_replay(args):
 
 
 def cmd_bench(args):
-    from .adapter import check_planner
     from .bench import run_bench
     from .tasks import get_task
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from planar_lcp.spec.scene import display_source
 
-from .tasks import TaskError, TaskModel, get_task
+from .tasks import TaskError, TaskModel, check_planner, get_task
 
 PLAN_FORMAT = 1
 
@@ -22,7 +22,7 @@ def plan_task(task, planner="KPIECE1", seed=1, time_limit=None, iterations=None,
 
     from ompl import util as ou
 
-    from .adapter import Problem, check_planner
+    from .adapter import Problem
 
     check_planner(planner)
     if time_limit is None and iterations is None:
@@ -216,7 +216,8 @@ def animate_plan(tm, X, path, fps=20, max_frames=120):
 
 
 def replay_pymunk(plan, tm=None):
-    """Re-simulate the plan's controls open loop in pymunk (planar_lcp.experiments.pymunk_bridge), from the scene's start.
+    """Re-simulate the plan's controls open loop in pymunk (planar_lcp.experiments.pymunk_bridge), from the scene's
+    start.
 
     The pusher's velocity is set to each control in turn; the space is stepped with the scene's h. Returns the
     same dict as `replay_lcp` (the goal is judged by the same task test)."""

@@ -22,6 +22,19 @@ class TaskError(ValueError):
     """A bad task name, task definition or plan file; the message says what was expected."""
 
 
+#: The OMPL control planners that the 2.0.1 wheel can construct from Python (SST and PDST have no constructor
+#: there, docs/planning.md). Kept here, not in planners.adapter, so that the CLI lists and checks them without
+#: importing ompl.
+PLANNERS = ("RRT", "EST", "KPIECE1", "SyclopRRT", "SyclopEST")
+
+
+def check_planner(name):
+    """`name` if it is one of PLANNERS; a TaskError that lists them otherwise."""
+    if name not in PLANNERS:
+        raise TaskError(f"unknown planner {name!r}; valid planners: {', '.join(PLANNERS)}")
+    return name
+
+
 def wrap_angle(a):
     """Wrap to [-pi, pi)."""
     return (a + math.pi) % (2.0 * math.pi) - math.pi

@@ -1,20 +1,42 @@
-"""Helpers for tests that run the command line in a subprocess."""
+"""The one way the tests run the command line in a subprocess, as a user does: `planar-lcp ARGS`."""
 
 import os
 import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
+ROOT = Path(__file__).resolve().parent.parent
+# `python -c` instead of the `planar-lcp` script: the tests run from a checkout that need not be installed
 CLI = [sys.executable, "-c", "import sys; from planar_lcp.cli import main; sys.exit(main())"]
+# a small exact plan: tip_box needs only a few hundred RRT iterations with this seed (add "--out DIR")
+TIP_PLAN_ARGS = ("plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--no-gif")
+
+
+def cli_env(**extra):
+    """The environment of a CLI subprocess: this one, the checkout first on the path, no display; plus `extra`."""
+    env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT),
+                                                                                        os.environ.get("PYTHONPATH")])))
+    env.update(extra)
+    return env
+
+
+def run_cli(*args, cwd=ROOT, timeout=600, env=None):
+    """Run `planar-lcp ARGS` to its end. Returns the subprocess.CompletedProcess (returncode, stdout, stderr as
+    text) with one more attribute, `seconds`: its wall time. `env`: extra environment variables."""
+    t0 = time.perf_counter()
+    r = subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True, timeout=timeout, cwd=cwd,
+                       env=cli_env(**(env or {})))
+    r.seconds = time.perf_counter() - t0
+    return r
 
 
 def interrupt_cli(args, started, tmp_path, wait=1.0):
     """Run the CLI, wait for the line `started` on stdout and `wait` seconds more, send SIGINT; returns (exit status,
     stderr and what stdout printed after the line `started`, seconds from the signal to the exit)."""
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
     p = subprocess.Popen(CLI + [str(a) for a in args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         cwd=tmp_path, env=env)
+                         cwd=tmp_path, env=cli_env(PYTHONUNBUFFERED="1"))
     try:
         for line in p.stdout:
             if line.startswith(started):

@@ -1,6 +1,7 @@
 import os
 
 import pytest
+from cli_helpers import TIP_PLAN_ARGS, run_cli
 
 from planar_lcp.experiments.lcp_corpus import find_corpus_dir, load_corpus
 
@@ -20,9 +21,20 @@ def corpus(corpus_dir):
     return {inst.id: inst for inst in load_corpus(corpus_dir)}
 
 
+@pytest.fixture(scope="session")
+def tip_plan(tmp_path_factory):
+    """A small plan made once for the session by `planar-lcp plan` (TIP_PLAN_ARGS): (the finished process, its --out
+    directory). Tests that replay or read a plan share it; the tests of `plan` itself check it."""
+    pytest.importorskip("ompl")
+    pytest.importorskip("shapely")
+    out = tmp_path_factory.mktemp("tip_plan")
+    return run_cli(*TIP_PLAN_ARGS, "--out", out), out
+
+
 def pytest_collection_modifyitems(config, items):
+    # `slow` tests (deselected by default, pyproject.toml) are long with the JIT too: skip both kinds without it
     if JIT_DISABLED:
-        skip = pytest.mark.skip(reason="slow without the JIT (NUMBA_DISABLE_JIT=1)")
+        skip = pytest.mark.skip(reason="minutes to hours without the JIT (NUMBA_DISABLE_JIT=1)")
         for item in items:
-            if "slow" in item.keywords:
+            if "needs_jit" in item.keywords or "slow" in item.keywords:
                 item.add_marker(skip)

@@ -1,17 +1,14 @@
 """Bad input (issue F, deliverables 6 and 9): every hole gets one line naming the file or flag, the field, the
 expected and the actual value; exit status 2 from the CLI without a traceback; a ValueError from the Python API.
 
-The CLI cases run `python -m planar_lcp.cli` in a subprocess, as a user would."""
+The CLI cases run `planar-lcp` in a subprocess (cli_helpers.run_cli), as a user would."""
 
-import os
 import re
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_helpers import run_cli
 
 import planar_lcp.sim as sim_module
 from planar_lcp.model import compile_scene
@@ -19,18 +16,8 @@ from planar_lcp.spec.scene import (MAX_FIXED_POINT_ITERATIONS, MAX_FRICTION_DIRE
                                    SceneError, load_scene, parse_scene, scenes_dir)
 from planar_lcp.sim import SimulationError, Simulator, check_run_size, estimate_run_bytes, simulate
 
-ROOT = Path(__file__).resolve().parents[1]
 ROD = str(scenes_dir() / "falling_rod.toml")
 PUSH = str(scenes_dir() / "box_push.toml")
-
-
-def cli(*argv, cwd=None, timeout=300):
-    """`python -m planar_lcp.cli ARGV` in a subprocess: (exit status, stdout, stderr, wall seconds)."""
-    env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    t0 = time.perf_counter()
-    p = subprocess.run([sys.executable, "-m", "planar_lcp.cli", *map(str, argv)], capture_output=True, text=True,
-                       timeout=timeout, env=env, cwd=cwd)
-    return p.returncode, p.stdout, p.stderr, time.perf_counter() - t0
 
 
 def assert_scene_refused(path, msg):
@@ -39,13 +26,15 @@ def assert_scene_refused(path, msg):
     with pytest.raises(SceneError) as e:
         load_scene(path)
     assert str(e.value) == msg
-    rc, out, err, _ = cli("simulate", path)
-    assert error_line(rc, err) == msg and out == ""
+    r = run_cli("simulate", path)
+    assert error_line(r) == msg and r.stdout == ""
 
 
-def error_line(rc, err, prog="planar-lcp simulate"):
-    """The one line of a bad-input error: exit status 2, no traceback, a single line on stderr."""
-    assert rc == 2, err
+def error_line(r, prog="planar-lcp simulate"):
+    """The one line of a bad-input error of the finished CLI run r: exit status 2, no traceback, a single line on
+    stderr."""
+    err = r.stderr
+    assert r.returncode == 2, err
     assert "Traceback" not in err, err
     lines = err.strip().splitlines()
     assert len(lines) == 1, err
@@ -96,13 +85,13 @@ def test_utf8_byte_order_mark_is_accepted(tmp_path):
      f"{ROD}: --fixed-point-iterations must be <= {MAX_FIXED_POINT_ITERATIONS}, got 5000"),
 ])
 def test_cli_run_limits(argv, msg):
-    rc, out, err, wall = cli("simulate", "falling_rod", *argv)
-    assert error_line(rc, err) == msg and out == ""
+    r = run_cli("simulate", "falling_rod", *argv)
+    assert error_line(r) == msg and r.stdout == ""
 
 
 def test_cli_friction_directions_limit():
-    rc, out, err, _ = cli("simulate", "box_push", "--friction-directions", "100000")
-    assert error_line(rc, err) == f"{PUSH}: --friction-directions must be <= {MAX_FRICTION_DIRECTIONS}, got 100000"
+    r = run_cli("simulate", "box_push", "--friction-directions", "100000")
+    assert error_line(r) == f"{PUSH}: --friction-directions must be <= {MAX_FRICTION_DIRECTIONS}, got 100000"
 
 
 @pytest.mark.parametrize("kw, msg", [
@@ -192,8 +181,8 @@ def test_cli_memory_limit(tmp_path):
     lines += ["[[bodies]]", 'name = "table"', 'type = "static"',
               'shapes = [ { type = "halfplane", point = [0.0, 0.0], normal = [0.0, 1.0] } ]']
     path.write_text("\n".join(lines) + "\n")
-    rc, out, err, _ = cli("simulate", path)
-    line = error_line(rc, err)
+    r = run_cli("simulate", path)
+    line = error_line(r)
     assert line.startswith(f"{path}: the run must fit in ") and "(9990000 steps x 40 dynamic bodies" in line
     assert line.endswith("; reduce --t-end or increase --h")
 
@@ -209,10 +198,9 @@ def test_cli_memory_limit(tmp_path):
 ])
 def test_output_extension_refused_before_the_run(tmp_path, option, name, msg):
     # 400000 steps would take tens of seconds: the refusal comes first
-    rc, out, err, wall = cli("simulate", "falling_rod", "--t-end", "1000", "--csv", "run.csv", option, name,
-                             cwd=tmp_path)
-    assert error_line(rc, err) == msg and out == ""
-    assert wall < 15.0
+    r = run_cli("simulate", "falling_rod", "--t-end", "1000", "--csv", "run.csv", option, name, cwd=tmp_path)
+    assert error_line(r) == msg and r.stdout == ""
+    assert r.seconds < 15.0
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
@@ -247,25 +235,25 @@ def test_output_checks_run_before_simulate(tmp_path, monkeypatch, capsys):
 ])
 def test_out_directory_that_is_a_file(tmp_path, argv, prog):
     (tmp_path / "afile").write_text("keep")
-    rc, out, err, _ = cli(*argv, cwd=tmp_path)
-    if "pymunk is not installed" in err:
+    r = run_cli(*argv, cwd=tmp_path)
+    if "pymunk is not installed" in r.stderr:
         pytest.skip("pymunk missing")
-    assert error_line(rc, err, prog) == "--out afile: must be a directory, got an existing file"
+    assert error_line(r, prog) == "--out afile: must be a directory, got an existing file"
     assert (tmp_path / "afile").read_text() == "keep"
 
 
 def test_out_directory_that_cannot_be_created(tmp_path):
     (tmp_path / "afile").write_text("keep")
-    rc, out, err, _ = cli("tradeoff", "--quick", "--out", "afile/sub", cwd=tmp_path)
-    assert error_line(rc, err, "planar-lcp tradeoff") == ("--out afile/sub: cannot create the directory: Not a "
+    r = run_cli("tradeoff", "--quick", "--out", "afile/sub", cwd=tmp_path)
+    assert error_line(r, "planar-lcp tradeoff") == ("--out afile/sub: cannot create the directory: Not a "
                                                           "directory")
 
 
 def test_compare_settings_checked_before_the_run(tmp_path):
-    rc, out, err, _ = cli("compare", "falling_rod", "--out", tmp_path / "c", "--h", "2")
-    if "pymunk is not installed" in err:
+    r = run_cli("compare", "falling_rod", "--out", tmp_path / "c", "--h", "2")
+    if "pymunk is not installed" in r.stderr:
         pytest.skip("pymunk missing")
-    assert error_line(rc, err, "planar-lcp compare") == f"{ROD}: --h must be < sim.t_end = 1.0 s (at least one " \
+    assert error_line(r, "planar-lcp compare") == f"{ROD}: --h must be < sim.t_end = 1.0 s (at least one " \
                                                          "step), got 2.0"
     assert not (tmp_path / "c").exists()
 
@@ -274,10 +262,10 @@ def test_compare_settings_checked_before_the_run(tmp_path):
 
 
 def test_h_not_below_t_end_is_an_error(tmp_path):
-    rc, out, err, _ = cli("simulate", "falling_rod", "--h", "2", "--t-end", "1")
-    assert error_line(rc, err) == f"{ROD}: --h must be < --t-end = 1.0 s (at least one step), got 2.0"
-    rc, out, err, _ = cli("simulate", "falling_rod", "--h", "1")
-    assert error_line(rc, err) == f"{ROD}: --h must be < sim.t_end = 1.0 s (at least one step), got 1.0"
+    r = run_cli("simulate", "falling_rod", "--h", "2", "--t-end", "1")
+    assert error_line(r) == f"{ROD}: --h must be < --t-end = 1.0 s (at least one step), got 2.0"
+    r = run_cli("simulate", "falling_rod", "--h", "1")
+    assert error_line(r) == f"{ROD}: --h must be < sim.t_end = 1.0 s (at least one step), got 1.0"
     with pytest.raises(SceneError) as e:
         simulate("falling_rod", h=0.5, t_end=0.5)
     assert str(e.value) == f"{ROD}: h must be < t_end = 0.5 s (at least one step), got 0.5"
@@ -289,8 +277,8 @@ def test_h_not_below_t_end_is_an_error(tmp_path):
 
 
 def test_friction_directions_in_the_vertical_plane():
-    rc, out, err, _ = cli("simulate", "falling_rod", "--friction-directions", "5")
-    assert error_line(rc, err) == (f"{ROD}: --friction-directions applies only in the horizontal plane (the "
+    r = run_cli("simulate", "falling_rod", "--friction-directions", "5")
+    assert error_line(r) == (f"{ROD}: --friction-directions applies only in the horizontal plane (the "
                                    "table-friction cone), got 5 for a scene with world.plane = 'vertical'")
     with pytest.raises(SceneError, match=r"friction_directions applies only in the horizontal plane .* got 5 for"):
         simulate("falling_rod", friction_directions=5)

@@ -16,7 +16,7 @@ from planar_lcp.experiments.bench import (_alternate, _ratio_stats, bench_lcp, b
                                           format_lcp_table, format_scaling_table, format_step_table)
 
 # the real runs time compiled code; without the JIT QuantEcon's Lemke alone runs for hours on the cycling instances
-slow = pytest.mark.slow
+needs_jit = pytest.mark.needs_jit
 
 
 class FakeClock:
@@ -73,9 +73,37 @@ def test_ratio_is_the_median_of_the_per_round_ratios_with_their_spread():
     assert st["median"] != np.median([2, 4, 6, 8, 20]) / np.median([1, 1, 2, 2, 4])
 
 
-def test_alternate_uses_thread_cpu_time_by_default():
+def busy(n):
+    """A runner whose work is proportional to n (a Python loop: no caches or vector units to make it nonlinear)."""
+    def run():
+        s = 0
+        for i in range(n):
+            s += i * i
+        return s
+    return run
+
+
+def test_real_rounds_measure_a_known_workload_ratio():
+    """With the real clock a runner doing twice the work measures about twice the cost, one doing the same work
+    about the same, whatever the order they run in."""
+    m = _alternate(dict(one=busy(20000), two=busy(40000), again=busy(20000)), rounds=7, min_round_s=0.02)
+    assert m["rounds"] == 7 and all(len(m["per_unit"][k]) == 7 for k in ("one", "two", "again"))
+    assert m["reps"]["one"] > m["reps"]["two"] >= 1
+    two = _ratio_stats(m["per_unit"]["two"], m["per_unit"]["one"])
+    same = _ratio_stats(m["per_unit"]["again"], m["per_unit"]["one"])
+    assert 1.7 < two["median"] < 2.3, two
+    assert 0.85 < same["median"] < 1.15, same
+    assert two["min"] <= two["q1"] <= two["median"] <= two["q3"] <= two["max"]
+
+
+def test_default_clock_counts_this_threads_cpu_not_waiting():
+    """Thread CPU time: a runner that sleeps 20 ms costs almost nothing, so other processes on a shared machine (which
+    make a thread wait, not work) do not move the ratios."""
     import time
-    assert bench._clock is time.thread_time
+    # max_reps: the sleeper's calibration sees almost no CPU time and would ask for thousands of sleeps per round
+    m = _alternate(dict(sleeper=lambda: time.sleep(0.02), worker=busy(20000)), rounds=3, min_round_s=0.01, max_reps=3)
+    assert np.median(m["per_unit"]["sleeper"]) < 0.002
+    assert np.median(m["per_unit"]["worker"]) > 0
 
 
 def spy_alternate(monkeypatch, costs):
@@ -98,7 +126,7 @@ def spy_alternate(monkeypatch, costs):
     return log
 
 
-@slow
+@needs_jit
 def test_bench_step_alternates_ours_warm_and_pymunk_and_reports_their_ratios(monkeypatch):
     log = spy_alternate(monkeypatch, dict(ours=0.012, ours_warm=0.008, pymunk=0.004))
     rows = bench_step(scenes=("falling_rod",), rounds=4, min_round_s=0.01)
@@ -124,7 +152,7 @@ def check_spread(r, prefix):
     assert vals == sorted(vals), (prefix, vals)
 
 
-@slow
+@needs_jit
 def test_bench_step_measures_ours_and_pymunk():
     rows = bench_step(scenes=("falling_rod",), rounds=3)
     r = rows[0]
@@ -141,7 +169,7 @@ def test_bench_step_measures_ours_and_pymunk():
     assert f"{r['ratio']:.1f} [{r['ratio_min']:.1f}-{r['ratio_max']:.1f}]" in table
 
 
-@slow
+@needs_jit
 def test_bench_step_json_keeps_the_old_fields_and_adds_the_spread(monkeypatch, tmp_path):
     monkeypatch.setattr(bench, "bench_step", functools.partial(bench_step, scenes=("box_tip",), rounds=3))
     monkeypatch.setattr(bench, "measure_step_compile_time",   # two cold-cache subprocesses: minutes, not tested here
@@ -160,7 +188,7 @@ def test_bench_step_json_keeps_the_old_fields_and_adds_the_spread(monkeypatch, t
     check_spread(r, "ratio")
 
 
-@slow
+@needs_jit
 def test_bench_scaling_fits_an_exponent_per_round(monkeypatch, tmp_path):
     rows, fits, fit_spread = bench_scaling(sizes=(1, 4, 8), steps=2, rounds=3)
     assert {r["kind"] for r in rows} == {"pile", "islands"}
@@ -176,7 +204,7 @@ def test_bench_scaling_fits_an_exponent_per_round(monkeypatch, tmp_path):
     assert "fitted growth exponent" in format_scaling_table(rows, fits, fit_spread)
 
 
-@slow
+@pytest.mark.slow    # every corpus instance against QuantEcon in rounds: 20 s
 def test_bench_lcp_table(corpus_dir):
     rows = bench_lcp(corpus_dir, rounds=3, min_round_s=0.001)
     assert len(rows) == 44

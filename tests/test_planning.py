@@ -4,30 +4,16 @@ The OMPL work runs in subprocesses: the 2.0.1 bindings must run with the cyclic 
 a subprocess keeps that, and nanobind's exit-time leak report, out of the test process."""
 
 import json
+import math
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
-from cli_helpers import CLI
+from cli_helpers import ROOT, TIP_PLAN_ARGS, run_cli
 
 pytest.importorskip("ompl")
 pytest.importorskip("shapely")
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def run_cli(*args, timeout=120):
-    return subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True, timeout=timeout, cwd=ROOT)
-
-
-@pytest.fixture(scope="module")
-def tip_plan(tmp_path_factory):
-    out = tmp_path_factory.mktemp("tip")
-    r = run_cli("plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--out", out,
-                "--no-gif")
-    return r, out
 
 
 def test_small_problem_solves_and_replays_to_goal(tip_plan):
@@ -64,15 +50,15 @@ def test_plan_json_round_trips(tip_plan, tmp_path):
 
 def test_same_seed_and_iterations_give_the_same_plan(tip_plan, tmp_path):
     _, out = tip_plan
-    r = run_cli("plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--out", tmp_path,
-                "--no-gif")
+    r = run_cli(*TIP_PLAN_ARGS, "--out", tmp_path)
     assert r.returncode == 0, r.stderr
     a = json.loads((out / "plan.json").read_text())
     b = json.loads((tmp_path / "plan.json").read_text())
     for key in ("controls", "steps", "states", "iterations", "sim_steps"):
         assert a[key] == b[key], key
-    r2 = run_cli("plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "2", "--out",
-                 tmp_path / "s2", "--no-gif")
+    seed2 = list(TIP_PLAN_ARGS)
+    seed2[seed2.index("--seed") + 1] = "2"
+    r2 = run_cli(*seed2, "--out", tmp_path / "s2")
     c = json.loads((tmp_path / "s2" / "plan.json").read_text())
     assert c["controls"] != a["controls"], r2.stderr
 
@@ -140,6 +126,39 @@ def test_goal_and_validity_tests():
     assert tt.cover(z) == pytest.approx(1.0)
     z[1] += 0.004                    # 4 mm off: the T's bar is 30 mm wide, so the cover drops below 95%
     assert tt.cover(z) < 0.95 and tt.goal_distance(z) > 1
+
+
+def test_state_space_distance_is_the_documented_weighted_sum():
+    """planners/adapter.py's docstring: w_pos |dxy| + w_ang |dtheta| + w_vel |dv| + w_pus |dpusher|, angles the
+    shorter way round, with each task's weights."""
+    from planners.adapter import state_space, write_state
+    from planners.tasks import TASKS
+    rng = np.random.default_rng(3)
+    for task in TASKS.values():
+        space = state_space(task)
+        a, b = space.allocState(), space.allocState()
+        w_pos, w_ang, w_vel, w_pus = task.weights
+        for _ in range(5):
+            x, y = rng.uniform(-0.1, 0.1, 8), rng.uniform(-0.1, 0.1, 8)
+            x[2], y[2] = 3.0, -3.0                      # 0.28 rad apart across +-pi, not 6 rad
+            write_state(a, x)
+            write_state(b, y)
+            d = x - y
+            expected = (w_pos * math.hypot(d[0], d[1]) + w_ang * (2 * math.pi - 6.0) + w_vel * np.linalg.norm(d[3:6])
+                        + w_pus * math.hypot(d[6], d[7]))
+            assert space.distance(a, b) == pytest.approx(expected, rel=1e-12), task.name
+        del a, b
+
+
+def test_benchmark_statuses_are_ompls():
+    """plan-bench writes each run's status as the value of OMPL's PlannerStatus, under OMPL's label."""
+    from ompl import base as ob
+
+    from planners.bench import STATUS, STATUS_ENUM, STATUS_LABELS
+    assert STATUS is ob.PlannerStatus.PlannerStatusType
+    assert len(STATUS_LABELS) == STATUS.TYPE_COUNT.value and STATUS_ENUM.split("|")[1:] == list(STATUS_LABELS)
+    for s in (STATUS.UNKNOWN, STATUS.TIMEOUT, STATUS.APPROXIMATE_SOLUTION, STATUS.EXACT_SOLUTION, STATUS.CRASH):
+        assert STATUS_LABELS[s.value] == ob.PlannerStatus(s).asString()
 
 
 def test_import_planar_lcp_does_not_import_ompl():

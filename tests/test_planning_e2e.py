@@ -1,13 +1,12 @@
-"""Planning commands end to end in subprocesses: a first run on a cold numba cache, the demo, replay in both
-simulators, bad plan files and Ctrl-C (issue 10). Skipped when ompl is not installed.
+"""Planning commands end to end in subprocesses: a first run on a cold numba cache, the demo's failure path, replay
+in both simulators, bad plan files and Ctrl-C (issue 10). Skipped when ompl is not installed.
 
-The cold-cache tests give each subprocess its OWN EMPTY NUMBA_CACHE_DIR: the suite's cache is warm by the time they
-run, and the crash they guard against (state wrappers outliving an OMPL callback while numba compiles inside it)
-only happened when the kernels were compiled during planning. Each costs a cold compile (about 20-40 s on 2 cores)."""
+The cold-cache test gives its subprocess its OWN EMPTY NUMBA_CACHE_DIR: the suite's cache is warm by the time it
+runs, and the crash it guards against (state wrappers outliving an OMPL callback while numba compiles inside it)
+only happened when the kernels were compiled during planning (tests/test_readme_commands.py runs the demo, whose
+part 3 plans, on an empty cache too)."""
 
 import json
-import os
-import subprocess
 import time
 
 import numpy as np
@@ -16,19 +15,18 @@ import pytest
 pytest.importorskip("ompl")
 pytest.importorskip("shapely")
 
-from cli_helpers import interrupt_cli  # noqa: E402
-from test_planning import CLI, ROOT, run_cli  # noqa: E402
+from cli_helpers import interrupt_cli, run_cli  # noqa: E402
 
-pytestmark = pytest.mark.skipif(os.environ.get("NUMBA_DISABLE_JIT") == "1", reason="cold-compile and timing tests")
+pytestmark = pytest.mark.needs_jit     # cold compiles and timing
 
 
-def run_cold(tmp_path, *args, timeout=900):
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba_cache"))
+def run_cold(tmp_path, *args):
+    """run_cli with its own empty numba cache, tmp_path / "numba_cache"."""
     (tmp_path / "numba_cache").mkdir()
-    return subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True, timeout=timeout, cwd=ROOT,
-                          env=env)
+    return run_cli(*args, timeout=900, env=dict(NUMBA_CACHE_DIR=str(tmp_path / "numba_cache")))
 
 
+@pytest.mark.slow   # a cold compile of every kernel the planner uses: 40 s to 2 min on 2 cores
 def test_first_plan_on_a_cold_cache(tmp_path):
     out = tmp_path / "out"
     r = run_cold(tmp_path, "plan", "push_box", "--seed", 5, "--iterations", 5000, "--out", out, "--no-gif")
@@ -37,16 +35,6 @@ def test_first_plan_on_a_cold_cache(tmp_path):
     assert plan["exact"] and plan["goal"]["goal_holds"] and len(plan["controls"]) > 0
     assert any((tmp_path / "numba_cache").iterdir()), "the run did not use its own cache: it was not cold"
     assert "Traceback" not in r.stderr and "leaked" not in r.stderr, r.stderr
-
-
-def test_demo_on_a_cold_cache(tmp_path):
-    out = tmp_path / "demo"
-    r = run_cold(tmp_path, "demo", "--out", out)
-    assert r.returncode == 0, r.stdout + r.stderr
-    assert "an exact plan" in r.stdout
-    for name in ("falling_rod.csv", "falling_rod.png", "plan.json", "plan.png", "plan.gif"):
-        assert (out / name).stat().st_size > 100, name
-    assert json.loads((out / "plan.json").read_text())["exact"]
 
 
 def test_demo_fails_loudly_when_its_plan_fails(tmp_path, monkeypatch, capsys):
@@ -58,11 +46,10 @@ def test_demo_fails_loudly_when_its_plan_fails(tmp_path, monkeypatch, capsys):
     assert "planar-lcp demo: error: part 3" in err and "no exact plan within the budget" in err, err
 
 
-@pytest.fixture(scope="module")
-def small_plan(tmp_path_factory):
-    out = tmp_path_factory.mktemp("plan")
-    r = run_cli("plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--out", out,
-                "--no-gif")
+@pytest.fixture
+def small_plan(tip_plan):
+    """The suite's small plan (conftest.tip_plan): (the finished `plan` process, its --out directory)."""
+    r, out = tip_plan
     assert r.returncode == 0, r.stdout + r.stderr
     return r, out
 

@@ -4,8 +4,8 @@ and GIF magic bytes, JSON with the expected keys, SQLite header).
 
 `test_every_readme_command_has_a_test` parses the table, so a new row without a test here fails.
 
-They share the suite's numba cache; tests/test_planning_e2e.py runs `plan` and `demo` with an EMPTY one, as on a
-user's fresh machine."""
+They share the suite's numba cache, except `demo`, which runs on an EMPTY one as on a user's fresh machine
+(tests/test_planning_e2e.py does the same for `plan`)."""
 
 import csv
 import io
@@ -13,13 +13,11 @@ import json
 import math
 import os
 import re
-import subprocess
 from pathlib import Path
 
 import pytest
-from cli_helpers import CLI
+from cli_helpers import ROOT, run_cli
 
-ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
 
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -37,13 +35,6 @@ def covers(*commands):
             COVERED.setdefault(c, []).append(fn.__name__)
         return pytest.mark.slow(fn)
     return mark
-
-
-def run(args, cwd, timeout=600):
-    env = dict(os.environ, MPLBACKEND="Agg")
-    r = subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True, timeout=timeout, cwd=cwd,
-                       env=env)
-    return r
 
 
 def ok(r):
@@ -169,11 +160,19 @@ def test_every_readme_command_has_a_test():
 
 @covers("demo")
 def test_demo(tmp_path):
-    out = tmp_path / "demo"
-    r = run(["demo", "--out", out], cwd=tmp_path)
+    """On an EMPTY numba cache, as on a user's fresh machine: every kernel compiles inside the demo, the planning part
+    too (the crash of issue 10 happened only then)."""
+    out, cache = tmp_path / "demo", tmp_path / "numba_cache"
+    cache.mkdir()
+    r = run_cli("demo", "--out", out, cwd=tmp_path, timeout=900, env=dict(NUMBA_CACHE_DIR=str(cache)))
     ok(r)
+    assert any(cache.iterdir()), "the demo did not use its own cache: it was not cold"
+    assert "leaked" not in r.stderr, r.stderr
     check_dir(out, ["falling_rod.csv", "falling_rod.png", "plan.json", "plan.png", "plan.gif"])
-    check_csv(out / "falling_rod.csv", first="t", numeric=True, min_rows=100)
+    assert (out / "falling_rod.png").stat().st_size > 10000
+    header, rows = check_csv(out / "falling_rod.csv", first="t", numeric=True, min_rows=100)
+    assert header == ["t", "rod.x", "rod.y", "rod.theta", "rod.vx", "rod.vy", "rod.omega"] and len(rows) == 401
+    assert "first contact in the step ending at t = 0.3850 s" in r.stdout
     plan = check_json(out / "plan.json", ["task", "planner", "seed", "exact", "controls", "states"])
     assert plan["task"] == "push_box" and plan["exact"] is True
     assert "an exact plan in" in r.stdout
@@ -181,7 +180,7 @@ def test_demo(tmp_path):
 
 @covers("scenes")
 def test_scenes(tmp_path):
-    r = run(["scenes"], cwd=tmp_path)
+    r = run_cli("scenes", cwd=tmp_path)
     ok(r)
     for name in ("falling_rod", "four_disks", "box_push", "box_tip", "push_t"):
         assert re.search(rf"^\s+{name}\s+\S", r.stdout, re.M), r.stdout
@@ -190,8 +189,8 @@ def test_scenes(tmp_path):
 @covers("simulate")
 def test_simulate_with_csv_plot_and_animation(tmp_path):
     f = tmp_path / "rod"
-    r = run(["simulate", "falling_rod", "--t-end", "0.2", "--csv", f"{f}.csv", "--plot", f"{f}.png",
-             "--animate", f"{f}.gif"], cwd=tmp_path)
+    r = run_cli("simulate", "falling_rod", "--t-end", "0.2", "--csv", f"{f}.csv", "--plot", f"{f}.png",
+             "--animate", f"{f}.gif", cwd=tmp_path)
     ok(r)
     header, rows = check_csv(f"{f}.csv", first="t", numeric=True, min_rows=80)
     assert header == ["t", "rod.x", "rod.y", "rod.theta", "rod.vx", "rod.vy", "rod.omega"]
@@ -204,9 +203,9 @@ def test_simulate_with_csv_plot_and_animation(tmp_path):
 @covers("simulate")
 def test_simulate_with_the_solver_and_formulation_options(tmp_path):
     f = tmp_path / "push.csv"
-    r = run(["simulate", "box_push", "--h", "0.01", "--t-end", "0.3", "--solver", "lemke", "--formulation",
+    r = run_cli("simulate", "box_push", "--h", "0.01", "--t-end", "0.3", "--solver", "lemke", "--formulation",
              "fixed_point", "--fixed-point-iterations", "2", "--friction-directions", "6", "--on-failure", "record",
-             "--csv", f], cwd=tmp_path)
+             "--csv", f, cwd=tmp_path)
     ok(r)
     assert re.search(r"^formulation\s+fixed_point$", r.stdout, re.M) and re.search(r"^steps\s+30 ", r.stdout, re.M)
     check_csv(f, first="t", numeric=True, min_rows=30)
@@ -215,7 +214,7 @@ def test_simulate_with_the_solver_and_formulation_options(tmp_path):
 @covers("study falling-rod")
 def test_study_falling_rod(tmp_path):
     out = tmp_path / "rod"
-    r = run(["study", "falling-rod", "--out", out, "--quick"], cwd=tmp_path)
+    r = run_cli("study", "falling-rod", "--out", out, "--quick", cwd=tmp_path)
     ok(r)
     check_dir(out, ["strobe.png", "vx.png", "vy.png", "omega.png", "events.csv", "events.md", "convergence.csv",
                     "convergence.md"])
@@ -226,7 +225,7 @@ def test_study_falling_rod(tmp_path):
 @covers("study four-disks")
 def test_study_four_disks(tmp_path):
     out = tmp_path / "disks"
-    r = run(["study", "four-disks", "--out", out, "--quick"], cwd=tmp_path)
+    r = run_cli("study", "four-disks", "--out", out, "--quick", cwd=tmp_path)
     ok(r)
     check_dir(out, ["trajectories.png", "velocity.png", "impulses.png", "cascade.csv", "events.csv",
                     "convergence.csv"])
@@ -236,7 +235,7 @@ def test_study_four_disks(tmp_path):
 @covers("compare")
 def test_compare(tmp_path):
     out = tmp_path / "cmp"
-    r = run(["compare", "falling_rod", "--out", out, "--t-end", "0.6"], cwd=tmp_path)
+    r = run_cli("compare", "falling_rod", "--out", out, "--t-end", "0.6", cwd=tmp_path)
     ok(r)
     check_dir(out, ["report.csv", "report.md", "trajectories.png", "frames.png", "side_by_side.gif"])
     header, rows = check_csv(out / "report.csv", first="scene", numeric=["max_penetration_m", "us_per_step"])
@@ -257,19 +256,17 @@ def check_plan_dir(out, task):
 @covers("plan")
 def test_plan(tmp_path):
     out = tmp_path / "plan"
-    r = run(["plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--out", out],
+    r = run_cli("plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--out", out,
             cwd=tmp_path)
     ok(r)
     check_plan_dir(out, "tip_box")
     check_gif(out / "plan.gif")
 
 
-@pytest.fixture(scope="module")
-def tip_plan(tmp_path_factory):
-    """A plan to replay, made by `plan` with the shared numba cache (warm in CI: earlier tests compiled it)."""
-    out = tmp_path_factory.mktemp("tip_plan")
-    r = run(["plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--out", out, "--no-gif"],
-            cwd=out)
+@pytest.fixture
+def plan_file(tip_plan):
+    """The plan file of the suite's small plan (conftest.tip_plan, made by `plan`), checked as `test_plan` checks."""
+    r, out = tip_plan
     ok(r)
     check_plan_dir(out, "tip_box")
     return out / "plan.json"
@@ -285,15 +282,15 @@ def check_replay(r, out, simulator):
 
 
 @covers("replay")
-def test_replay_lcp(tip_plan, tmp_path):
-    r = run(["replay", tip_plan, "--simulator", "lcp", "--out", tmp_path], cwd=tmp_path)
+def test_replay_lcp(plan_file, tmp_path):
+    r = run_cli("replay", plan_file, "--simulator", "lcp", "--out", tmp_path, cwd=tmp_path)
     ok(r)
     assert check_replay(r, tmp_path, "lcp")   # our simulator replays the plan it made: the goal holds
 
 
 @covers("replay")
-def test_replay_pymunk(tip_plan, tmp_path):
-    r = run(["replay", tip_plan, "--simulator", "pymunk", "--out", tmp_path], cwd=tmp_path)
+def test_replay_pymunk(plan_file, tmp_path):
+    r = run_cli("replay", plan_file, "--simulator", "pymunk", "--out", tmp_path, cwd=tmp_path)
     assert "Traceback" not in r.stderr, r.stderr[-3000:]
     # pymunk is another simulator: the open-loop plan may miss the goal there (exit 1), but it must say which
     assert r.returncode in (0, 1), f"exit status {r.returncode}\n{r.stdout}\n{r.stderr[-3000:]}"
@@ -304,7 +301,7 @@ def test_replay_pymunk(tip_plan, tmp_path):
 @covers("plan-bench")
 def test_plan_bench(tmp_path):
     out = tmp_path / "pb"
-    r = run(["plan-bench", "tip_box", "--planners", "RRT", "--runs", "1", "--time", "3", "--jobs", "1", "--out", out],
+    r = run_cli("plan-bench", "tip_box", "--planners", "RRT", "--runs", "1", "--time", "3", "--jobs", "1", "--out", out,
             cwd=tmp_path)
     ok(r)
     check_dir(out, ["tip_box.log", "tip_box.db", "summary.md", "summary.json", "boxplots.png"])
@@ -317,7 +314,7 @@ def test_plan_bench(tmp_path):
 @covers("tradeoff")
 def test_tradeoff_quick(tmp_path):
     out = tmp_path / "to"
-    r = run(["tradeoff", "--quick", "--scenes", "falling_rod", "--out", out, "--no-progress"], cwd=tmp_path)
+    r = run_cli("tradeoff", "--quick", "--scenes", "falling_rod", "--out", out, "--no-progress", cwd=tmp_path)
     ok(r)
     check_dir(out, ["tradeoff.csv", "pareto_falling_rod.png"])
     header, rows = check_csv(out / "tradeoff.csv", first="scene",
@@ -330,7 +327,7 @@ def test_bench_scaling_json(tmp_path):
     """`bench scaling`, the cheapest sub-command (about 10 s of CPU; `step` and `lcp` also time cold-cache
     compiles in child processes)."""
     path = tmp_path / "bench.json"
-    r = run(["bench", "scaling", "--json", path], cwd=tmp_path)
+    r = run_cli("bench", "scaling", "--json", path, cwd=tmp_path)
     ok(r)
     assert "thread CPU time" in r.stdout and "fitted growth exponent" in r.stdout
     d = check_json(path, ["scaling"])["scaling"]

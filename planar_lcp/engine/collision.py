@@ -152,46 +152,36 @@ def _abs_max(v, n):
 
 
 @njit(cache=True)
-def _lex_min(v, n):
-    x = v[0, 0]
-    y = v[0, 1]
+def _lex_extremes(v, n):
+    """The lexicographically (x, then y) smallest and largest of the n >= 1 vertices: (xmin, ymin, xmax, ymax)."""
+    x0 = x1 = v[0, 0]
+    y0 = y1 = v[0, 1]
     for i in range(1, n):
-        if v[i, 0] < x or (v[i, 0] == x and v[i, 1] < y):
-            x = v[i, 0]
-            y = v[i, 1]
-    return x, y
-
-
-@njit(cache=True)
-def _lex_max(v, n):
-    x = v[0, 0]
-    y = v[0, 1]
-    for i in range(1, n):
-        if v[i, 0] > x or (v[i, 0] == x and v[i, 1] > y):
-            x = v[i, 0]
-            y = v[i, 1]
-    return x, y
+        x = v[i, 0]
+        y = v[i, 1]
+        if x < x0 or (x == x0 and y < y0):
+            x0 = x
+            y0 = y
+        if x > x1 or (x == x1 and y > y1):
+            x1 = x
+            y1 = y
+    return x0, y0, x1, y1
 
 
 @njit(cache=True)
 def _a_after_b(va, na, ra, vb, nb, rb):
-    """Canonical pair order: True if (A, B) must be swapped. Keys: vertex count, radius, lexicographically
-    smallest vertex, largest vertex; all invariant under the choice of first vertex."""
+    """Canonical pair order: True if (A, B) must be swapped. Keys, compared in turn: vertex count, radius,
+    lexicographically smallest vertex, largest vertex; all invariant under the choice of first vertex."""
     if na != nb:
         return na > nb
     if ra != rb:
         return ra > rb
-    ax, ay = _lex_min(va, na)
-    bx, by = _lex_min(vb, nb)
-    if ax != bx:
-        return ax > bx
-    if ay != by:
-        return ay > by
-    ax, ay = _lex_max(va, na)
-    bx, by = _lex_max(vb, nb)
-    if ax != bx:
-        return ax > bx
-    return ay > by
+    ka = _lex_extremes(va, na)
+    kb = _lex_extremes(vb, nb)
+    for i in range(4):
+        if ka[i] != kb[i]:
+            return ka[i] > kb[i]
+    return False
 
 
 @njit(cache=True)
@@ -225,8 +215,10 @@ def _order_two(out_phi, out_normal, out_point):
 
 
 @njit(cache=True)
-def _point_core(px, py, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point):
-    """Point core A = (px, py) inflated by ra against core B (nb >= 1, effective). Returns 0 or 1."""
+def _point_core(va, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point):
+    """Point core A = va[0] inflated by ra against core B (nb >= 1, effective). Returns 0 or 1."""
+    px = va[0, 0]
+    py = va[0, 1]
     if nb == 1:
         dx = px - vb[0, 0]
         dy = py - vb[0, 1]
@@ -253,36 +245,11 @@ def _point_core(px, py, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_po
                 nx = -nx
                 ny = -ny
     else:
-        smax = -np.inf
-        fx = 0.0
-        fy = 1.0
-        for i in range(nb):
-            mx, my, ok = _face_normal(vb, nb, i)
-            if not ok:
-                continue
-            si = mx * (px - vb[i, 0]) + my * (py - vb[i, 1])
-            if si > smax or (si == smax and _key_gt(mx, my, fx, fy)):
-                smax = si
-                fx = mx
-                fy = my
-        nx = fx
-        ny = fy
-        s = smax
-        if smax > 0.0:
+        # the face of least penetration (inside) or of most separation (outside): the SAT of the point
+        s, _, nx, ny, _ = _max_separation(vb, nb, va, 1)
+        if s > 0.0:
             # outside: the closest point on the boundary
-            best = np.inf
-            bx = 0.0
-            by = 0.0
-            for i in range(nb):
-                j = i + 1
-                if j >= nb:
-                    j = 0
-                qx, qy = _closest_on_segment(px, py, vb[i, 0], vb[i, 1], vb[j, 0], vb[j, 1])
-                d2 = (px - qx) * (px - qx) + (py - qy) * (py - qy)
-                if d2 < best:
-                    best = d2
-                    bx = qx
-                    by = qy
+            _, _, _, bx, by = _closest_vertex_edge(va, 1, vb, nb, np.inf, px, py, 0.0, 0.0)
             d = math.hypot(px - bx, py - by)
             if d > tol:
                 nx = (px - bx) / d
@@ -339,45 +306,37 @@ def _max_separation(v1, n1, v2, n2):
 
 
 @njit(cache=True)
-def _core_distance(va, na, vb, nb):
-    """Distance between two DISJOINT cores: min over (vertex of one, edge of the other) pairs.
+def _closest_vertex_edge(v1, n1, v2, n2, best, p1x, p1y, p2x, p2y):
+    """The closest (vertex of core 1, point on an edge of core 2) pair if its squared distance is below `best`.
 
-    Returns (d, pax, pay, pbx, pby) with the witness points on A and on B. (For intersecting cores this is not
-    0; the caller only uses it when the SAT says the cores are apart.)"""
-    best = np.inf
-    pax = va[0, 0]
-    pay = va[0, 1]
-    pbx = vb[0, 0]
-    pby = vb[0, 1]
-    neb = nb if nb >= 3 else nb - 1
-    nea = na if na >= 3 else na - 1
-    for i in range(na):
-        for j in range(neb):
+    Returns (best, p1x, p1y, p2x, p2y): the inputs unchanged when no pair is strictly closer than `best`, so two
+    calls chained through `best` give the first closest pair of both directions (the order is part of the result
+    when distances tie)."""
+    ne2 = n2 if n2 >= 3 else n2 - 1     # a segment core has one edge, a polygon n
+    for i in range(n1):
+        for j in range(ne2):
             k = j + 1
-            if k >= nb:
+            if k >= n2:
                 k = 0
-            qx, qy = _closest_on_segment(va[i, 0], va[i, 1], vb[j, 0], vb[j, 1], vb[k, 0], vb[k, 1])
-            d2 = (va[i, 0] - qx) ** 2 + (va[i, 1] - qy) ** 2
+            qx, qy = _closest_on_segment(v1[i, 0], v1[i, 1], v2[j, 0], v2[j, 1], v2[k, 0], v2[k, 1])
+            d2 = (v1[i, 0] - qx) ** 2 + (v1[i, 1] - qy) ** 2
             if d2 < best:
                 best = d2
-                pax = va[i, 0]
-                pay = va[i, 1]
-                pbx = qx
-                pby = qy
-    for i in range(nb):
-        for j in range(nea):
-            k = j + 1
-            if k >= na:
-                k = 0
-            qx, qy = _closest_on_segment(vb[i, 0], vb[i, 1], va[j, 0], va[j, 1], va[k, 0], va[k, 1])
-            d2 = (vb[i, 0] - qx) ** 2 + (vb[i, 1] - qy) ** 2
-            if d2 < best:
-                best = d2
-                pax = qx
-                pay = qy
-                pbx = vb[i, 0]
-                pby = vb[i, 1]
-    return math.hypot(pax - pbx, pay - pby), pax, pay, pbx, pby
+                p1x = v1[i, 0]
+                p1y = v1[i, 1]
+                p2x = qx
+                p2y = qy
+    return best, p1x, p1y, p2x, p2y
+
+
+@njit(cache=True)
+def _segment_point(c1x, c1y, c2x, c2y, s):
+    """c1 + s (c2 - c1) for s in [0, 1], with the endpoints themselves (not a rounded sum) at s = 0 and s = 1."""
+    if s == 0.0:
+        return c1x, c1y
+    if s == 1.0:
+        return c2x, c2y
+    return c1x + s * (c2x - c1x), c1y + s * (c2y - c1y)
 
 
 @njit(cache=True)
@@ -402,20 +361,8 @@ def _clip_segment(c1x, c1y, c2x, c2y, r1x, r1y, ux, uy, hi):
         s_out = 1.0
     if s_in > s_out:
         return 0, c1x, c1y, c2x, c2y
-    ex = c2x - c1x
-    ey = c2y - c1y
-    if s_in == 0.0:
-        p1x, p1y = c1x, c1y
-    elif s_in == 1.0:
-        p1x, p1y = c2x, c2y
-    else:
-        p1x, p1y = c1x + s_in * ex, c1y + s_in * ey
-    if s_out == 1.0:
-        p2x, p2y = c2x, c2y
-    elif s_out == 0.0:
-        p2x, p2y = c1x, c1y
-    else:
-        p2x, p2y = c1x + s_out * ex, c1y + s_out * ey
+    p1x, p1y = _segment_point(c1x, c1y, c2x, c2y, s_in)
+    p2x, p2y = _segment_point(c1x, c1y, c2x, c2y, s_out)
     return 2, p1x, p1y, p2x, p2y
 
 
@@ -427,52 +374,27 @@ def _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_poi
     if ia < 0 and ib < 0:
         return 0  # unreachable for effective n >= 2: kept so a bad input cannot index -1
     # reference face: max separation; an exact tie keeps A (the canonical first) as reference
-    if ib >= 0 and (ia < 0 or sb > sa):
-        ref_b = True
-        vR = vb
-        nR = nb
-        rR = rb
-        vI = va
-        nI = na
-        rI = ra
-        fi = ib
-        ux_n = nbx
-        uy_n = nby
-        sep = sb
-        kdeep = kb
+    # R: the reference core (its face fi, normal n_ref = (ux_n, uy_n), separation sep); I: the incident core (its
+    # vertex kdeep is the deepest along -n_ref)
+    ref_b = ib >= 0 and (ia < 0 or sb > sa)
+    if ref_b:
+        vR, nR, rR, vI, nI, rI = vb, nb, rb, va, na, ra
+        fi, ux_n, uy_n, sep, kdeep = ib, nbx, nby, sb, kb
     else:
-        ref_b = False
-        vR = va
-        nR = na
-        rR = ra
-        vI = vb
-        nI = nb
-        rI = rb
-        fi = ia
-        ux_n = nax
-        uy_n = nay
-        sep = sa
-        kdeep = ka
+        vR, nR, rR, vI, nI, rI = va, na, ra, vb, nb, rb
+        fi, ux_n, uy_n, sep, kdeep = ia, nax, nay, sa, ka
     # output normal points from B to A; n_ref points from R towards I
     sgn = 1.0 if ref_b else -1.0
     if not sep - ra - rb < margin:
         return 0  # the true distance is >= the SAT separation
 
     # incident edge: most anti-parallel to n_ref
-    ie = -1
-    best = np.inf
-    bmx = 0.0
-    bmy = 0.0
+    ie, best, bmx, bmy = -1, np.inf, 0.0, 0.0
     for e in range(nI):
         mx, my, ok = _face_normal(vI, nI, e)
-        if not ok:
-            continue
         dd = mx * ux_n + my * uy_n
-        if ie < 0 or dd < best or (dd == best and _key_gt(mx, my, bmx, bmy)):
-            best = dd
-            ie = e
-            bmx = mx
-            bmy = my
+        if ok and (ie < 0 or dd < best or (dd == best and _key_gt(mx, my, bmx, bmy))):
+            ie, best, bmx, bmy = e, dd, mx, my
     je = ie + 1
     if je >= nI:
         je = 0
@@ -499,7 +421,13 @@ def _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_poi
         smin = s2
 
     if sep > -tol:
-        d, pax, pay, pbx, pby = _core_distance(va, na, vb, nb)
+        # the distance d between the cores, with its witness points pa on A and pb on B: the closest (vertex, edge)
+        # pair, A's vertices first. For intersecting cores d is not 0: it is computed only when the SAT finds the cores
+        # apart or touching (sep > -tol).
+        best, pax, pay, pbx, pby = _closest_vertex_edge(va, na, vb, nb, np.inf, va[0, 0], va[0, 1], vb[0, 0],
+                                                        vb[0, 1])
+        best, pbx, pby, pax, pay = _closest_vertex_edge(vb, nb, va, na, best, pbx, pby, pax, pay)
+        d = math.hypot(pax - pbx, pay - pby)
         if d > tol:
             # separated cores: the face manifold is right only if it reaches the true distance
             if not (cnt > 0 and smin <= d + tol):
@@ -546,8 +474,11 @@ def _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_poi
 
 @njit(cache=True)
 def _core_core_ordered(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point):
+    """The pair in canonical order. contact_core_core calls this from both of its branches (not once after a swap):
+    with two call sites LLVM keeps the point and polygon kernels out of line in every module that links them, and the
+    first simulate() compiles faster (experiments.bench.measure_step_compile_time)."""
     if na == 1:
-        return _point_core(va[0, 0], va[0, 1], ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point)
+        return _point_core(va, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point)
     return _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point)
 
 
@@ -674,47 +605,3 @@ def contact_core_halfplane(va, na, ra, p0, n0, margin, out_phi, out_normal, out_
     h = ra + 0.5 * p2
     _write(out_phi, out_normal, out_point, 1, p2, nx, ny, va[k2, 0] - h * nx, va[k2, 1] - h * ny)
     return 2
-
-
-@njit(cache=True)
-def transform_core(local_verts, nv, x, y, theta, out):
-    """World vertices of a core: out[i] = R(theta) local_verts[i] + (x, y) for i < nv.
-
-    local_verts : float64 (>= nv, 2), body-frame vertices (m); out : float64 (>= nv, 2); theta in rad."""
-    c = math.cos(theta)
-    s = math.sin(theta)
-    for i in range(nv):
-        lx = local_verts[i, 0]
-        ly = local_verts[i, 1]
-        out[i, 0] = c * lx - s * ly + x
-        out[i, 1] = s * lx + c * ly + y
-
-
-@njit(cache=True)
-def aabb_core(va, na, r, out4):
-    """Axis-aligned box [xmin, ymin, xmax, ymax] (m) of the core va[:na] inflated by r, into out4 (4,).
-
-    na <= 0 writes the empty box [inf, inf, -inf, -inf]."""
-    xmin = np.inf
-    ymin = np.inf
-    xmax = -np.inf
-    ymax = -np.inf
-    for i in range(na):
-        if va[i, 0] < xmin:
-            xmin = va[i, 0]
-        if va[i, 0] > xmax:
-            xmax = va[i, 0]
-        if va[i, 1] < ymin:
-            ymin = va[i, 1]
-        if va[i, 1] > ymax:
-            ymax = va[i, 1]
-    if na <= 0:
-        out4[0] = np.inf
-        out4[1] = np.inf
-        out4[2] = -np.inf
-        out4[3] = -np.inf
-        return
-    out4[0] = xmin - r
-    out4[1] = ymin - r
-    out4[2] = xmax + r
-    out4[3] = ymax + r
