@@ -46,7 +46,7 @@ def test_an_optional_import_deep_in_a_command_is_reported_the_same_way(tmp_path)
     r = run_without(["tqdm"], ["study", "falling-rod", "--quick", "--out", tmp_path / "s"], tmp_path)
     assert r.returncode == 2, r.stderr
     assert "Traceback" not in r.stderr
-    assert r.stderr.splitlines() == [f"planar-lcp study: error: tqdm is not installed; it comes with the extra "
+    assert r.stderr.splitlines() == ["planar-lcp study: error: tqdm is not installed; it comes with the extra "
                                      "'studies': pip install -e \".[studies]\" in the repository (\".[dev]\" installs "
                                      "every extra)"]
 
