@@ -20,7 +20,7 @@ import pytest
 
 from planar_lcp.engine import assemble as AS
 from planar_lcp.engine import contacts as C
-from planar_lcp.engine.step import ST_NCON
+from planar_lcp.engine.layout import Stat
 from planar_lcp.lcp import lemke
 from planar_lcp.model import BODY_DYNAMIC, BODY_KINEMATIC, compile_scene
 from planar_lcp.spec.scene import list_scenes, load_scene, parse_scene
@@ -218,7 +218,7 @@ def islands_of(m, ncon, con_pair):
 
 
 class Problem:
-    """Contacts at the linearization pose of one step, as the step kernel forms them (see kernels/step.py)."""
+    """Contacts at the linearization pose of one step, as the step pipeline forms them (see engine/step.py)."""
 
     def __init__(self, model, q, v, qk, vk, h, velocity_form, v_hat=None, force_all=False, margin=MARGIN):
         m = model.arrays
@@ -295,7 +295,7 @@ def _trajectory(name):
 
 def _step_choices(out):
     done = out["steps_done"]
-    ncon = out["stats"][:done, ST_NCON]            # contacts found during each step
+    ncon = out["stats"][:done, Stat.N_CONTACTS]            # contacts found during each step
     steps = {0, done}
     with_contacts = np.flatnonzero(ncon > 0)
     if len(with_contacts):

@@ -13,7 +13,8 @@ Static and kinematic bodies carry no unknowns: their velocity enters the constan
 import numpy as np
 from numba import njit
 
-from planar_lcp.engine.constants import BODY_DYNAMIC, BODY_KINEMATIC
+from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC, MODE_SEPARATED, MODE_SLIDING,
+                                         MODE_STICKING)
 
 
 @njit(cache=True)
@@ -229,3 +230,79 @@ def apply_impulses(nforce, col_dyn, col_g, z, m, v):
                 v[d, 0] += col_g[u, side, 0] * zu / m.dyn_mass[d]
                 v[d, 1] += col_g[u, side, 1] * zu / m.dyn_mass[d]
                 v[d, 2] += col_g[u, side, 2] * zu / m.dyn_inertia[d]
+
+
+@njit(cache=True)
+def island_problem_size(m, isl_con, nci, nsi, con_pair):
+    """(LCP size, number of frictional contacts, PGS size) of an island with nci contacts and nsi support points."""
+    nf = 0
+    for a in range(nci):
+        if m.pair_mu[con_pair[isl_con[a]]] > 0.0:
+            nf += 1
+    k = m.fric_dirs.shape[0]
+    return nci + 3 * nf + (k + 1) * nsi, nf, nci + nf + 2 * nsi
+
+
+@njit(cache=True)
+def record_impulses(m, w, nci, z, per_contact, nf_offset):
+    """Per-contact normal and tangential impulses (w.con_cn, w.con_ft) from a solver's unknowns z.
+
+    per_contact: PGS layout, z = [c_n, f_t (if mu > 0)] contact after contact; else the LCP layout
+    z = [c_n..., (beta+, beta-)...] with the friction pairs from z[nf_offset]."""
+    f = 0
+    u = 0
+    for a in range(nci):
+        j = w.island_con[a]
+        frict = m.pair_mu[w.con_pair[j]] > 0.0
+        if per_contact:
+            w.con_cn[j] = z[u]
+            u += 1
+            if frict:
+                w.con_ft[j] = z[u]
+                u += 1
+            else:
+                w.con_ft[j] = 0.0
+        else:
+            w.con_cn[j] = z[a]
+            if frict:
+                w.con_ft[j] = z[nf_offset + 2 * f] - z[nf_offset + 2 * f + 1]
+                f += 1
+            else:
+                w.con_ft[j] = 0.0
+
+
+@njit(cache=True)
+def contact_velocities(m, w, opt, vk, nci):
+    """Post-solve tangential relative velocity (A minus B) of the island's contacts w.island_con[:nci], and their mode:
+    separated (normal impulse <= impulse_tol), sliding (|tangential velocity| > slip_tol), else sticking.
+
+    Measured with the geometry the LCP used (lever arms at the linearization pose w.body_pose), so that a contact the
+    LCP solved as sticking has zero slip here, not the O(h) difference of the end-of-step geometry."""
+    for a in range(nci):
+        j = w.island_con[a]
+        p = w.con_pair[j]
+        nx = w.con_n[j, 0]
+        ny = w.con_n[j, 1]
+        vt = 0.0
+        for side in range(2):
+            b = m.shape_body[m.pair_a[p]] if side == 0 else m.shape_body[m.pair_b[p]]
+            sgn = 1.0 if side == 0 else -1.0
+            kind = m.body_kind[b]
+            if kind == BODY_STATIC:
+                continue
+            if kind == BODY_DYNAMIC:
+                vel = w.v_new[m.body_slot[b]]
+            else:
+                vel = vk[m.body_slot[b]]
+            rx = w.con_p[j, 0] - w.body_pose[b, 0]
+            ry = w.con_p[j, 1] - w.body_pose[b, 1]
+            px = vel[0] - vel[2] * ry
+            py = vel[1] + vel[2] * rx
+            vt += sgn * (-px * ny + py * nx)
+        w.con_vt[j] = vt
+        if w.con_cn[j] <= opt.impulse_tol:
+            w.con_mode[j] = MODE_SEPARATED
+        elif abs(vt) > opt.slip_tol:
+            w.con_mode[j] = MODE_SLIDING
+        else:
+            w.con_mode[j] = MODE_STICKING

@@ -302,7 +302,7 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
     from planar_lcp.model import compile_scene
     from planar_lcp.spec.scene import load_scene
     from planar_lcp.sim import SimOptions, Simulator
-    from planar_lcp.engine.step import ST_WARM_STARTS
+    from planar_lcp.engine.layout import Stat
     rows = []
     for name in scenes:
         sc = load_scene(name)
@@ -325,7 +325,7 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
                    warm_us_per_step=float(np.median(per["ours_warm"])) / n * 1e6,
                    mean_lcp_size=float(st[:, 0].mean()), max_lcp_size=int(st[:, 1].max()),
                    pivots_per_step=float(st[:, 2].mean()), warm_pivots_per_step=float(stw[:, 2].mean()),
-                   warm_start_share=float(stw[with_lcp, ST_WARM_STARTS].mean()) if with_lcp.any() else 0.0,
+                   warm_start_share=float(stw[with_lcp, Stat.WARM_STARTS].mean()) if with_lcp.any() else 0.0,
                    rounds=rounds, runs_per_round={k: int(v) for k, v in m["reps"].items()},
                    other_threads_cpu_share=m["other_threads_cpu_share"])
         if pymunk:

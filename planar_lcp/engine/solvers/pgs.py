@@ -9,8 +9,11 @@ converged in general - the iteration count is the speed/accuracy knob.
 import numpy as np
 from numba import njit
 
-from planar_lcp.engine.assemble import (column_dot, contact_column, delassus, friction_column, kinematic_velocity_along,
-                                        support_column)
+from planar_lcp.engine.assemble import (apply_impulses, column_dot, contact_column, contact_velocities, delassus,
+                                        friction_column, island_problem_size, kinematic_velocity_along,
+                                        record_impulses, support_column)
+from planar_lcp.engine.layout import Stat
+from planar_lcp.engine.solvers.lemke import STATUS_SOLVED
 
 
 @njit(cache=True)
@@ -107,3 +110,22 @@ def solve_pgs(m, isl_con, nci, isl_sup, nsi, con_pair, h, W, b, x, iterations):
             x[u + 1] = fy
             u += 2
     return last
+
+
+@njit(cache=True, inline='always')
+def solve_island_pgs(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
+    """Island solver (signature: engine/step.py): the island's impulses by opt.pgs_iters projected Gauss-Seidel
+    sweeps, added to w.v_new and recorded in w.con_*. Uncertified, and never fails: returns STATUS_SOLVED."""
+    _, _, n = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
+    W = w.lcp_matrix[:n * n].reshape((n, n))
+    assemble_pgs(m, w.body_pose, vk, w.island_con, nci, w.island_sup, nsi, w.con_pair, w.con_phi, w.con_n, w.con_p,
+                 w.v_tilde, w.v_hat, h, velocity_form, w.column_slot, w.column_g, W, w.lcp_vector)
+    upd = solve_pgs(m, w.island_con, nci, w.island_sup, nsi, w.con_pair, h, W, w.lcp_vector, w.pgs_impulse,
+                    opt.pgs_iters)
+    stats[Stat.PGS_UPDATE] = max(stats[Stat.PGS_UPDATE], upd)
+    stats[Stat.LCP_SIZE] += n
+    stats[Stat.LCP_MAX] = max(stats[Stat.LCP_MAX], n)
+    apply_impulses(n, w.column_slot, w.column_g, w.pgs_impulse, m, w.v_new)
+    record_impulses(m, w, nci, w.pgs_impulse, True, 0)
+    contact_velocities(m, w, opt, vk, nci)
+    return STATUS_SOLVED
