@@ -139,6 +139,18 @@ def kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, dx, dy):
 
 
 @njit(cache=True)
+def normal_row_constant(m, poses, vk, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h, velocity_form, col_dyn,
+                        col_g, j, u):
+    """The constant of contact j's normal row, whose generalized column is u: position forms (linearized at
+    q_hat = q + h v_hat) phi/h + n.(v_tilde - v_hat); velocity form n.v_tilde + max(phi, 0)/h + the kinematic
+    bodies' normal velocity."""
+    if velocity_form:
+        return column_dot(col_dyn, col_g, u, v_tilde) + max(con_phi[j], 0.0) / h + \
+            kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, con_n[j, 0], con_n[j, 1])
+    return con_phi[j] / h + column_dot(col_dyn, col_g, u, v_tilde) - column_dot(col_dyn, col_g, u, v_hat)
+
+
+@njit(cache=True)
 def assemble_lcp(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h,
                  velocity_form, col_dyn, col_g, A, b):
     """Build the island's LCP (A, b) of size returned; columns of the force unknowns go to col_dyn / col_g.
@@ -180,12 +192,8 @@ def assemble_lcp(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, co
     delassus(m, nforce, col_dyn, col_g, A)
     # constant vector
     for a in range(nci):
-        j = isl_con[a]
-        if velocity_form:
-            b[a] = column_dot(col_dyn, col_g, a, v_tilde) + max(con_phi[j], 0.0) / h + \
-                kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, con_n[j, 0], con_n[j, 1])
-        else:
-            b[a] = con_phi[j] / h + column_dot(col_dyn, col_g, a, v_tilde) - column_dot(col_dyn, col_g, a, v_hat)
+        b[a] = normal_row_constant(m, poses, vk, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h, velocity_form,
+                                   col_dyn, col_g, isl_con[a], a)
     f = 0
     for a in range(nci):
         j = isl_con[a]

@@ -30,104 +30,117 @@ from numba.extending import intrinsic
 #: reader). writer: the stage that writes it. init: the value the allocator fills in.
 Field = namedtuple("Field", ["name", "dtype", "shape", "unit", "writer", "meaning", "init"], defaults=(0,))
 
-MODEL_LAYOUT = (
-    Field("plane", "int", "", "", "compile", "PLANE_VERTICAL | PLANE_HORIZONTAL"),
-    Field("gravity", "f8", "2", "m/s^2", "compile", "vertical plane (zero in the horizontal plane)"),
-    Field("body_kind", "i8", "nbody", "", "compile", "BODY_*"),
-    Field("body_slot", "i8", "nbody", "", "compile", "index among the dynamic (or kinematic) bodies; -1: static"),
-    Field("static_pose", "f8", "nbody x 3", "m, rad", "compile", "world pose of static bodies (other rows unused)"),
-    Field("dyn_body", "i8", "ndyn", "", "compile", "body index of each dynamic slot"),
-    Field("dyn_mass", "f8", "ndyn", "kg", "compile", "mass"),
-    Field("dyn_inertia", "f8", "ndyn", "kg m^2", "compile", "moment of inertia about the COM"),
-    Field("shape_body", "i8", "nshape", "", "compile", "body of each shape"),
-    Field("shape_kind", "i8", "nshape", "", "compile", "SHAPE_*"),
-    Field("shape_vert_adr", "i8", "nshape", "", "compile", "first core vertex in vert_local"),
-    Field("shape_vert_num", "i8", "nshape", "", "compile", "number of core vertices"),
-    Field("shape_radius", "f8", "nshape", "m", "compile", "radius the core is inflated by"),
-    Field("hp_point_w", "f8", "nshape x 2", "m", "compile", "half-plane point, world (half-planes are static)"),
-    Field("hp_normal_w", "f8", "nshape x 2", "", "compile", "half-plane outward unit normal, world"),
-    Field("vert_local", "f8", "nvert x 2", "m", "compile",
-          "core vertices in the body's dynamics frame (the COM frame for dynamic bodies)"),
-    Field("pair_a", "i8", "npair", "", "compile", "shape A of each candidate pair; A is dynamic, never a half-plane"),
-    Field("pair_b", "i8", "npair", "", "compile", "shape B of each candidate pair"),
-    Field("pair_mu", "f8", "npair", "", "compile", "Coulomb coefficient"),
-    Field("sup_dyn", "i8", "nsup", "", "compile", "dynamic slot of the body a support point belongs to"),
-    Field("sup_local", "f8", "nsup x 2", "m", "compile", "support point, COM frame"),
-    Field("sup_load", "f8", "nsup", "N", "compile", "known normal load on the table (m g w)"),
-    Field("sup_mu", "f8", "nsup", "", "compile", "body-table Coulomb coefficient"),
-    Field("fric_dirs", "f8", "k x 2", "", "compile", "unit friction directions of the table friction"),
-    Field("seed_friction_arm", "int", "", "", "compile", "1: contact friction at the shapes' core points (the seed's)"),
-)
 
-WORK_LAYOUT = (
-    Field("body_pose", "f8", "body x 3", "m, rad", "contacts", "world pose of every body at the pose being examined"),
-    Field("vert_world", "f8", "vert x 2", "m", "contacts", "core vertices, world"),
-    Field("pair_forced", "bool", "pair", "", "check", "pairs the active-set check added (contacts at any gap)"),
-    Field("pair_set_count", "i8", "pair", "", "contacts", "contacts of each pair in the active set"),
-    Field("con_pair", "i8", "contact", "", "contacts", "pair of each contact of the active set"),
-    Field("con_phi", "f8", "contact", "m", "contacts", "gap (negative: penetration)"),
-    Field("con_n", "f8", "contact x 2", "", "contacts", "unit normal from B to A, world"),
-    Field("con_p", "f8", "contact x 2", "m", "contacts", "contact point, world"),
-    Field("pair_phi", "f8", "2", "m", "contacts", "one pair's contacts, as the collision kernels return them"),
-    Field("pair_n", "f8", "2 x 2", "", "contacts", "their normals"),
-    Field("pair_p", "f8", "2 x 2", "m", "contacts", "their points"),
-    Field("check_pair", "i8", "contact", "", "check", "contacts at q+ (active-set check, projection)"),
-    Field("check_phi", "f8", "contact", "m", "check", "their gaps"),
-    Field("check_n", "f8", "contact x 2", "", "check", "their normals"),
-    Field("check_p", "f8", "contact x 2", "m", "check", "their points"),
-    Field("island_parent", "i8", "dyn", "", "islands", "union-find parent of each dynamic slot"),
-    Field("body_island", "i8", "dyn", "", "islands", "island of each dynamic slot"),
-    Field("island_con", "i8", "contact", "", "islands", "the contacts of the island being solved"),
-    Field("island_sup", "i8", "support", "", "islands", "the support points of the island being solved"),
-    Field("column_slot", "i8", "unknown x 2", "", "assemble",
-          "dynamic slots of the two bodies of each force unknown's generalized column (-1: none)"),
-    Field("column_g", "f8", "unknown x 2 x 3", "", "assemble", "the column's generalized vectors on those bodies"),
-    Field("lcp_matrix", "f8", "unknown2", "", "assemble", "the island's problem matrix (n x n, row-major)"),
-    Field("lcp_vector", "f8", "unknown", "m/s", "assemble", "the island's problem constant vector"),
-    Field("pgs_impulse", "f8", "unknown", "N s", "pgs", "PGS unknowns"),
-    Field("lemke_tableau", "f8", "tableau", "", "lemke", "Lemke's tableau (n x 2n + 2, row-major)"),
-    Field("lemke_basis", "i8", "unknown", "", "lemke", "basic variable of each tableau row"),
-    Field("lemke_z", "f8", "unknown", "N s", "lemke", "the LCP's answer z"),
-    Field("lemke_w", "f8", "unknown", "m/s", "lemke", "w = M z + q"),
-    Field("lemke_rows", "i8", "unknown", "", "lemke", "candidate rows of the ratio test"),
-    Field("lemke_lu", "f8", "unknown x unknown", "", "lemke", "basis refinement's LU factors"),
-    Field("lemke_rhs", "f8", "unknown", "", "lemke", "basis refinement's right-hand side"),
-    Field("lemke_perm", "i8", "unknown", "", "lemke", "basis refinement's row permutation"),
-    Field("lemke_basic", "i8", "unknown", "", "lemke", "indices of the basic z"),
-    Field("lemke_z_refined", "f8", "unknown", "N s", "lemke", "z recomputed from the original data"),
-    Field("lemke_w_refined", "f8", "unknown", "m/s", "lemke", "its w"),
-    Field("lemke_pivot_row", "f8", "tableau_row", "", "lemke", "the normalized pivot row"),
-    Field("lemke_scaling", "f8", "unknown", "", "lemke", "equilibration (powers of two)"),
-    Field("v_tilde", "f8", "dyn x 3", "m/s, rad/s", "begin", "free-motion velocity v + h M^-1 f_ext"),
-    Field("v_hat", "f8", "dyn x 3", "m/s, rad/s", "begin", "velocity of the linearization pose q_hat = q + h v_hat"),
-    Field("q_hat", "f8", "dyn x 3", "m, rad", "begin", "the linearization pose"),
-    Field("v_new", "f8", "dyn x 3", "m/s, rad/s", "island solvers", "v+"),
-    Field("q_new", "f8", "dyn x 3", "m, rad", "integrate", "q+"),
-    Field("con_cn", "f8", "contact", "N s", "island solvers", "normal impulse of each contact"),
-    Field("con_ft", "f8", "contact", "N s", "island solvers", "tangential impulse along t = (-n_y, n_x)"),
-    Field("con_vt", "f8", "contact", "m/s", "island solvers", "post-solve tangential velocity, A minus B"),
-    Field("con_mode", "i8", "contact", "", "island solvers", "MODE_*"),
-    Field("warm_size", "i8", "dyn", "", "lemke", "per island: size of the last LCP solved (-1: none)", -1),
-    Field("warm_basic_z", "bool", "dyn x unknown", "", "lemke", "per island: which z were basic in it"),
-    Field("warm_size_saved", "i8", "dyn", "", "step", "warm_size before a step that may be handed back", -1),
-    Field("warm_basic_z_saved", "bool", "dyn x unknown", "", "step", "warm_basic_z before that step"),
-)
+def _table(text, init=None):
+    """The fields of a text table: a header line, then one line per field with the columns name, dtype, shape, unit,
+    writer and meaning separated by "|" ("-": empty); init: {name: fill value} where not 0."""
+    fields = []
+    for line in text.strip().splitlines()[1:]:
+        cells = [c.strip() for c in line.split("|", 5)]
+        cells = ["" if c == "-" else c for c in cells]
+        fields.append(Field(*cells, init=(init or {}).get(cells[0], 0)))
+    return tuple(fields)
 
-OPTIONS_LAYOUT = (
-    Field("formulation", "int", "", "", "sim", "FORM_*"),
-    Field("fp_iters", "int", "", "", "sim", "fixed point: most re-linearizations"),
-    Field("fp_tol", "float", "", "m, rad", "sim", "fixed point: stop when q_hat moves less"),
-    Field("pgs_iters", "int", "", "", "sim", "PGS sweeps"),
-    Field("margin", "float", "", "m", "sim", "contacts with a smaller gap at the linearization pose enter the LCP"),
-    Field("pen_tol", "float", "", "m", "sim", "the active-set check adds a pair penetrating deeper"),
-    Field("max_resolves", "int", "", "", "sim", "most active-set re-solves"),
-    Field("piv_tol", "float", "", "", "sim", "Lemke's pivot tolerance (relative to the column)"),
-    Field("ratio_tol", "float", "", "", "sim", "Lemke's tie tolerance"),
-    Field("res_tol", "float", "", "", "sim", "certification: residual tolerance, relative"),
-    Field("slip_tol", "float", "", "m/s", "sim", "a loaded contact slipping faster is sliding"),
-    Field("impulse_tol", "float", "", "N s", "sim", "a contact with a smaller normal impulse is separated"),
-    Field("warm_start", "bool", "", "", "sim", "try each island's previous basis first"),
-)
+
+MODEL_LAYOUT = _table("""
+name              | dtype | shape      | unit   | writer  | meaning
+plane             | int   | -          | -      | compile | PLANE_VERTICAL | PLANE_HORIZONTAL
+gravity           | f8    | 2          | m/s^2  | compile | vertical plane (zero in the horizontal plane)
+body_kind         | i8    | nbody      | -      | compile | BODY_*
+body_slot         | i8    | nbody      | -      | compile | index among the dynamic (or kinematic) bodies; -1: static
+static_pose       | f8    | nbody x 3  | m, rad | compile | world pose of static bodies (other rows unused)
+dyn_body          | i8    | ndyn       | -      | compile | body index of each dynamic slot
+dyn_mass          | f8    | ndyn       | kg     | compile | mass
+dyn_inertia       | f8    | ndyn       | kg m^2 | compile | moment of inertia about the COM
+shape_body        | i8    | nshape     | -      | compile | body of each shape
+shape_kind        | i8    | nshape     | -      | compile | SHAPE_*
+shape_vert_adr    | i8    | nshape     | -      | compile | first core vertex in vert_local
+shape_vert_num    | i8    | nshape     | -      | compile | number of core vertices
+shape_radius      | f8    | nshape     | m      | compile | radius the core is inflated by
+hp_point_w        | f8    | nshape x 2 | m      | compile | half-plane point, world (half-planes are static)
+hp_normal_w       | f8    | nshape x 2 | -      | compile | half-plane outward unit normal, world
+vert_local        | f8    | nvert x 2  | m      | compile | core vertices, dynamics frame (dynamic bodies: COM frame)
+pair_a            | i8    | npair      | -      | compile | shape A of each pair (dynamic, never a half-plane)
+pair_b            | i8    | npair      | -      | compile | shape B of each candidate pair
+pair_mu           | f8    | npair      | -      | compile | Coulomb coefficient
+sup_dyn           | i8    | nsup       | -      | compile | dynamic slot of the body a support point belongs to
+sup_local         | f8    | nsup x 2   | m      | compile | support point, COM frame
+sup_load          | f8    | nsup       | N      | compile | known normal load on the table (m g w)
+sup_mu            | f8    | nsup       | -      | compile | body-table Coulomb coefficient
+fric_dirs         | f8    | k x 2      | -      | compile | unit friction directions of the table friction
+seed_friction_arm | int   | -          | -      | compile | 1: contact friction at the shapes' core points (the seed's)
+""")
+
+WORK_LAYOUT = _table("""
+name               | dtype | shape             | unit       | writer    | meaning
+body_pose          | f8    | body x 3          | m, rad     | contacts  | world pose of every body at the pose examined
+vert_world         | f8    | vert x 2          | m          | contacts  | core vertices, world
+pair_forced        | bool  | pair              | -          | check     | pairs the active-set check added (any gap)
+pair_set_count     | i8    | pair              | -          | contacts  | contacts of each pair in the active set
+con_pair           | i8    | contact           | -          | contacts  | pair of each contact of the active set
+con_phi            | f8    | contact           | m          | contacts  | gap (negative: penetration)
+con_n              | f8    | contact x 2       | -          | contacts  | unit normal from B to A, world
+con_p              | f8    | contact x 2       | m          | contacts  | contact point, world
+pair_phi           | f8    | 2                 | m          | contacts  | one pair's contacts (collision)
+pair_n             | f8    | 2 x 2             | -          | contacts  | their normals
+pair_p             | f8    | 2 x 2             | m          | contacts  | their points
+check_pair         | i8    | contact           | -          | check     | contacts at q+ (check, projection)
+check_phi          | f8    | contact           | m          | check     | their gaps
+check_n            | f8    | contact x 2       | -          | check     | their normals
+check_p            | f8    | contact x 2       | m          | check     | their points
+island_parent      | i8    | dyn               | -          | islands   | union-find parent of each dynamic slot
+body_island        | i8    | dyn               | -          | islands   | island of each dynamic slot
+island_con         | i8    | contact           | -          | islands   | the contacts of the island being solved
+island_sup         | i8    | support           | -          | islands   | the support points of that island
+column_slot        | i8    | unknown x 2       | -          | assemble  | its 2 bodies' slots (-1: none)
+column_g           | f8    | unknown x 2 x 3   | -          | assemble  | its generalized vectors on them
+lcp_matrix         | f8    | unknown2          | -          | assemble  | the island's matrix (n x n, row-major)
+lcp_vector         | f8    | unknown           | m/s        | assemble  | the island's constant vector
+pgs_impulse        | f8    | unknown           | N s        | pgs       | PGS unknowns
+lemke_tableau      | f8    | tableau           | -          | lemke     | tableau (n x 2n + 2, row-major)
+lemke_basis        | i8    | unknown           | -          | lemke     | basic variable of each tableau row
+lemke_z            | f8    | unknown           | N s        | lemke     | the LCP's answer z
+lemke_w            | f8    | unknown           | m/s        | lemke     | w = M z + q
+lemke_rows         | i8    | unknown           | -          | lemke     | candidate rows of the ratio test
+lemke_lu           | f8    | unknown x unknown | -          | lemke     | basis refinement's LU factors
+lemke_rhs          | f8    | unknown           | -          | lemke     | basis refinement's right-hand side
+lemke_perm         | i8    | unknown           | -          | lemke     | basis refinement's row permutation
+lemke_basic        | i8    | unknown           | -          | lemke     | indices of the basic z
+lemke_z_refined    | f8    | unknown           | N s        | lemke     | z recomputed from the original data
+lemke_w_refined    | f8    | unknown           | m/s        | lemke     | its w
+lemke_pivot_row    | f8    | tableau_row       | -          | lemke     | the normalized pivot row
+lemke_scaling      | f8    | unknown           | -          | lemke     | equilibration (powers of two)
+v_tilde            | f8    | dyn x 3           | m/s, rad/s | begin     | free-motion velocity v + h M^-1 f_ext
+v_hat              | f8    | dyn x 3           | m/s, rad/s | begin     | the linearization pose is q_hat = q + h v_hat
+q_hat              | f8    | dyn x 3           | m, rad     | begin     | the linearization pose
+v_new              | f8    | dyn x 3           | m/s, rad/s | solvers   | v+
+q_new              | f8    | dyn x 3           | m, rad     | integrate | q+
+con_cn             | f8    | contact           | N s        | solvers   | normal impulse of each contact
+con_ft             | f8    | contact           | N s        | solvers   | tangential impulse along t = (-n_y, n_x)
+con_vt             | f8    | contact           | m/s        | solvers   | post-solve tangential velocity, A minus B
+con_mode           | i8    | contact           | -          | solvers   | MODE_*
+warm_size          | i8    | dyn               | -          | lemke     | per island: last LCP's size (-1: none)
+warm_basic_z       | bool  | dyn x unknown     | -          | lemke     | per island: which z were basic in it
+warm_size_saved    | i8    | dyn               | -          | step      | warm_size before a step
+warm_basic_z_saved | bool  | dyn x unknown     | -          | step      | warm_basic_z before a step
+""", init={'warm_size': -1, 'warm_size_saved': -1})
+
+OPTIONS_LAYOUT = _table("""
+name         | dtype | shape | unit   | writer | meaning
+formulation  | int   | -     | -      | sim    | FORM_*
+fp_iters     | int   | -     | -      | sim    | fixed point: most re-linearizations
+fp_tol       | float | -     | m, rad | sim    | fixed point: stop when q_hat moves less
+pgs_iters    | int   | -     | -      | sim    | PGS sweeps
+margin       | float | -     | m      | sim    | a smaller gap at q_hat enters the LCP
+pen_tol      | float | -     | m      | sim    | the active-set check adds a pair penetrating deeper
+max_resolves | int   | -     | -      | sim    | most active-set re-solves
+piv_tol      | float | -     | -      | sim    | Lemke's pivot tolerance (relative to the column)
+ratio_tol    | float | -     | -      | sim    | Lemke's tie tolerance
+res_tol      | float | -     | -      | sim    | certification: residual tolerance, relative
+slip_tol     | float | -     | m/s    | sim    | a loaded contact slipping faster is sliding
+impulse_tol  | float | -     | N s    | sim    | a contact with a smaller normal impulse is separated
+warm_start   | bool  | -     | -      | sim    | try each island's previous basis first
+""")
 
 #: A step's diagnostics, one float64 entry each in the stats vector (the kernels' `stats`, `Simulator.stats`, a
 #: rollout's stats rows), in this order: (name, integer-valued, meaning). `Stat.<NAME>` is the index of each;

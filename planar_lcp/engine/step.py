@@ -192,21 +192,13 @@ def write_outputs(w, ncon, q_out, v_out, stats, fp_iter, worst):
 
 
 @njit(cache=True, inline='always')
-def save_warm_start(w):
-    """Keep the warm-start memory (per island: LCP size and basic-z mask) as it is before the step."""
-    for i in range(w.warm_size.shape[0]):
-        w.warm_size_saved[i] = w.warm_size[i]
-        for c in range(w.warm_basic_z.shape[1]):
-            w.warm_basic_z_saved[i, c] = w.warm_basic_z[i, c]
-
-
-@njit(cache=True, inline='always')
-def restore_warm_start(w):
-    """Put back the warm-start memory `save_warm_start` kept."""
-    for i in range(w.warm_size.shape[0]):
-        w.warm_size[i] = w.warm_size_saved[i]
-        for c in range(w.warm_basic_z.shape[1]):
-            w.warm_basic_z[i, c] = w.warm_basic_z_saved[i, c]
+def copy_warm_start(size_from, basic_z_from, size_to, basic_z_to):
+    """Copy the warm-start memory (per island: LCP size and basic-z mask): kept before a step that a variant without
+    fallback may hand back (w.warm_size_saved, w.warm_basic_z_saved), put back when it does."""
+    for i in range(size_from.shape[0]):
+        size_to[i] = size_from[i]
+        for c in range(basic_z_from.shape[1]):
+            basic_z_to[i, c] = basic_z_from[i, c]
 
 
 @njit(cache=True, inline='always')
@@ -240,7 +232,7 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
             return STEP_NEEDS_FALLBACK
     if fallback is None:
         if opt.warm_start:
-            save_warm_start(w)
+            copy_warm_start(w.warm_size, w.warm_basic_z, w.warm_size_saved, w.warm_basic_z_saved)
     begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats)
     # the velocity form evaluates contacts at the current configuration, the position forms at the end of the step
     qk_lin = qk if velocity_form else qk_out
@@ -258,7 +250,7 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
             if st != STATUS_SOLVED:
                 if fallback is None:
                     if opt.warm_start:
-                        restore_warm_start(w)
+                        copy_warm_start(w.warm_size_saved, w.warm_basic_z_saved, w.warm_size, w.warm_basic_z)
                     return STEP_NEEDS_FALLBACK
                 stats[Stat.PGS_UNCERTIFIED] += 1
                 fallback(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)

@@ -11,7 +11,7 @@ from numba import njit
 
 from planar_lcp.engine.assemble import (apply_impulses, column_dot, contact_column, contact_velocities, delassus,
                                         friction_column, island_problem_size, kinematic_velocity_along,
-                                        record_impulses, support_column)
+                                        normal_row_constant, record_impulses, support_column)
 from planar_lcp.engine.layout import Stat
 from planar_lcp.engine.solvers.lemke import STATUS_SOLVED
 
@@ -26,11 +26,8 @@ def assemble_pgs(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, co
         nx = con_n[j, 0]
         ny = con_n[j, 1]
         contact_column(m, poses, con_pair, con_p, j, nx, ny, col_dyn, col_g, u)
-        if velocity_form:
-            b[u] = column_dot(col_dyn, col_g, u, v_tilde) + max(con_phi[j], 0.0) / h + \
-                kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, nx, ny)
-        else:
-            b[u] = con_phi[j] / h + column_dot(col_dyn, col_g, u, v_tilde) - column_dot(col_dyn, col_g, u, v_hat)
+        b[u] = normal_row_constant(m, poses, vk, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h, velocity_form,
+                                   col_dyn, col_g, j, u)
         u += 1
         if m.pair_mu[con_pair[j]] > 0.0:
             friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, -ny, nx, col_dyn, col_g, u)
