@@ -139,44 +139,46 @@ def kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, dx, dy):
 
 
 @njit(cache=True)
-def normal_row_constant(m, poses, vk, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h, velocity_form, col_dyn,
-                        col_g, j, u):
-    """The constant of contact j's normal row, whose generalized column is u: position forms (linearized at
-    q_hat = q + h v_hat) phi/h + n.(v_tilde - v_hat); velocity form n.v_tilde + max(phi, 0)/h + the kinematic
-    bodies' normal velocity."""
+def normal_column(m, w, vk, h, velocity_form, a, u, b):
+    """Contact j = w.island_con[a]'s unit normal impulse as generalized column u, and the constant of its normal
+    row, b[u]: position forms (linearized at q_hat = q + h v_hat) phi/h + n.(v_tilde - v_hat); velocity form
+    n.v_tilde + max(phi, 0)/h + the kinematic bodies' normal velocity. Returns (j, n_x, n_y)."""
+    j = w.island_con[a]
+    nx = w.con_n[j, 0]
+    ny = w.con_n[j, 1]
+    contact_column(m, w.body_pose, w.con_pair, w.con_p, j, nx, ny, w.column_slot, w.column_g, u)
     if velocity_form:
-        return column_dot(col_dyn, col_g, u, v_tilde) + max(con_phi[j], 0.0) / h + \
-            kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, con_n[j, 0], con_n[j, 1])
-    return con_phi[j] / h + column_dot(col_dyn, col_g, u, v_tilde) - column_dot(col_dyn, col_g, u, v_hat)
+        b[u] = column_dot(w.column_slot, w.column_g, u, w.v_tilde) + max(w.con_phi[j], 0.0) / h + \
+            kinematic_velocity_along(m, w.body_pose, vk, w.con_pair, w.con_p, j, nx, ny)
+    else:
+        b[u] = w.con_phi[j] / h + column_dot(w.column_slot, w.column_g, u, w.v_tilde) - \
+            column_dot(w.column_slot, w.column_g, u, w.v_hat)
+    return j, nx, ny
 
 
 @njit(cache=True)
-def assemble_lcp(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h,
-                 velocity_form, col_dyn, col_g, A, b):
-    """Build the island's LCP (A, b) of size returned; columns of the force unknowns go to col_dyn / col_g.
+def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b):
+    """Build the LCP (A, b) of the island whose contacts and support points are w.island_con[:nci],
+    w.island_sup[:nsi] (geometry at the linearization pose w.body_pose); the generalized columns of its force
+    unknowns go to w.column_slot / w.column_g. Returns (LCP size n, number of frictional contacts).
 
     Normal rows: position forms (linearized at the pose q_hat = q + h v_hat):  phi/h + n.(v+ - v_hat) >= 0;
     velocity form (contacts at q):  n.v+ + (kinematic normal velocity) + max(phi, 0)/h >= 0.
     Friction rows: lambda e + D^T v+ (+ kinematic tangential velocity) >= 0.  Slack rows: mu c_n - e^T beta >= 0.
     """
+    poses, con_pair, con_phi, con_n, con_p = w.body_pose, w.con_pair, w.con_phi, w.con_n, w.con_p
+    col_dyn, col_g, v_tilde, isl_sup = w.column_slot, w.column_g, w.v_tilde, w.island_sup
     k = m.fric_dirs.shape[0]
-    nf = 0
-    for a in range(nci):
-        if m.pair_mu[con_pair[isl_con[a]]] > 0.0:
-            nf += 1
+    n, nf, _ = island_problem_size(m, w.island_con, nci, nsi, con_pair)
     o_bc = nci
     o_bs = o_bc + 2 * nf
     o_lc = o_bs + k * nsi
     o_ls = o_lc + nf
-    n = o_ls + nsi
     nforce = o_lc
-    # generalized columns of the force unknowns
+    # generalized columns of the force unknowns (and the normal rows' constants)
     f = 0
     for a in range(nci):
-        j = isl_con[a]
-        nx = con_n[j, 0]
-        ny = con_n[j, 1]
-        contact_column(m, poses, con_pair, con_p, j, nx, ny, col_dyn, col_g, a)
+        j, nx, ny = normal_column(m, w, vk, h, velocity_form, a, a, b)
         if m.pair_mu[con_pair[j]] > 0.0:
             # tangent t = (-n_y, n_x); the two rays +t and -t make the 2-D friction "cone" exact
             friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, -ny, nx, col_dyn, col_g, o_bc + 2 * f)
@@ -190,13 +192,10 @@ def assemble_lcp(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, co
         for c in range(n):
             A[i, c] = 0.0
     delassus(m, nforce, col_dyn, col_g, A)
-    # constant vector
-    for a in range(nci):
-        b[a] = normal_row_constant(m, poses, vk, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h, velocity_form,
-                                   col_dyn, col_g, isl_con[a], a)
+    # the friction and slack rows
     f = 0
     for a in range(nci):
-        j = isl_con[a]
+        j = w.island_con[a]
         mu = m.pair_mu[con_pair[j]]
         if mu <= 0.0:
             continue

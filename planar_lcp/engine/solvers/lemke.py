@@ -533,8 +533,7 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     k = m.fric_dirs.shape[0]
     A = w.lcp_matrix[:n * n].reshape((n, n))
     bvec = w.lcp_vector[:n]
-    assemble_lcp(m, w.body_pose, vk, w.island_con, nci, w.island_sup, nsi, w.con_pair, w.con_phi, w.con_n, w.con_p,
-                 w.v_tilde, w.v_hat, h, velocity_form, w.column_slot, w.column_g, A, w.lcp_vector)
+    assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector)
     warm = False
     if opt.warm_start and w.warm_size[isl] == n:
         # the previous step's basis for this island: contact modes rarely change from one step to the next
@@ -559,8 +558,7 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
                 if velocity_form:
                     break                    # the velocity form's rows were the first try's
                 # the island's LCP in the velocity form over the same contacts: only the normal rows' constants change
-                assemble_lcp(m, w.body_pose, vk, w.island_con, nci, w.island_sup, nsi, w.con_pair, w.con_phi, w.con_n,
-                             w.con_p, w.v_tilde, w.v_hat, h, True, w.column_slot, w.column_g, A, w.lcp_vector)
+                assemble_lcp(m, w, vk, nci, nsi, h, True, A, w.lcp_vector)
                 velocity_rows = True
             if attempt > 0:
                 stats[Stat.LEMKE_RETRIES] += 1

@@ -60,8 +60,7 @@ def solve_island_osqp(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     k = mv.fric_dirs.shape[0]
     A = np.zeros((n, n))
     b = np.zeros(n)
-    assemble_lcp(m, wv.body_pose, vk, wv.island_con, nci, wv.island_sup, nsi, wv.con_pair, wv.con_phi, wv.con_n,
-                 wv.con_p, wv.v_tilde, wv.v_hat, h, velocity_form, wv.column_slot, wv.column_g, A, b)
+    assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b)
     nforce = nci + 2 * nf + k * nsi
     P = A[:nforce, :nforce]
     c = b[:nforce]
