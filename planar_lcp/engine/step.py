@@ -22,6 +22,11 @@ from planar_lcp.engine.layout import Stat
 from planar_lcp.engine.solvers.lemke import STATUS_SOLVED, lemke_in_work, solve_island_lemke
 from planar_lcp.engine.solvers.pgs import solve_island_pgs
 
+# The stages are inline='always' (and so are the island solvers, through the pipeline's arguments): every separately
+# compiled numba function links in its callees and generates their machine code again, so a stack of separately
+# compiled stages would compile the collision, assembly and Lemke kernels once per stage. The variants below and the
+# leaf kernels they call (find_contacts, assemble_lcp, lemke_kernel, ...) are the separately compiled functions.
+
 # formulation codes: the index of each name in spec.scene.FORMULATIONS (sim.FORMULATIONS maps the names to them)
 FORM_POSITION, FORM_FIXED_POINT, FORM_VELOCITY = 0, 1, 2
 

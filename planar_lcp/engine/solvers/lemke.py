@@ -76,7 +76,7 @@ def lcp_scale(M, q):
 @njit(cache=True)
 def _pivot(T, n, r, j, prow):
     """Pivot on (r, j). The normalized pivot row is copied to `prow` first: updating T[i, :] from T[r, :] of the
-    same array is a potential alias that keeps LLVM from vectorizing the row update (about 4x slower)."""
+    same array is a potential alias that keeps LLVM from vectorizing the row update."""
     ncol = 2 * n + 2
     p = T[r, j]
     for c in range(ncol):
@@ -249,7 +249,7 @@ def _solve_basic_z(M, q, zb, m, z, lu, rhs, perm):
 
 
 @njit(cache=True)
-def _refine_from_basis(M, q, basis, n, z, lu, rhs, perm, zb, zmask):
+def refine_from_basis(M, q, basis, n, z, lu, rhs, perm, zb, zmask):
     """Recompute the basic z of the final basis from the original M and q: the z_i that are basic solve
     M[Z, Z] z_Z = -q[Z]. For a complementary basis the rows with w_i = 0 are exactly Z; while the artificial variable
     is still basic one index has neither z_i nor w_i basic: z_i = 0 there and its w_i is left free, so a basis that
@@ -334,7 +334,7 @@ def _certify(M, q, T, basis, n, d, z, w, res_tol, scale, zalt, walt, lu, rhs, pe
     # Refine from the original data: the tableau accumulates round-off over the pivots, the basis does not.
     # Skipped when the tableau's answer is already well inside the tolerance (it then costs more than it gains).
     if res > 1e-3 * res_tol * scale:
-        ok, neg = _refine_from_basis(M, q, basis, n, zalt, lu, rhs, perm, zb, cand)
+        ok, neg = refine_from_basis(M, q, basis, n, zalt, lu, rhs, perm, zb, cand)
         if ok:
             res2 = max(lcp_residual(M, q, zalt, walt), -neg)
             if res2 < res:

@@ -32,6 +32,11 @@ from planar_lcp.engine.step import project_positions, step_pipeline
 #: OSQP's absolute and relative tolerance
 OSQP_EPS = 1e-9
 
+# The Python functions of the step pipeline and the rollout loop (numba keeps them as .py_func; without the JIT the
+# decorators return them as they are)
+STEP_PIPELINE_PY = getattr(step_pipeline, "py_func", step_pipeline)
+ROLLOUT_LOOP_PY = getattr(rollout_loop, "py_func", rollout_loop)
+
 
 @contextlib.contextmanager
 def _quiet_c_stdout():
@@ -116,11 +121,11 @@ def solve_island_osqp(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
 def osqp_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     """The step variant of solver osqp (a step variant's arguments): the step pipeline run as Python, each island
     solved by OSQP, PGS as the fallback, the velocity form's projection."""
-    return int(step_pipeline.py_func(solve_island_osqp, solve_island_pgs, project_positions, m, q, v, qk, vk, h, opt,
-                                     w, q_out, v_out, qk_out, stats))
+    return int(STEP_PIPELINE_PY(solve_island_osqp, solve_island_pgs, project_positions, m, q, v, qk, vk, h, opt, w,
+                                q_out, v_out, qk_out, stats))
 
 
 def osqp_rollout(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
     """The rollout variant of solver osqp (a rollout variant's arguments): the rollout loop run as Python."""
-    return rollout_loop.py_func(osqp_step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
-                                reset_warm_start)
+    return ROLLOUT_LOOP_PY(osqp_step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
+                           reset_warm_start)
