@@ -57,11 +57,29 @@ def start_rollout(w, q0, v0, qk0, rec, reset_warm_start):
 
 @njit(cache=True, inline='always')
 def rollout_loop(step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
-    """Run nsteps steps of `step` (a step variant) from (q0, v0, qk0) into `rec` (a Recording with nsteps + 1 state
-    rows). Step i uses kinematic velocities vk_seq[min(step0 + i, len - 1)].
+    """THE rollout: nsteps steps of `step` from (q0, v0, qk0), recorded into `rec`.
 
-    Returns the number of steps done: nsteps, or fewer when stop_on_failure and a step failed (that step included),
-    or when a step returned STEP_NEEDS_FALLBACK (that step excluded: nothing of it was written but its status)."""
+    Parameters
+    ----------
+    step : a step variant (engine/step.py), or any function with its arguments
+    m, opt, w, h : as the step takes them
+    q0, v0 : (ndyn, 3) float64;  qk0 : (nkin, 3) float64
+        The initial state (row 0 of the recording).
+    vk_seq : (nvk, nkin, 3) float64
+        Kinematic velocities: step i uses vk_seq[min(step0 + i, nvk - 1)].
+    step0 : int
+        Index of the first step in vk_seq (a resumed rollout).
+    nsteps : int
+    rec : Recording
+        Output buffers with nsteps + 1 state rows and nsteps step rows.
+    stop_on_failure, reset_warm_start : bool
+
+    Returns
+    -------
+    int
+        The steps done: nsteps, or fewer when stop_on_failure and a step failed (that step included), or when a step
+        returned STEP_NEEDS_FALLBACK (that step excluded: nothing of it was written but its status).
+    """
     start_rollout(w, q0, v0, qk0, rec, reset_warm_start)
     nvk = vk_seq.shape[0]
     for i in range(nsteps):

@@ -210,26 +210,44 @@ def copy_warm_start(size_from, basic_z_from, size_to, basic_z_to):
 def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     """THE step: advance (q, v, qk) by one step of size h with kinematic velocities vk.
 
-    solve, fallback : island solvers (signature below); fallback may be None.
-    project : `project_positions` or None (then the velocity form cannot run: use a variant with it).
-    m : the model struct; opt : StepOptions; w : the work struct (engine/layout.py).
-    q, v : (ndyn, 3) COM poses and velocities; qk, vk : (nkin, 3) kinematic poses and (prescribed) velocities.
-    Writes q_out, v_out, qk_out (must not alias the inputs) and stats (NSTAT,), and leaves the step's contacts in
-    w.con_* (count stats[Stat.N_CONTACTS]). Returns a STEP_* code.
+    Parameters
+    ----------
+    solve : island solver
+        Solves each island first (signature below).
+    fallback : island solver or None
+        Solves an island `solve` gave no certified answer for (the step then reports STEP_LCP_FAILED). None: the step
+        returns STEP_NEEDS_FALLBACK at once instead, with the warm-start memory as it was before the step.
+    project : `project_positions` or None
+        The velocity form's last stage. None: a velocity-form step returns STEP_NEEDS_FALLBACK at once.
+    m : model struct;  w : work struct (engine/layout.py);  opt : StepOptions;  h : float, s
+    q, v : (ndyn, 3) float64
+        COM poses (m, rad) and velocities (m/s, rad/s) of the dynamic bodies.
+    qk, vk : (nkin, 3) float64
+        Kinematic poses and (prescribed) velocities.
+    q_out, v_out, qk_out : like q, v, qk
+        The state after the step (must not alias the inputs).
+    stats : (NSTAT,) float64
+        The step's diagnostics, by `Stat`.
 
-    Island solver signature: solve(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats) -> lemke STATUS_* code,
+    Returns
+    -------
+    int
+        A STEP_* code. The step's contacts stay in w.con_* (their count is stats[Stat.N_CONTACTS]).
+
+    Notes
+    -----
+    Island solver signature: ``solve(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats) -> lemke STATUS_*``
     for island isl whose nci contacts and nsi support points are w.island_con[:nci], w.island_sup[:nsi], contact
-    geometry at the linearization pose w.body_pose. It adds the island's impulses to w.v_new and records them (w.con_cn,
-    con_ft, con_vt, con_mode), or, failing, leaves w.v_new as it was. Implementations: engine/solvers/ lemke.py
-    (`solve_island_lemke`, certified), pgs.py (`solve_island_pgs`), osqp.py (`solve_island_osqp`, Python).
+    geometry at the linearization pose w.body_pose. It adds the island's impulses to w.v_new and records them
+    (w.con_cn, con_ft, con_vt, con_mode), or, failing, leaves w.v_new as it was. Implementations in
+    engine/solvers/: `solve_island_lemke` (certified), `solve_island_pgs`, `solve_island_osqp` (Python).
 
-    The arguments solve, fallback and project select a variant at compile time: numba inlines this function into
-    each `@njit` entry below with its own constant arguments, prunes the branches of the arguments that are None,
-    and compiles only the stages the variant calls. The same Python function (`step_pipeline.py_func`) runs the
-    osqp solver, whose island solver is Python. When an island has no certified answer, the fallback solves it
-    (STEP_LCP_FAILED); with no fallback the step returns STEP_NEEDS_FALLBACK at once, with the warm-start memory as it
-    was before the step, and the caller runs the step again with a variant that has one: each variant computes the
-    same thing up to the failure, so the stitched result equals that variant's bit for bit.
+    solve, fallback and project select a variant at compile time: numba inlines this function into each `@njit`
+    variant below with its own constant arguments, prunes the branches of the arguments that are None, and compiles
+    only the stages the variant calls. The same Python function (`step_pipeline.py_func`) is the osqp solver's
+    step, whose island solver is Python. A step handed back (STEP_NEEDS_FALLBACK) is run again by a variant with a
+    fallback: every variant computes the same thing up to the failure, so the stitched result is that variant's
+    bit for bit.
     """
     velocity_form = opt.formulation == FORM_VELOCITY
     if project is None:
