@@ -27,11 +27,10 @@ m, w, kw, opt, h = sim.kmodel, sim.work, sim.kwork, sim.kopt, sim.h  # kernels t
 st = np.zeros(NSTAT)
 S.begin_step(m, q, v, qk, vk, h, opt, kw, qk.copy(), st)
 ncon, nisl = S.prepare_contacts(m, kw, opt, qk, st)
-isl = np.arange(ncon)
+w.island_con[:ncon] = np.arange(ncon)  # one island: every contact (the rod has no support points)
 n = 4 * ncon
 A, b = np.zeros((n, n)), np.zeros(n)
-args = (m, w.body_pose, vk, isl, ncon, w.island_sup, 0, w.con_pair, w.con_phi, w.con_n, w.con_p, w.v_tilde, w.v_hat, h,
-        False, w.column_slot, w.column_g, A, b)
+args = (m, kw, vk, ncon, 0, h, False, A, b)
 assemble_lcp(*args)
 work = make_lemke_work(n)
 

@@ -532,12 +532,12 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     n, nf, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
     k = m.fric_dirs.shape[0]
     A = w.lcp_matrix[:n * n].reshape((n, n))
-    bvec = w.lcp_vector[:n]
+    b = w.lcp_vector[:n]
     assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector)
     warm = False
     if opt.warm_start and w.warm_size[isl] == n:
         # the previous step's basis for this island: contact modes rarely change from one step to the next
-        warm, res = lemke_from_basis(A, bvec, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu,
+        warm, res = lemke_from_basis(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu,
                                      w.lemke_rhs, w.lemke_perm, w.lemke_basic)
     piv = 0
     if warm:
@@ -562,7 +562,7 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
                 velocity_rows = True
             if attempt > 0:
                 stats[Stat.LEMKE_RETRIES] += 1
-            status, p, res = lemke_in_work(w, A, bvec, n, opt, piv_tol, equilibrate)
+            status, p, res = lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate)
             piv += p
             if status == STATUS_SOLVED:
                 break
