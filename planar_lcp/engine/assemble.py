@@ -138,7 +138,7 @@ def kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, dx, dy):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def normal_column(m, w, vk, h, velocity_form, a, u, b):
     """Contact j = w.island_con[a]'s unit normal impulse as generalized column u, and the constant of its normal
     row, b[u]: position forms (linearized at q_hat = q + h v_hat) phi/h + n.(v_tilde - v_hat); velocity form
