@@ -223,7 +223,8 @@ def test_lcp_failure_raises_with_step_and_cause_or_is_recorded():
 def test_bad_simulate_arguments():
     with pytest.raises(ValueError, match="solver must be one of 'lemke', 'pgs', 'osqp', got 'magic'"):
         simulate("falling_rod", solver="magic", t_end=0.01)
-    with pytest.raises(ValueError, match="formulation must be one of 'position', 'fixed_point', 'velocity', got 'implicit'"):
+    with pytest.raises(ValueError,
+                       match="formulation must be one of 'position', 'fixed_point', 'velocity', got 'implicit'"):
         simulate("falling_rod", formulation="implicit", t_end=0.01)
     with pytest.raises(ValueError, match="h must be > 0, got -0.1"):
         simulate("falling_rod", h=-0.1)
