@@ -196,8 +196,8 @@ class Simulator:
         while start < nsteps:
             n = 1 if level else min(chunk, nsteps - start)
             # state rows start .. start + n, per-step rows start .. start + n - 1 (an empty contact array stays empty)
-            view = Recording(*(a[start:start + n + 1] if k in ("q", "v", "qk") else a[start:start + n]
-                               for k, a in zip(Recording._fields, rec)))
+            view = rec if n == nsteps else Recording(*(a[start:start + n + 1] if k in ("q", "v", "qk") else
+                                                       a[start:start + n] for k, a in zip(Recording._fields, rec)))
             t0 = time.perf_counter()
             done = int(self._variants[level][1](self.kmodel, rec.q[start], rec.v[start], rec.qk[start], vk_seq, start,
                                                 n, self.h, self.kopt, self.kwork, view, stop_on_failure, start == 0))
