@@ -12,6 +12,7 @@ from numba import njit
 
 import planar_lcp.engine.step as S
 from planar_lcp.engine.assemble import assemble_lcp
+from planar_lcp.engine.layout import NSTAT
 from planar_lcp.engine.solvers.lemke import lemke_kernel, make_lemke_work
 from planar_lcp.model import compile_scene
 from planar_lcp.spec.scene import load_scene
@@ -23,14 +24,13 @@ q, v, qk, vk = sim.initial_state()
 out = sim.rollout(q, v, qk, vk[None], 300)
 q, v, qk = out["q"][300].copy(), out["v"][300].copy(), out["qk"][300].copy()
 m, w, kw, opt, h = sim.kmodel, sim.work, sim.kwork, sim.kopt, sim.h  # kernels take the structs; Python reads w
-st = np.zeros(S.NSTAT)
+st = np.zeros(NSTAT)
 S.begin_step(m, q, v, qk, vk, h, opt, kw, qk.copy(), st)
 ncon, nisl = S.prepare_contacts(m, kw, opt, qk, st)
-isl = np.arange(ncon)
+w.island_con[:ncon] = np.arange(ncon)  # one island: every contact (the rod has no support points)
 n = 4 * ncon
 A, b = np.zeros((n, n)), np.zeros(n)
-args = (m, w.poses, vk, isl, ncon, w.isl_sup, 0, w.con_pair, w.con_phi, w.con_n, w.con_p, w.v_tilde, w.v_hat, h,
-        False, w.col_dyn, w.col_g, A, b)
+args = (m, kw, vk, ncon, 0, h, False, A, b)
 assemble_lcp(*args)
 work = make_lemke_work(n)
 

@@ -9,6 +9,9 @@ import numpy as np
 from numba import njit
 
 import planar_lcp.engine.step as S
+from planar_lcp.engine.islands import island_members
+from planar_lcp.engine.layout import NSTAT, Stat
+from planar_lcp.engine.solvers.lemke import solve_island_lemke
 from planar_lcp.model import compile_scene
 from planar_lcp.spec.scene import load_scene
 from planar_lcp.sim import SimOptions, Simulator
@@ -17,7 +20,7 @@ from planar_lcp.sim import SimOptions, Simulator
 @njit
 def _full(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st, n):
     for _ in range(n):
-        S.step_kernel(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st)
+        S.step_lemke(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st)
 
 
 @njit
@@ -33,13 +36,15 @@ def _solve(m, q, v, qk, vk, h, opt, w, qko, st, n):
     ncon, nisl = S.prepare_contacts(m, w, opt, qko, st)
     for _ in range(n):
         for isl in range(nisl):
-            S._solve_island(m, w, opt, w.poses, vk, isl, ncon, h, False, st)
+            nci, nsi = island_members(m, w, isl, ncon)
+            if nci or nsi:
+                solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, False, st)
 
 
 @njit
 def _check(m, q, v, qk, vk, h, opt, w, qko, st, n):
     for _ in range(n):
-        S._check_end_configuration(m, w, opt, qko, st)
+        S.check_end_configuration(m, w, opt, qko, st)
 
 
 def profile(name, at_step, n=20000):
@@ -49,7 +54,7 @@ def profile(name, at_step, n=20000):
     out = sim.rollout(q, v, qk, vk[None], at_step)
     q, v, qk = out["q"][at_step].copy(), out["v"][at_step].copy(), out["qk"][at_step].copy()
     m, w, opt, h = sim.kmodel, sim.kwork, sim.kopt, sim.h
-    qo, vo, qko, st = np.empty_like(q), np.empty_like(v), np.empty_like(qk), np.zeros(S.NSTAT)
+    qo, vo, qko, st = np.empty_like(q), np.empty_like(v), np.empty_like(qk), np.zeros(NSTAT)
     res = {}
     for label, f, args in (("whole step", _full, (m, q, v, qk, vk, h, opt, w, qo, vo, qko, st)),
                            ("contacts + islands", _contacts, (m, q, v, qk, vk, h, opt, w, qko, st)),
@@ -60,7 +65,7 @@ def profile(name, at_step, n=20000):
         f(*args, n)
         res[label] = (time.perf_counter() - t0) / n * 1e6
     _full(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st, 1)
-    return res, int(st[S.ST_LCP_SIZE])
+    return res, int(st[Stat.LCP_SIZE])
 
 
 print("| scene (state) | LCP size | whole step (µs) | contacts + islands | island solves (assembly + Lemke) | "

@@ -8,6 +8,7 @@ import statistics
 import time
 
 from planar_lcp.experiments.bench import scaling_scene
+from planar_lcp.engine.layout import Stat
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
 
@@ -23,4 +24,5 @@ for n in (1, 2, 4, 8, 16, 32):
             out = sim.rollout(q, v, qk, vk[None], steps)
         times.append((time.perf_counter() - t0) / (reps * steps))
     st = out["stats"]
-    print(f"| {n} | {statistics.median(times) * 1e6:.1f} | {st[:, 2].mean():.1f} | {st[:, 13].mean():.2f} |")
+    print(f"| {n} | {statistics.median(times) * 1e6:.1f} | {st[:, Stat.PIVOTS].mean():.1f} | "
+          f"{st[:, Stat.WARM_STARTS].mean():.2f} |")

@@ -1,4 +1,4 @@
-"""Why the kernels take structrefs (planar_lcp/kernels/structs.py): compile time and cost per step of the same
+"""Why the kernels take structrefs (planar_lcp/engine/layout.py): compile time and cost per step of the same
 rollout kernel called with the ModelArrays / StepWork namedtuples and with their structs.
 
 Each variant runs in its own process with a fresh numba cache, so the compile times are cold:
@@ -17,8 +17,8 @@ import numpy as np
 from planar_lcp import load_scene
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
-from planar_lcp.engine.rollout import rollout_kernel
-from planar_lcp.engine.step import NSTAT
+from planar_lcp.engine.layout import NSTAT
+from planar_lcp.engine.rollout import Recording, rollout_lemke_full
 
 kind, name = sys.argv[1], sys.argv[2]
 sc = load_scene(name)
@@ -27,16 +27,17 @@ m, w = (sim.kmodel, sim.kwork) if kind == "struct" else (sim.model.arrays, sim.w
 q, v, qk, vk = sim.initial_state()
 n = 400
 z = np.zeros
-args = (m, q, v, qk, vk.reshape(1, -1, 3).copy(), 0, n, sim.h, sim.kopt, w, z((n + 1,) + q.shape), z((n + 1,) + v.shape),
-        z((n + 1,) + qk.shape), z((n, NSTAT)), z(n, np.int64), z(0, np.int64), z((0, 0), np.int64), z((0, 0)),
-        z((0, 0, 2)), z((0, 0, 2)), z((0, 0)), z((0, 0)), z((0, 0)), z((0, 0), np.int64), False, True)
+rec = Recording(z((n + 1,) + q.shape), z((n + 1,) + v.shape), z((n + 1,) + qk.shape), z((n, NSTAT)), z(n, np.int64),
+                z(0, np.int64), z((n, 0), np.int64), z((n, 0)), z((n, 0, 2)), z((n, 0, 2)), z((n, 0)), z((n, 0)),
+                z((n, 0)), z((n, 0), np.int64))
+args = (m, q, v, qk, vk.reshape(1, -1, 3).copy(), 0, n, sim.h, sim.kopt, w, rec, False, True)
 t0 = time.perf_counter()
-rollout_kernel(*args)
+rollout_lemke_full(*args)
 t1 = time.perf_counter()
 best = np.inf
 for _ in range(10):
     t = time.perf_counter()
-    rollout_kernel(*args)
+    rollout_lemke_full(*args)
     best = min(best, time.perf_counter() - t)
 print(f"{t1 - t0:.1f} {best / n * 1e6:.2f}")
 """

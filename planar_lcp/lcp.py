@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planar_lcp.engine.solvers.lemke import STATUS_NAMES, lcp_scale, lemke_solve
+from planar_lcp.engine.solvers.lemke import STATUS_NAMES, default_max_pivots, lcp_scale, lemke_solve
 
 #: Default tolerances (see docs/lcp.md for what each one governs).
 DEFAULT_PIV_TOL = 1e-9
@@ -65,11 +65,6 @@ def _as_problem(M, q):
     return np.ascontiguousarray(M), np.ascontiguousarray(q)
 
 
-def default_max_pivots(n: int) -> int:
-    """Generous cap: Lemke typically needs O(n) pivots; Murty's exponential examples need 2^n."""
-    return 50 * n + 100
-
-
 def lemke(M, q, *, max_pivots=None, piv_tol=DEFAULT_PIV_TOL, ratio_tol=DEFAULT_RATIO_TOL,
           res_tol=DEFAULT_RES_TOL, equilibrate=False) -> LCPResult:
     """Solve the LCP (M, q) by Lemke's algorithm with covering vector e and lexicographic degeneracy resolution.
@@ -78,12 +73,16 @@ def lemke(M, q, *, max_pivots=None, piv_tol=DEFAULT_PIV_TOL, ratio_tol=DEFAULT_R
     ----------
     M : (n, n) array_like;  q : (n,) array_like
     max_pivots : int, optional
-        Pivot cap; default 50 n + 100.
+        Pivot cap; default `default_max_pivots(n)` = 50 n + 100 (the time-stepper's too).
     piv_tol : float
         A tableau entry is an admissible pivot only if it exceeds piv_tol times the largest magnitude in the
         entering column.
     ratio_tol : float
-        Two ratios within ratio_tol * max(1, |min ratio|) of each other are a tie, broken lexicographically.
+        Two ratios of the minimum-ratio test are tied when they differ by at most
+        ratio_tol * max(|min ratio|, max|q'| / max|column|) (q' the scaled q): round-off in the right-hand side
+        divided by the pivot, relative to the problem's own scale, never to 1. On a tie the artificial variable
+        leaves if its row is among the tied ones (which ends the pivoting); other ties are broken lexicographically
+        on the columns of the basis inverse.
     res_tol : float
         "solved" requires residual <= res_tol * max(1, max|M|, max|q|), whatever ended the pivoting (a point where
         the artificial variable is still basic at round-off zero is a solution, and reported as one).

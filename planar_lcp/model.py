@@ -7,7 +7,6 @@ poses (the scene's `position`); `Model.com_local` converts between the two.
 Ragged data is flat with address/count arrays (MuJoCo's *_adr / *_num).
 """
 
-from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,35 +17,7 @@ from planar_lcp.spec.scene import Scene, SceneError
 
 from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC,  # noqa: F401
                                          PLANE_HORIZONTAL, PLANE_VERTICAL, SHAPE_CORE, SHAPE_HALFPLANE)
-
-#: Arrays handed to the numba kernels (a namedtuple of arrays and scalars, which numba accepts as one argument).
-ModelArrays = namedtuple("ModelArrays", [
-    "plane",            # int: PLANE_VERTICAL | PLANE_HORIZONTAL
-    "gravity",          # (2,) m/s^2, vertical plane (zero in the horizontal plane)
-    "body_kind",        # (nbody,) int64: BODY_*
-    "body_slot",        # (nbody,) int64: index among the dynamic (or kinematic) bodies; -1 for static
-    "static_pose",      # (nbody, 3) world pose of static bodies (rows of other bodies unused)
-    "dyn_body",         # (ndyn,) int64 body index of each dynamic slot
-    "dyn_mass",         # (ndyn,) kg
-    "dyn_inertia",      # (ndyn,) kg m^2 about the COM
-    "shape_body",       # (nshape,) int64
-    "shape_kind",       # (nshape,) int64: SHAPE_*
-    "shape_vert_adr",   # (nshape,) int64 into vert_local
-    "shape_vert_num",   # (nshape,) int64
-    "shape_radius",     # (nshape,) m
-    "hp_point_w",       # (nshape, 2) half-plane point, world (half-planes are static)
-    "hp_normal_w",      # (nshape, 2) half-plane outward unit normal, world
-    "vert_local",       # (nvert, 2) core vertices in the body's dynamics frame (COM frame for dynamic bodies)
-    "pair_a",           # (npair,) int64 shape index; A is never a half-plane
-    "pair_b",           # (npair,) int64 shape index
-    "pair_mu",          # (npair,) Coulomb coefficient
-    "sup_dyn",          # (nsup,) int64 dynamic slot of the body a support point belongs to
-    "sup_local",        # (nsup, 2) support point, COM frame
-    "sup_load",         # (nsup,) N, known normal load on the table (m g w)
-    "sup_mu",           # (nsup,) body-table Coulomb coefficient
-    "fric_dirs",        # (k, 2) unit friction directions of the support friction (horizontal plane)
-    "seed_friction_arm",  # int: 1 applies contact friction at the shapes' core points (the seed's simplification)
-])
+from planar_lcp.engine.layout import ModelArrays  # the arrays handed to the kernels: engine/layout.py MODEL_LAYOUT
 
 
 @dataclass(frozen=True)

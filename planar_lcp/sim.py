@@ -11,25 +11,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planar_lcp.engine.layout import NSTAT, STATS, Stat, StepOptions, make_step_work, model_struct, work_struct
+from planar_lcp.engine.rollout import Recording, rollout_lemke, rollout_lemke_full, rollout_pgs
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES
-from planar_lcp.engine.rollout import rollout_kernel, rollout_kernel_lemke
-from planar_lcp.engine.step import (FORM_FIXED_POINT, FORM_POSITION, FORM_VELOCITY, NSTAT, SOLVER_LEMKE, SOLVER_PGS,
-                                    ST_FP_CHANGE, ST_FP_ITERS, ST_LCP_MAX, ST_LCP_SIZE, ST_LEMKE_RETRIES,
-                                    ST_LEMKE_STATUS, ST_NCON, ST_NISLAND, ST_PENETRATION, ST_PGS_UPDATE, ST_PIVOTS,
-                                    ST_RESIDUAL, ST_RESOLVES, ST_WARM_STARTS, ST_BY_LEMKE, ST_BY_EQUILIBRATED,
-                                    ST_BY_STRICT, ST_BY_VELOCITY, ST_BY_PGS, STEP_LCP_FAILED, STEP_NEEDS_FALLBACK,
-                                    STEP_NONFINITE, STEP_OK, StepOptions, make_step_work, step_kernel,
-                                    step_kernel_lemke)
-from planar_lcp.engine.layout import model_struct, work_struct
+from planar_lcp.engine.step import (FORM_VELOCITY, STEP_LCP_FAILED, STEP_NEEDS_FALLBACK, STEP_NONFINITE, STEP_OK,
+                                    step_lemke, step_lemke_full, step_pgs)
 from planar_lcp.model import Model, compile_scene
-from planar_lcp.spec.scene import Scene, SceneError, load_scene, sim_settings
+from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
+from planar_lcp.spec.scene import SOLVERS, Scene, SceneError, load_scene, sim_settings
 from planar_lcp.frames import frame_velocity
 from planar_lcp.trajectory import Trajectory, energy
 
-SOLVER_OSQP = 2  # never reaches the kernels: Simulator runs osqp_step (Python) instead
-SOLVERS = {"lemke": SOLVER_LEMKE, "pgs": SOLVER_PGS, "osqp": SOLVER_OSQP}
-FORMULATIONS = {"position": FORM_POSITION, "fixed_point": FORM_FIXED_POINT, "velocity": FORM_VELOCITY}
-MODE_NAMES = ("separated", "sticking", "sliding")
+#: formulation name (the scene format's list) -> the kernels' FORM_* code, which is its index in that list
+FORMULATIONS = {name: code for code, name in enumerate(FORMULATION_NAMES)}
 
 
 class SimulationError(RuntimeError):
@@ -71,7 +65,7 @@ class SimOptions:
         if int(self.pgs_iterations) < 1:
             raise ValueError(f"pgs_iterations must be >= 1, got {self.pgs_iterations}")
         return StepOptions(
-            solver=SOLVERS[self.solver], formulation=FORMULATIONS[self.formulation],
+            formulation=FORMULATIONS[self.formulation],
             fp_iters=int(self.fixed_point_iterations), fp_tol=float(self.fixed_point_tol),
             pgs_iters=int(self.pgs_iterations), margin=float(self.contact_margin), pen_tol=float(self.penetration_tol),
             max_resolves=int(self.max_resolves), piv_tol=float(self.piv_tol), ratio_tol=float(self.ratio_tol),
@@ -84,12 +78,27 @@ def _cause(status, stats, stopped):
     if status == STEP_NONFINITE:
         return "the new state is not finite (NaN or inf)"
     if status == STEP_LCP_FAILED:
-        ls = int(stats[ST_LEMKE_STATUS])
-        return (f"no method gave a certified solution of an island's contact LCP (size up to {int(stats[ST_LCP_MAX])}"
-                f"; Lemke ended with '{STATUS_NAMES[ls]}', residual {stats[ST_RESIDUAL]:.3e}, after every fallback: "
+        ls = int(stats[Stat.LEMKE_STATUS])
+        return (f"no method gave a certified solution of an island's contact LCP (size up to "
+                f"{int(stats[Stat.LCP_MAX])}; Lemke ended with '{STATUS_NAMES[ls]}', residual "
+                f"{stats[Stat.RESIDUAL]:.3e}, after every fallback: "
                 "docs/method.md, 'Certified solves')"
                 + ("" if stopped else "; that island took PGS's uncertified answer"))
     return "ok"
+
+
+def _variants(options):
+    """The (step, rollout) kernels a simulator runs, in the order tried: a step that one hands back
+    (STEP_NEEDS_FALLBACK) is run again by the next, which has a fallback (engine/step.py `step_pipeline`)."""
+    if options.solver == "osqp":
+        from planar_lcp.engine.solvers.osqp import osqp_rollout, osqp_step
+        return ((osqp_step, osqp_rollout),)
+    if options.solver == "pgs":
+        return ((step_pgs, rollout_pgs),)
+    full = (step_lemke_full, rollout_lemke_full)
+    # the velocity form needs the projection; the position forms try the kernel without PGS and the projection
+    # first, so that those compile only when a run needs them
+    return (full,) if FORMULATIONS[options.formulation] == FORM_VELOCITY else ((step_lemke, rollout_lemke), full)
 
 
 class Simulator:
@@ -104,13 +113,12 @@ class Simulator:
         self.options = options
         self.kopt = options.kernel_options()
         self.work = make_step_work(model)
-        # the kernels' views of model.arrays and self.work (same buffers): see kernels/structs.py
+        # the kernels' views of model.arrays and self.work (same buffers): see engine/layout.py
         self.kmodel = model_struct(model.arrays)
         self.kwork = work_struct(self.work)
         self.stats = np.zeros(NSTAT)
         self._last_step_out = None  # (q, v, qk) returned by the last `step`, for its warm start
-        # solver lemke with a position form: the kernels without PGS and the velocity projection (compiled on demand)
-        self._fast_kernel = self.kopt.solver == SOLVER_LEMKE and self.kopt.formulation != FORM_VELOCITY
+        self._variants = _variants(options)
 
     @property
     def h(self):
@@ -121,21 +129,15 @@ class Simulator:
         return m.q0.copy(), m.v0.copy(), m.qk0.copy(), m.vk0.copy()
 
     def _step_into(self, q, v, qk, vk, q_out, v_out, qk_out, stats):
-        if self.kopt.solver == SOLVER_OSQP:
-            from planar_lcp.engine.solvers.osqp import osqp_step
-            return osqp_step(self.model.arrays, self.kmodel, q, v, qk, vk, self.h, self.kopt, self.work, self.kwork,
-                             q_out, v_out, qk_out, stats)
-        if self._fast_kernel:
-            # Lemke-only kernel first: the PGS fallback is compiled (and run) only when Lemke fails (docs/performance.md)
-            st = step_kernel_lemke(self.kmodel, q, v, qk, vk, self.h, self.kopt, self.kwork, q_out, v_out, qk_out,
-                                   stats)
+        for step, _ in self._variants:  # the last one never hands a step back
+            st = int(step(self.kmodel, q, v, qk, vk, self.h, self.kopt, self.kwork, q_out, v_out, qk_out, stats))
             if st != STEP_NEEDS_FALLBACK:
-                return int(st)
-        return int(step_kernel(self.kmodel, q, v, qk, vk, self.h, self.kopt, self.kwork, q_out, v_out, qk_out, stats))
+                break
+        return st
 
     def reset_warm_start(self):
         """Forget the LCP bases kept for warm starts: the next `step` starts cold."""
-        self.work.ws_n[:] = -1
+        self.work.warm_size[:] = -1
         self._last_step_out = None
 
     def step(self, q, v, qk, vk):
@@ -148,7 +150,7 @@ class Simulator:
         last = self._last_step_out
         if last is None or not (np.array_equal(q, last[0]) and np.array_equal(v, last[1])
                                 and np.array_equal(qk, last[2])):
-            self.work.ws_n[:] = -1
+            self.work.warm_size[:] = -1
         q_out, v_out, qk_out = np.empty_like(q), np.empty_like(v), np.empty_like(qk)
         st = self._step_into(q, v, qk, vk, q_out, v_out, qk_out, self.stats)
         self._last_step_out = (q_out.copy(), v_out.copy(), qk_out.copy())
@@ -159,7 +161,7 @@ class Simulator:
         vk_seq: (nvk, nkin, 3), step i uses vk_seq[min(i, nvk - 1)].
 
         Returns a dict of arrays: q, v (nsteps+1, ndyn, 3), qk (nsteps+1, nkin, 3), stats (nsteps, NSTAT),
-        status (nsteps,), steps_done, and contact arrays when record_contacts."""
+        status (nsteps,), steps_done, and contact arrays when record_contacts (engine/rollout.py `Recording`)."""
         m = self.model
         nd, nk = m.ndyn, m.nkin
         vk_seq = np.asarray(vk_seq, dtype=float)
@@ -170,82 +172,42 @@ class Simulator:
         vk_seq = np.ascontiguousarray(vk_seq)
         self._last_step_out = None  # the rollout starts cold and leaves no state for `step` to continue
         C = m.max_contacts() if record_contacts else 0
-        out = dict(q=np.zeros((nsteps + 1, nd, 3)), v=np.zeros((nsteps + 1, nd, 3)),
-                   qk=np.zeros((nsteps + 1, nk, 3)), stats=np.zeros((nsteps, NSTAT)),
-                   status=np.zeros(nsteps, np.int64), con_count=np.zeros(nsteps if C else 0, np.int64),
-                   con_pair=np.zeros((nsteps, C), np.int64), con_phi=np.zeros((nsteps, C)),
-                   con_n=np.zeros((nsteps, C, 2)), con_p=np.zeros((nsteps, C, 2)), con_cn=np.zeros((nsteps, C)),
-                   con_ft=np.zeros((nsteps, C)), con_vt=np.zeros((nsteps, C)),
-                   con_mode=np.zeros((nsteps, C), np.int64))
-        q, v, qk = (np.ascontiguousarray(a, dtype=float) for a in (q, v, qk))
-        if self.kopt.solver == SOLVER_OSQP:
-            out["steps_done"] = self._rollout_python(out, q, v, qk, vk_seq, nsteps, stop_on_failure, C)
-            return out
-        out["steps_done"] = self._rollout_kernels(out, q, v, qk, vk_seq, int(nsteps), bool(stop_on_failure), C)
+        rec = Recording(q=np.zeros((nsteps + 1, nd, 3)), v=np.zeros((nsteps + 1, nd, 3)),
+                        qk=np.zeros((nsteps + 1, nk, 3)), stats=np.zeros((nsteps, NSTAT)),
+                        status=np.zeros(nsteps, np.int64), con_count=np.zeros(nsteps if C else 0, np.int64),
+                        con_pair=np.zeros((nsteps, C), np.int64), con_phi=np.zeros((nsteps, C)),
+                        con_n=np.zeros((nsteps, C, 2)), con_p=np.zeros((nsteps, C, 2)),
+                        con_cn=np.zeros((nsteps, C)), con_ft=np.zeros((nsteps, C)), con_vt=np.zeros((nsteps, C)),
+                        con_mode=np.zeros((nsteps, C), np.int64))
+        rec.q[0], rec.v[0], rec.qk[0] = q, v, qk
+        out = rec._asdict()
+        out["steps_done"] = self._run_chunks(rec, vk_seq, int(nsteps), bool(stop_on_failure))
         return out
 
     #: Wall-clock length a rollout's kernel calls aim at: between two calls Python handles signals, so Ctrl-C stops a
     #: long simulation within about this long. Short rollouts (a planner's propagation) are one call.
     CHUNK_SECONDS = 0.25
 
-    def _rollout_kernels(self, out, q, v, qk, vk_seq, nsteps, stop_on_failure, C):
-        """The rollout by the jitted kernels, in chunks of steps (CHUNK_SECONDS each; the kernels are resumable, so
-        the chunks together equal one call bit for bit). Solver lemke with a position form runs
-        `rollout_kernel_lemke` (no PGS compiled in), and a step on which no Lemke method is certified is run by
-        `step_kernel` from Python, then resumed: each step is computed by the same code from the same inputs and the
-        same warm-start memory, so the outputs are `rollout_kernel`'s bit for bit."""
-        keys = ("q", "v", "qk", "stats", "status", "con_count", "con_pair", "con_phi", "con_n", "con_p", "con_cn",
-                "con_ft", "con_vt", "con_mode")
-        kernel = rollout_kernel_lemke if self._fast_kernel else rollout_kernel
-        start, chunk = 0, 64
+    def _run_chunks(self, rec, vk_seq, nsteps, stop_on_failure):
+        """The rollout in calls of the rollout kernel of CHUNK_SECONDS each (the kernels are resumable, so the chunks
+        together equal one call bit for bit). A step that the first variant hands back (STEP_NEEDS_FALLBACK) is run
+        alone by the next one, then the first resumes: each step is computed by the same pipeline from the same
+        inputs and warm-start memory, so the result is that of the last variant alone. Returns the steps done."""
+        start, chunk, level = 0, 64, 0
         while start < nsteps:
-            n = min(chunk, nsteps - start)
+            n = 1 if level else min(chunk, nsteps - start)
             # state rows start .. start + n, per-step rows start .. start + n - 1 (an empty contact array stays empty)
-            view = [out[k][start:start + n + 1] if k in ("q", "v", "qk") else out[k][start:start + n] for k in keys]
+            view = rec if n == nsteps else Recording(*(a[start:start + n + 1] if k in ("q", "v", "qk") else
+                                                       a[start:start + n] for k, a in zip(Recording._fields, rec)))
             t0 = time.perf_counter()
-            done = int(kernel(self.kmodel, out["q"][start] if start else q, out["v"][start] if start else v,
-                              out["qk"][start] if start else qk, vk_seq, start, n, self.h, self.kopt, self.kwork,
-                              *view, stop_on_failure, start == 0))
-            if done:
+            done = int(self._variants[level][1](self.kmodel, rec.q[start], rec.v[start], rec.qk[start], vk_seq, start,
+                                                n, self.h, self.kopt, self.kwork, view, stop_on_failure, start == 0))
+            if done and not level:
                 chunk = int(min(max(16, self.CHUNK_SECONDS * done / max(time.perf_counter() - t0, 1e-9)), 1 << 20))
-            i = start + done
-            if done == n:
-                start = i
-                continue
-            if out["status"][i] != STEP_NEEDS_FALLBACK:
-                return i                      # stopped on a failed step (stop_on_failure)
-            # no Lemke method was certified on an island in step i: that step with the (uncertified) PGS fallback
-            st = int(step_kernel(self.kmodel, out["q"][i], out["v"][i], out["qk"][i], vk_seq[min(i, len(vk_seq) - 1)],
-                                 self.h, self.kopt, self.kwork, out["q"][i + 1], out["v"][i + 1], out["qk"][i + 1],
-                                 out["stats"][i]))
-            out["status"][i] = st
-            self._record_contacts(out, i, C)
-            if st != STEP_OK and stop_on_failure:
-                return i + 1
-            start = i + 1
-        return nsteps
-
-    def _record_contacts(self, out, i, C):
-        if not C:
-            return
-        w = self.work
-        nc = int(out["stats"][i, ST_NCON])
-        out["con_count"][i] = nc
-        for key, src in (("con_pair", w.con_pair), ("con_phi", w.con_phi), ("con_n", w.con_n),
-                         ("con_p", w.con_p), ("con_cn", w.con_cn), ("con_ft", w.con_ft),
-                         ("con_vt", w.con_vt), ("con_mode", w.con_mode)):
-            out[key][i, :min(nc, C)] = src[:min(nc, C)]
-
-    def _rollout_python(self, out, q, v, qk, vk_seq, nsteps, stop_on_failure, C):
-        """The rollout loop for solvers that cannot run inside numba (osqp); same outputs as rollout_kernel."""
-        out["q"][0], out["v"][0], out["qk"][0] = q, v, qk
-        for i in range(nsteps):
-            st = self._step_into(out["q"][i], out["v"][i], out["qk"][i], vk_seq[min(i, len(vk_seq) - 1)],
-                                 out["q"][i + 1], out["v"][i + 1], out["qk"][i + 1], out["stats"][i])
-            out["status"][i] = st
-            self._record_contacts(out, i, C)
-            if st != STEP_OK and stop_on_failure:
-                return i + 1
+            start += done
+            if done and stop_on_failure and rec.status[start - 1] != STEP_OK:
+                return start                  # stopped on a failed step
+            level = level + 1 if done < n else 0
         return nsteps
 
 
@@ -274,7 +236,7 @@ def estimate_run_bytes(model, nsteps, record_contacts=True):
     Trajectory: per step the rollout's q, v (ndyn x 3), qk (nkin x 3), stats (NSTAT), status, the contact arrays
     (88 bytes per contact slot, 2 slots per shape pair) when recorded, and the Trajectory's copies (frame poses and
     velocities, NSTAT stats, energy, t). Work: the Lemke tableau U x (2U + 2), the dense A and LU (U x U each) and
-    ~30 vectors of U, U = model.max_unknowns() (kernels/step.py `make_step_work`)."""
+    ~30 vectors of U, U = model.max_unknowns() (engine/step.py `make_step_work`)."""
     nd, nk = model.ndyn, model.nkin
     C = model.max_contacts() if record_contacts else 0
     per_step = 8 * (2 * 3 * nd + 3 * nk + NSTAT + 1) + (8 + 88 * C if C else 0) + 8 * (2 * 3 * nd + NSTAT + 2)
@@ -359,17 +321,10 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     q_com, v_com = out["q"][:T], out["v"][:T]
     st = out["stats"][:done]
     en = energy(model, q_com, v_com)
-    stats = dict(lcp_size=st[:, ST_LCP_SIZE].astype(int), lcp_max=st[:, ST_LCP_MAX].astype(int),
-                 pivots=st[:, ST_PIVOTS].astype(int), n_contacts=st[:, ST_NCON].astype(int),
-                 n_islands=st[:, ST_NISLAND].astype(int), fp_iterations=st[:, ST_FP_ITERS].astype(int),
-                 resolves=st[:, ST_RESOLVES].astype(int), residual=st[:, ST_RESIDUAL].copy(),
-                 penetration=st[:, ST_PENETRATION].copy(), lemke_retries=st[:, ST_LEMKE_RETRIES].astype(int),
-                 warm_starts=st[:, ST_WARM_STARTS].astype(int),
-                 solved_lemke=st[:, ST_BY_LEMKE].astype(int), solved_equilibrated=st[:, ST_BY_EQUILIBRATED].astype(int),
-                 solved_strict=st[:, ST_BY_STRICT].astype(int), solved_velocity=st[:, ST_BY_VELOCITY].astype(int),
-                 pgs_uncertified=st[:, ST_BY_PGS].astype(int),
-                 fp_change=st[:, ST_FP_CHANGE].copy(), pgs_update=st[:, ST_PGS_UPDATE].copy(),
-                 status=out["status"][:done].copy(), energy=en)
+    # every stat by its name, the integer-valued ones as int (lemke_status is named by a failure's cause instead)
+    stats = {name: st[:, i].astype(int) if integer else st[:, i].copy()
+             for i, (name, integer, _) in enumerate(STATS) if name != "lemke_status"}
+    stats.update(status=out["status"][:done].copy(), energy=en)
     a = model.arrays
     names = [b.name for b in scene.bodies]
     pairs = [(names[a.shape_body[pa]], names[a.shape_body[pb]]) for pa, pb in zip(a.pair_a, a.pair_b)]
@@ -378,6 +333,6 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
                                                              "con_cn", "con_ft", "con_vt", "con_mode")}
     contacts["shape_pairs"] = pairs
     return Trajectory(t=np.arange(T) * h, q=model.com_to_frame(q_com),
-                      v=frame_velocity(q_com, v_com, model.com_local), q_com=q_com, v_com=v_com, qk=out["qk"][:T], body_names=model.dyn_names,
-                      kinematic_names=model.kin_names, stats=stats, contacts=contacts, options=opts, scene=scene,
+                      v=frame_velocity(q_com, v_com, model.com_local), q_com=q_com, v_com=v_com, qk=out["qk"][:T],
+                      body_names=model.dyn_names, kinematic_names=model.kin_names, stats=stats, contacts=contacts, options=opts, scene=scene,
                       failures=failures)

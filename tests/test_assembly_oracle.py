@@ -20,7 +20,7 @@ import pytest
 
 from planar_lcp.engine import assemble as AS
 from planar_lcp.engine import contacts as C
-from planar_lcp.engine.step import ST_NCON
+from planar_lcp.engine.layout import WORK_LAYOUT, Stat, StepWork, model_struct, work_struct
 from planar_lcp.lcp import lemke
 from planar_lcp.model import BODY_DYNAMIC, BODY_KINEMATIC, compile_scene
 from planar_lcp.spec.scene import list_scenes, load_scene, parse_scene
@@ -148,6 +148,15 @@ def reference_lcp(m, poses, vk, isl_con, isl_sup, con_pair, con_phi, con_n, con_
 # the kernel, the comparator, the inputs
 # ----------------------------------------------------------------------------------------------------------------
 
+_DTYPES = {"f8": np.float64, "i8": np.int64, "bool": np.bool_}
+
+
+def work_with(**arrays):
+    """A StepWork holding the given arrays, every other field a one-element dummy of its declared type."""
+    return StepWork(*(arrays[f.name] if f.name in arrays else np.zeros((1,) * len(f.shape.split(" x ")),
+                                                                       _DTYPES[f.dtype]) for f in WORK_LAYOUT))
+
+
 def kernel_lcp(m, poses, vk, isl_con, isl_sup, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h, velocity_form,
                n):
     """Call assemble_lcp on NaN-filled buffers (an entry it forgets to write shows up as NaN). b has a tail of
@@ -159,10 +168,13 @@ def kernel_lcp(m, poses, vk, isl_con, isl_sup, con_pair, con_phi, con_n, con_p, 
     col_g = np.full((cap, 2, 3), np.nan)
     A = np.full((n, n), np.nan)
     b = np.full(n + 3, np.nan)
-    nret, nf = AS.assemble_lcp(m, poses, np.ascontiguousarray(vk, float), isl_con, len(isl_con), isl_sup,
-                               len(isl_sup), con_pair, con_phi, con_n, con_p, np.ascontiguousarray(v_tilde, float),
-                               np.ascontiguousarray(v_hat, float), float(h), bool(velocity_form), col_dyn, col_g,
-                               A, b)
+    w = work_with(body_pose=poses, island_con=isl_con, island_sup=isl_sup, con_pair=con_pair, con_phi=con_phi,
+                  con_n=con_n, con_p=con_p, v_tilde=np.ascontiguousarray(v_tilde, float),
+                  v_hat=np.ascontiguousarray(v_hat, float), column_slot=col_dyn, column_g=col_g)
+    if hasattr(AS.assemble_lcp, "py_func"):
+        m, w = model_struct(m), work_struct(w)  # the kernel as the step calls it (a python run reads the tuples)
+    nret, nf = AS.assemble_lcp(m, w, np.ascontiguousarray(vk, float), len(isl_con), len(isl_sup), float(h),
+                               bool(velocity_form), A, b)
     assert np.all(np.isnan(b[n:])), "assemble_lcp wrote past the end of its problem in b"
     return A, b[:n], int(nret), int(nf), col_dyn, col_g
 
@@ -218,7 +230,7 @@ def islands_of(m, ncon, con_pair):
 
 
 class Problem:
-    """Contacts at the linearization pose of one step, as the step kernel forms them (see kernels/step.py)."""
+    """Contacts at the linearization pose of one step, as the step pipeline forms them (see engine/step.py)."""
 
     def __init__(self, model, q, v, qk, vk, h, velocity_form, v_hat=None, force_all=False, margin=MARGIN):
         m = model.arrays
@@ -295,7 +307,7 @@ def _trajectory(name):
 
 def _step_choices(out):
     done = out["steps_done"]
-    ncon = out["stats"][:done, ST_NCON]            # contacts found during each step
+    ncon = out["stats"][:done, Stat.N_CONTACTS]            # contacts found during each step
     steps = {0, done}
     with_contacts = np.flatnonzero(ncon > 0)
     if len(with_contacts):
@@ -634,6 +646,8 @@ def test_oracle_catches_a_mutated_kernel(mutant, monkeypatch):
             A_ref, b_ref, _, parts = reference_lcp(*prob.args(isl_con, isl_sup))
             with monkeypatch.context() as mp:
                 mp.setattr(AS, "assemble_lcp", assemble)
+                # its helper that calls the mutated ones runs as python too, so that it sees them
+                mp.setattr(AS, "normal_column", getattr(AS.normal_column, "py_func", AS.normal_column))
                 A, b, *_ = kernel_lcp(*prob.args(isl_con, isl_sup), parts["n"])
             out.append(lcp_mismatch(A, b, A_ref, b_ref))
         return out

@@ -17,7 +17,7 @@ import pytest
 from planar_lcp.model import compile_scene
 from planar_lcp.spec.scene import list_scenes, load_scene
 from planar_lcp.sim import STEP_OK, SimOptions, Simulator
-from planar_lcp.engine.step import ST_PIVOTS
+from planar_lcp.engine.layout import Stat
 
 GOLDEN_DIR = Path(__file__).resolve().parent / "golden"
 FORMULATIONS = ("position", "fixed_point", "velocity")
@@ -34,7 +34,7 @@ def record(name, formulation):
                                                   pgs_iterations=s.pgs_iterations))
     q, v, qk, vk = sim.initial_state()
     out = sim.rollout(q, v, qk, vk[None], int(round(s.t_end / s.h)), stop_on_failure=False)
-    return dict(q=out["q"], v=out["v"], qk=out["qk"], pivots=out["stats"][:, ST_PIVOTS].astype(np.int64),
+    return dict(q=out["q"], v=out["v"], qk=out["qk"], pivots=out["stats"][:, Stat.PIVOTS].astype(np.int64),
                 status=out["status"])
 
 

@@ -146,7 +146,7 @@ def test_trivial_cases():
 @given(seed=seeds, n=sizes)
 def test_basis_refinement_matches_numpy_solve_on_the_support(seed, n):
     """The refinement step re-solves the final complementary basis from the original data; oracle: numpy."""
-    from planar_lcp.engine.solvers.lemke import _refine_from_basis, lemke_kernel, make_lemke_work
+    from planar_lcp.engine.solvers.lemke import refine_from_basis, lemke_kernel, make_lemke_work
     rng = np.random.default_rng(seed)
     A = rng.normal(size=(n, n))
     S = rng.normal(size=(n, n))
@@ -159,7 +159,7 @@ def test_basis_refinement_matches_numpy_solve_on_the_support(seed, n):
     out = np.empty(n)
     if pivots == 0:
         return
-    ok, _ = _refine_from_basis(M, q, basis, n, out, lu, rhs, perm, zb, cand)
+    ok, _ = refine_from_basis(M, q, basis, n, out, lu, rhs, perm, zb, cand)
     assert ok
     support = [basis[i] - n for i in range(n) if n <= basis[i] < 2 * n]
     expect = np.zeros(n)

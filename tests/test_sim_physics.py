@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from planar_lcp.engine.layout import Stat
 from planar_lcp.spec.scene import parse_scene
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, SimulationError, Simulator, simulate
@@ -222,7 +223,8 @@ def test_lcp_failure_raises_with_step_and_cause_or_is_recorded():
 def test_bad_simulate_arguments():
     with pytest.raises(ValueError, match="solver must be one of 'lemke', 'pgs', 'osqp', got 'magic'"):
         simulate("falling_rod", solver="magic", t_end=0.01)
-    with pytest.raises(ValueError, match="formulation must be one of 'position', 'fixed_point', 'velocity', got 'implicit'"):
+    with pytest.raises(ValueError,
+                       match="formulation must be one of 'position', 'fixed_point', 'velocity', got 'implicit'"):
         simulate("falling_rod", formulation="implicit", t_end=0.01)
     with pytest.raises(ValueError, match="h must be > 0, got -0.1"):
         simulate("falling_rod", h=-0.1)
@@ -290,15 +292,15 @@ def test_seed_friction_arm_puts_the_friction_moment_arm_at_the_end_cap_centre():
         q, v = out["q"][153], out["v"][153]
         sim.step(q, v, qk, vk)
         w = sim.work
-        assert sim.stats[4] == 1                          # one contact: the lower cap
+        assert sim.stats[Stat.N_CONTACTS] == 1            # one contact: the lower cap
         theta = q[0, 2] + sim.h * v[0, 2]                 # linearization pose q + h v
         nci = 1
         # friction column +t = (1, 0) on the table (n = (0, 1) gives t = (-1, 0); the first ray is -x): torque
         # about the COM of a horizontal unit impulse at height y below the COM is +y for d = -x
         # the contact point is the midpoint of the witness points: phi/2 above the cap's lowest point
         arm_y = 0.25 * abs(np.sin(theta)) + (extra + 0.5 * w.con_phi[0] if extra else 0.0)
-        assert w.col_g[nci, 0, 0] == pytest.approx(-1.0)
-        assert w.col_g[nci, 0, 2] == pytest.approx(-arm_y, rel=1e-9, abs=1e-12)
+        assert w.column_g[nci, 0, 0] == pytest.approx(-1.0)
+        assert w.column_g[nci, 0, 2] == pytest.approx(-arm_y, rel=1e-9, abs=1e-12)
 
 
 def test_nearly_degenerate_flat_rod_lcp_false_ray_and_its_certified_solutions():
@@ -308,7 +310,6 @@ def test_nearly_degenerate_flat_rod_lcp_false_ray_and_its_certified_solutions():
     second method) solves it, as does the stricter pivot tolerance of its third. The LCP is the kernel's own assembly
     of that step. With the (optional) warm start, the previous step's basis solves it without Lemke."""
     from planar_lcp import lemke
-    from planar_lcp.engine.step import ST_LCP_SIZE
     from planar_lcp.spec.scene import load_scene
     from planar_lcp.experiments.studies.common import shift_scene
     sc = shift_scene(load_scene("falling_rod"), 0.017148085531751386)
@@ -319,8 +320,8 @@ def test_nearly_degenerate_flat_rod_lcp_false_ray_and_its_certified_solutions():
     q, v, qk, vk = sim.initial_state()
     out = sim.rollout(q, v, qk, vk[None], 108)
     sim.step(out["q"][108], out["v"][108], out["qk"][108], vk)
-    n = int(sim.stats[ST_LCP_SIZE])
-    A, b = sim.work.Abuf[:n * n].reshape(n, n).copy(), sim.work.bvec[:n].copy()
+    n = int(sim.stats[Stat.LCP_SIZE])
+    A, b = sim.work.lcp_matrix[:n * n].reshape(n, n).copy(), sim.work.lcp_vector[:n].copy()
     assert lemke(A, b).status == "ray_termination"
     for r in (lemke(A, b, equilibrate=True), lemke(A, b, piv_tol=1e-6)):
         assert r.status == "solved"

@@ -1,28 +1,53 @@
-"""The kernels' structs (planar_lcp/kernels/structs.py) mirror the namedtuples field for field and share buffers."""
+"""The kernels' structs (planar_lcp/engine/layout.py): one table per struct makes the namedtuple, the struct and the
+allocator; the arrays compile_scene and make_step_work make match the tables, and the struct shares their buffers."""
 
 import numba
 import numpy as np
 import pytest
 
-from planar_lcp import load_scene
-from planar_lcp.engine.step import ST_NCON, StepWork, make_step_work
-from planar_lcp.engine.layout import MODEL_FIELDS, WORK_FIELDS, model_struct, work_struct
-from planar_lcp.model import ModelArrays, compile_scene
+from planar_lcp import load_scene, simulate
+from planar_lcp.engine.layout import (MODEL_LAYOUT, WORK_LAYOUT, Stat, make_step_work, model_struct, work_sizes,
+                                      work_struct)
+from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
 
 JIT = not numba.config.DISABLE_JIT
+SCENES = ["falling_rod", "box_push", "push_t", "four_disks"]
 
 
-def test_struct_fields_are_the_namedtuple_fields_in_order():
-    assert tuple(k for k, _ in MODEL_FIELDS) == ModelArrays._fields
-    assert tuple(k for k, _ in WORK_FIELDS) == StepWork._fields
+def _shape(field, sizes):
+    return tuple(int(d) if d.isdigit() else sizes[d] for d in field.shape.split(" x ")) if field.shape else ()
 
 
-@pytest.mark.parametrize("name", ["falling_rod", "box_push", "push_t", "four_disks"])
+@pytest.mark.parametrize("name", SCENES)
 def test_every_field_has_the_declared_type(name):
     model = compile_scene(load_scene(name))
     model_struct(model.arrays)          # raises TypeError naming the field on a mismatch
     work_struct(make_step_work(model))
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_the_model_arrays_have_the_shapes_the_table_declares(name):
+    """Sizes counted from the scene (bodies, shapes, dynamic bodies) or read from one array each (vertices, pairs,
+    support points, friction directions): every field's shape must follow from them as MODEL_LAYOUT says."""
+    sc = load_scene(name)
+    a = compile_scene(sc).arrays
+    sizes = dict(nbody=len(sc.bodies), nshape=sum(len(b.shapes) for b in sc.bodies),
+                 ndyn=sum(b.type == "dynamic" for b in sc.bodies), nvert=a.vert_local.shape[0],
+                 npair=a.pair_a.shape[0], nsup=a.sup_dyn.shape[0], k=a.fric_dirs.shape[0])
+    for f, v in zip(MODEL_LAYOUT, a):
+        assert np.shape(v) == _shape(f, sizes), f.name
+
+
+def test_the_allocator_sizes_the_lcp_buffers_for_the_largest_problem():
+    model = compile_scene(load_scene("push_t"))
+    w, sizes = make_step_work(model), work_sizes(model)
+    U = model.max_unknowns()
+    assert sizes["unknown"] == U and w.lemke_tableau.shape == (U * (2 * U + 2),) and w.lcp_matrix.shape == (U * U,)
+    assert w.con_pair.shape == (model.max_contacts(),) and w.warm_basic_z.shape == (model.ndyn, U)
+    assert np.all(w.warm_size == -1) and np.all(w.warm_size_saved == -1) and not w.warm_basic_z.any()
+    for f, v in zip(WORK_LAYOUT, w):
+        assert v.shape == _shape(f, sizes), f.name
 
 
 @pytest.mark.skipif(not JIT, reason="with NUMBA_DISABLE_JIT the namedtuples are used as they are")
@@ -40,7 +65,16 @@ def test_kernel_writes_through_the_struct_are_seen_in_the_namedtuple():
     q, v, qk, vk = sim.initial_state()
     for _ in range(160):  # until the rod has hit the table (t ~ 0.386 s)
         q, v, qk, st = sim.step(q, v, qk, vk)
-    ncon = int(sim.stats[ST_NCON])
+    ncon = int(sim.stats[Stat.N_CONTACTS])
     assert ncon > 0
     assert np.array_equal(sim.work.v_new, v)          # written by the kernel through sim.kwork
     assert np.all(sim.work.con_cn[:ncon] >= 0.0) and sim.work.con_cn[:ncon].max() > 0.0
+
+
+def test_trajectory_stats_keys_are_the_contract():
+    tr = simulate("falling_rod", t_end=0.05)
+    assert sorted(tr.stats) == sorted([
+        "lcp_size", "lcp_max", "pivots", "n_contacts", "n_islands", "fp_iterations", "resolves", "residual",
+        "penetration", "lemke_retries", "warm_starts", "solved_lemke", "solved_equilibrated", "solved_strict",
+        "solved_velocity", "pgs_uncertified", "fp_change", "pgs_update", "status", "energy"])
+    assert tr.stats["pivots"].dtype.kind == "i" and tr.stats["residual"].dtype.kind == "f"

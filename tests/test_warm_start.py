@@ -1,5 +1,6 @@
 """Warm start (SimOptions(warm_start=True), off by default): each island's LCP is first tried on the previous step's
-basis (kernels/lemke.py lemke_from_basis), kept only when certified by the residual; otherwise Lemke solves it cold.
+basis (engine/solvers/lemke.py lemke_from_basis), kept only when certified by the residual; otherwise Lemke solves it
+cold.
 
 Oracles: a dense numpy solve on the guessed basis and the enumeration of all complementary bases (for the kernel);
 the LCP conditions checked with numpy (for a non-unique LCP); the cold-start simulation of the same scene (for the
@@ -12,8 +13,10 @@ import numpy as np
 import pytest
 
 from planar_lcp import load_scene, simulate
-from planar_lcp.engine.solvers.lemke import lemke_from_basis, lemke_kernel, make_lemke_work
-from planar_lcp.engine.step import ST_WARM_STARTS
+from planar_lcp.engine.layout import Stat
+from planar_lcp.engine.rollout import Recording, rollout_lemke_full
+from planar_lcp.engine.solvers.lemke import (default_max_pivots, lemke_from_basis, lemke_kernel,
+                                             make_lemke_work)
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL
 from planar_lcp.model import compile_scene
 from planar_lcp.spec.scene import list_scenes
@@ -31,8 +34,8 @@ def _cold(M, q, equilibrate=False):
     """Lemke from scratch as the time-stepper's first try does it (as assembled), or on the equilibrated problem."""
     n = len(q)
     work = make_lemke_work(n)
-    status, piv, res = lemke_kernel(M, q, 50 * n + 100, DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, equilibrate,
-                                    *work)
+    status, piv, res = lemke_kernel(M, q, default_max_pivots(n), DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL,
+                                    equilibrate, *work)
     basis = work[1]
     mask = np.zeros(n, np.bool_)
     for k in basis[:n]:
@@ -144,21 +147,21 @@ def test_step_continues_only_from_its_own_last_output():
     x = (out["q"][50].copy(), out["v"][50].copy(), out["qk"][50].copy())
     # after a rollout, a step starts cold: bitwise the fresh simulator's step
     a = sim.step(*x, vk)
-    assert sim.stats[ST_WARM_STARTS] == 0
+    assert sim.stats[Stat.WARM_STARTS] == 0
     b = fresh.step(*x, vk)
     for u, w in zip(a[:3], b[:3]):
         assert np.array_equal(u, w)
     # continuing from its own output, it warm-starts
     sim.step(*a[:3], vk)
-    assert sim.stats[ST_WARM_STARTS] >= 1
+    assert sim.stats[Stat.WARM_STARTS] >= 1
     # from any other state it starts cold again
     sim.step(*x, vk)
-    assert sim.stats[ST_WARM_STARTS] == 0
+    assert sim.stats[Stat.WARM_STARTS] == 0
     # and reset_warm_start() forgets the basis: a continuation then starts cold
     d = sim.step(*x, vk)
     sim.reset_warm_start()
     sim.step(*d[:3], vk)
-    assert sim.stats[ST_WARM_STARTS] == 0
+    assert sim.stats[Stat.WARM_STARTS] == 0
 
 
 def test_rollout_is_a_function_of_its_inputs_only():
@@ -177,12 +180,24 @@ def test_planner_propagation_warm_starts():
     assert tm.sim.options.warm_start is True
 
 
+def _full_variant_rollout(sim, q, v, qk, vk, n, stop_on_failure):
+    """The rollout kernel of the step variant with the PGS fallback, called once from a fresh simulator."""
+    C = sim.model.max_contacts()
+    rec = Recording(q=np.zeros((n + 1,) + q.shape), v=np.zeros((n + 1,) + v.shape), qk=np.zeros((n + 1,) + qk.shape),
+                    stats=np.zeros((n, sim.stats.shape[0])), status=np.zeros(n, np.int64),
+                    con_count=np.zeros(n, np.int64), con_pair=np.zeros((n, C), np.int64), con_phi=np.zeros((n, C)),
+                    con_n=np.zeros((n, C, 2)), con_p=np.zeros((n, C, 2)), con_cn=np.zeros((n, C)),
+                    con_ft=np.zeros((n, C)), con_vt=np.zeros((n, C)), con_mode=np.zeros((n, C), np.int64))
+    done = rollout_lemke_full(sim.kmodel, q, v, qk, vk[None], 0, n, sim.h, sim.kopt, sim.kwork, rec, stop_on_failure,
+                              True)
+    return int(done), rec._asdict()
+
+
 @pytest.mark.parametrize("warm", [False, True])
-def test_lemke_rollout_with_python_fallback_equals_the_full_kernel_bit_for_bit(warm):
-    """Solver lemke runs `rollout_kernel_lemke` (no PGS compiled in) and hands a step on which Lemke fails to
-    `step_kernel` from Python. res_tol = 0 makes Lemke 'fail' on many steps (a controlled failure), so the stitched
-    rollout is compared with the one-kernel `rollout_kernel` on every output, and with a loop of `step`."""
-    from planar_lcp.engine.rollout import rollout_kernel
+def test_lemke_rollout_with_fallback_steps_equals_the_full_variant_bit_for_bit(warm):
+    """Solver lemke runs the variant without the PGS fallback (`rollout_lemke`) and re-runs a step on which Lemke
+    fails with the variant that has it. res_tol = 0 makes Lemke 'fail' on many steps (a controlled failure), so the
+    stitched rollout is compared with one call of `rollout_lemke_full` on every output, and with a loop of `step`."""
     sc = load_scene("falling_rod")
     opts = SimOptions(h=sc.sim.h, res_tol=0.0, warm_start=warm)
     sim, ref = Simulator(compile_scene(sc), opts), Simulator(compile_scene(sc), opts)
@@ -191,13 +206,8 @@ def test_lemke_rollout_with_python_fallback_equals_the_full_kernel_bit_for_bit(w
     out = sim.rollout(q, v, qk, vk[None], n, stop_on_failure=False, record_contacts=True)
     failed = np.flatnonzero(out["status"] != 0)
     assert len(failed) >= 3 and out["steps_done"] == n
-    C = ref.model.max_contacts()
-    z = {k: np.zeros_like(out[k]) for k in ("q", "v", "qk", "stats", "status", "con_count", "con_pair", "con_phi",
-                                             "con_n", "con_p", "con_cn", "con_ft", "con_vt", "con_mode")}
-    assert C > 0
-    done = rollout_kernel(ref.kmodel, q, v, qk, vk[None], 0, n, ref.h, ref.kopt, ref.kwork, z["q"], z["v"], z["qk"],
-                          z["stats"], z["status"], z["con_count"], z["con_pair"], z["con_phi"], z["con_n"], z["con_p"],
-                          z["con_cn"], z["con_ft"], z["con_vt"], z["con_mode"], False, True)
+    assert ref.model.max_contacts() > 0
+    done, z = _full_variant_rollout(ref, q, v, qk, vk, n, False)
     assert done == n
     for k, a in z.items():
         assert np.array_equal(out[k], a), k
@@ -208,9 +218,8 @@ def test_lemke_rollout_with_python_fallback_equals_the_full_kernel_bit_for_bit(w
         assert st == out["status"][i] and np.array_equal(q, out["q"][i + 1]) and np.array_equal(v, out["v"][i + 1])
 
 
-def test_lemke_rollout_stops_at_the_first_failure_like_the_full_kernel():
+def test_lemke_rollout_stops_at_the_first_failure_like_the_full_variant():
     """stop_on_failure: the stitched rollout stops after the same step, with the same states and statuses."""
-    from planar_lcp.engine.rollout import rollout_kernel
     sc = load_scene("falling_rod")
     opts = SimOptions(h=sc.sim.h, res_tol=0.0)
     sim, ref = Simulator(compile_scene(sc), opts), Simulator(compile_scene(sc), opts)
@@ -219,11 +228,7 @@ def test_lemke_rollout_stops_at_the_first_failure_like_the_full_kernel():
     out = sim.rollout(q, v, qk, vk[None], n, stop_on_failure=True)
     done = out["steps_done"]
     assert 0 < done < n and out["status"][done - 1] != 0 and np.all(out["status"][:done - 1] == 0)
-    z = {k: np.zeros_like(out[k]) for k in ("q", "v", "qk", "stats", "status", "con_count", "con_pair", "con_phi",
-                                             "con_n", "con_p", "con_cn", "con_ft", "con_vt", "con_mode")}
-    d = rollout_kernel(ref.kmodel, q, v, qk, vk[None], 0, n, ref.h, ref.kopt, ref.kwork, z["q"], z["v"], z["qk"],
-                       z["stats"], z["status"], z["con_count"], z["con_pair"], z["con_phi"], z["con_n"], z["con_p"],
-                       z["con_cn"], z["con_ft"], z["con_vt"], z["con_mode"], True, True)
+    d, z = _full_variant_rollout(ref, q, v, qk, vk, n, True)
     assert d == done
     for k in ("q", "v", "stats", "status"):
         assert np.array_equal(out[k], z[k]), k

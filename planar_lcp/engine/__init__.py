@@ -2,8 +2,8 @@
 kernel source file.
 
 Why: numba's cache (`cache=True`) is invalidated only when the file defining a function changes, not when a callee in
-another file changes. After an edit or an upgrade, `rollout_kernel` (rollout.py unchanged) would silently keep an
-old inlined `step_kernel` (step.py changed). Keying the cache directory on all kernel sources makes any change start
+another file changes. After an edit or an upgrade, `rollout_lemke` (rollout.py unchanged) would silently keep an
+old inlined `step_pipeline` (step.py changed). Keying the cache directory on all kernel sources makes any change start
 a fresh cache. A user-set NUMBA_CACHE_DIR is respected as is. numba's cache setting is process-wide: other numba
 libraries imported after planar_lcp (QuantEcon in the benchmarks) cache into the same directory.
 """

@@ -13,7 +13,8 @@ Static and kinematic bodies carry no unknowns: their velocity enters the constan
 import numpy as np
 from numba import njit
 
-from planar_lcp.engine.constants import BODY_DYNAMIC, BODY_KINEMATIC
+from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC, MODE_SEPARATED, MODE_SLIDING,
+                                         MODE_STICKING)
 
 
 @njit(cache=True)
@@ -137,33 +138,47 @@ def kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, dx, dy):
     return s
 
 
+@njit(cache=True, inline='always')
+def normal_column(m, w, vk, h, velocity_form, a, u, b):
+    """Contact j = w.island_con[a]'s unit normal impulse as generalized column u, and the constant of its normal
+    row, b[u]: position forms (linearized at q_hat = q + h v_hat) phi/h + n.(v_tilde - v_hat); velocity form
+    n.v_tilde + max(phi, 0)/h + the kinematic bodies' normal velocity. Returns (j, n_x, n_y)."""
+    j = w.island_con[a]
+    nx = w.con_n[j, 0]
+    ny = w.con_n[j, 1]
+    contact_column(m, w.body_pose, w.con_pair, w.con_p, j, nx, ny, w.column_slot, w.column_g, u)
+    if velocity_form:
+        b[u] = column_dot(w.column_slot, w.column_g, u, w.v_tilde) + max(w.con_phi[j], 0.0) / h + \
+            kinematic_velocity_along(m, w.body_pose, vk, w.con_pair, w.con_p, j, nx, ny)
+    else:
+        b[u] = w.con_phi[j] / h + column_dot(w.column_slot, w.column_g, u, w.v_tilde) - \
+            column_dot(w.column_slot, w.column_g, u, w.v_hat)
+    return j, nx, ny
+
+
 @njit(cache=True)
-def assemble_lcp(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h,
-                 velocity_form, col_dyn, col_g, A, b):
-    """Build the island's LCP (A, b) of size returned; columns of the force unknowns go to col_dyn / col_g.
+def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b):
+    """Build the LCP (A, b) of the island whose contacts and support points are w.island_con[:nci],
+    w.island_sup[:nsi] (geometry at the linearization pose w.body_pose); the generalized columns of its force
+    unknowns go to w.column_slot / w.column_g. Returns (LCP size n, number of frictional contacts).
 
     Normal rows: position forms (linearized at the pose q_hat = q + h v_hat):  phi/h + n.(v+ - v_hat) >= 0;
     velocity form (contacts at q):  n.v+ + (kinematic normal velocity) + max(phi, 0)/h >= 0.
     Friction rows: lambda e + D^T v+ (+ kinematic tangential velocity) >= 0.  Slack rows: mu c_n - e^T beta >= 0.
     """
+    poses, con_pair, con_phi, con_n, con_p = w.body_pose, w.con_pair, w.con_phi, w.con_n, w.con_p
+    col_dyn, col_g, v_tilde, isl_sup = w.column_slot, w.column_g, w.v_tilde, w.island_sup
     k = m.fric_dirs.shape[0]
-    nf = 0
-    for a in range(nci):
-        if m.pair_mu[con_pair[isl_con[a]]] > 0.0:
-            nf += 1
+    n, nf, _ = island_problem_size(m, w.island_con, nci, nsi, con_pair)
     o_bc = nci
     o_bs = o_bc + 2 * nf
     o_lc = o_bs + k * nsi
     o_ls = o_lc + nf
-    n = o_ls + nsi
     nforce = o_lc
-    # generalized columns of the force unknowns
+    # generalized columns of the force unknowns (and the normal rows' constants)
     f = 0
     for a in range(nci):
-        j = isl_con[a]
-        nx = con_n[j, 0]
-        ny = con_n[j, 1]
-        contact_column(m, poses, con_pair, con_p, j, nx, ny, col_dyn, col_g, a)
+        j, nx, ny = normal_column(m, w, vk, h, velocity_form, a, a, b)
         if m.pair_mu[con_pair[j]] > 0.0:
             # tangent t = (-n_y, n_x); the two rays +t and -t make the 2-D friction "cone" exact
             friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, -ny, nx, col_dyn, col_g, o_bc + 2 * f)
@@ -177,17 +192,10 @@ def assemble_lcp(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, co
         for c in range(n):
             A[i, c] = 0.0
     delassus(m, nforce, col_dyn, col_g, A)
-    # constant vector
-    for a in range(nci):
-        j = isl_con[a]
-        if velocity_form:
-            b[a] = column_dot(col_dyn, col_g, a, v_tilde) + max(con_phi[j], 0.0) / h + \
-                kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, con_n[j, 0], con_n[j, 1])
-        else:
-            b[a] = con_phi[j] / h + column_dot(col_dyn, col_g, a, v_tilde) - column_dot(col_dyn, col_g, a, v_hat)
+    # the friction and slack rows
     f = 0
     for a in range(nci):
-        j = isl_con[a]
+        j = w.island_con[a]
         mu = m.pair_mu[con_pair[j]]
         if mu <= 0.0:
             continue
@@ -229,3 +237,79 @@ def apply_impulses(nforce, col_dyn, col_g, z, m, v):
                 v[d, 0] += col_g[u, side, 0] * zu / m.dyn_mass[d]
                 v[d, 1] += col_g[u, side, 1] * zu / m.dyn_mass[d]
                 v[d, 2] += col_g[u, side, 2] * zu / m.dyn_inertia[d]
+
+
+@njit(cache=True)
+def island_problem_size(m, isl_con, nci, nsi, con_pair):
+    """(LCP size, number of frictional contacts, PGS size) of an island with nci contacts and nsi support points."""
+    nf = 0
+    for a in range(nci):
+        if m.pair_mu[con_pair[isl_con[a]]] > 0.0:
+            nf += 1
+    k = m.fric_dirs.shape[0]
+    return nci + 3 * nf + (k + 1) * nsi, nf, nci + nf + 2 * nsi
+
+
+@njit(cache=True)
+def record_impulses(m, w, nci, z, per_contact, nf_offset):
+    """Per-contact normal and tangential impulses (w.con_cn, w.con_ft) from a solver's unknowns z.
+
+    per_contact: PGS layout, z = [c_n, f_t (if mu > 0)] contact after contact; else the LCP layout
+    z = [c_n..., (beta+, beta-)...] with the friction pairs from z[nf_offset]."""
+    f = 0
+    u = 0
+    for a in range(nci):
+        j = w.island_con[a]
+        frict = m.pair_mu[w.con_pair[j]] > 0.0
+        if per_contact:
+            w.con_cn[j] = z[u]
+            u += 1
+            if frict:
+                w.con_ft[j] = z[u]
+                u += 1
+            else:
+                w.con_ft[j] = 0.0
+        else:
+            w.con_cn[j] = z[a]
+            if frict:
+                w.con_ft[j] = z[nf_offset + 2 * f] - z[nf_offset + 2 * f + 1]
+                f += 1
+            else:
+                w.con_ft[j] = 0.0
+
+
+@njit(cache=True)
+def contact_velocities(m, w, opt, vk, nci):
+    """Post-solve tangential relative velocity (A minus B) of the island's contacts w.island_con[:nci], and their mode:
+    separated (normal impulse <= impulse_tol), sliding (|tangential velocity| > slip_tol), else sticking.
+
+    Measured with the geometry the LCP used (lever arms at the linearization pose w.body_pose), so that a contact the
+    LCP solved as sticking has zero slip here, not the O(h) difference of the end-of-step geometry."""
+    for a in range(nci):
+        j = w.island_con[a]
+        p = w.con_pair[j]
+        nx = w.con_n[j, 0]
+        ny = w.con_n[j, 1]
+        vt = 0.0
+        for side in range(2):
+            b = m.shape_body[m.pair_a[p]] if side == 0 else m.shape_body[m.pair_b[p]]
+            sgn = 1.0 if side == 0 else -1.0
+            kind = m.body_kind[b]
+            if kind == BODY_STATIC:
+                continue
+            if kind == BODY_DYNAMIC:
+                vel = w.v_new[m.body_slot[b]]
+            else:
+                vel = vk[m.body_slot[b]]
+            rx = w.con_p[j, 0] - w.body_pose[b, 0]
+            ry = w.con_p[j, 1] - w.body_pose[b, 1]
+            px = vel[0] - vel[2] * ry
+            py = vel[1] + vel[2] * rx
+            vt += sgn * (-px * ny + py * nx)
+        w.con_vt[j] = vt
+        if w.con_cn[j] <= opt.impulse_tol:
+            w.con_mode[j] = MODE_SEPARATED
+        elif abs(vt) > opt.slip_tol:
+            w.con_mode[j] = MODE_SLIDING
+        else:
+            w.con_mode[j] = MODE_STICKING

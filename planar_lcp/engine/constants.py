@@ -3,3 +3,6 @@
 BODY_DYNAMIC, BODY_STATIC, BODY_KINEMATIC = 0, 1, 2
 SHAPE_CORE, SHAPE_HALFPLANE = 0, 1
 PLANE_VERTICAL, PLANE_HORIZONTAL = 0, 1
+
+#: Contact modes after a step's solve (Trajectory.contacts["mode"]): no load, loaded without slip, loaded slipping.
+MODE_SEPARATED, MODE_STICKING, MODE_SLIDING = 0, 1, 2

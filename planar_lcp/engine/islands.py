@@ -52,3 +52,20 @@ def find_islands(m, ncon, con_pair, parent, island):
 def contact_island(m, island, con_pair, j):
     """Island of contact j. Relies on the invariant compile_scene establishes: side A of every pair is dynamic."""
     return island[m.body_slot[m.shape_body[m.pair_a[con_pair[j]]]]]
+
+
+@njit(cache=True, inline='always')
+def island_members(m, w, isl, ncon):
+    """Fill w.island_con / w.island_sup with the contacts (of the ncon in w.con_*) and the support points of island
+    isl, in increasing index order; returns their counts (nci, nsi)."""
+    nci = 0
+    for j in range(ncon):
+        if contact_island(m, w.body_island, w.con_pair, j) == isl:
+            w.island_con[nci] = j
+            nci += 1
+    nsi = 0
+    for s in range(m.sup_dyn.shape[0]):
+        if w.body_island[m.sup_dyn[s]] == isl:
+            w.island_sup[nsi] = s
+            nsi += 1
+    return nci, nsi

@@ -1,108 +1,204 @@
-"""The kernels' two big arguments, the model's arrays and a step's work buffers, as numba structrefs.
+"""Every struct the kernels take, declared once: one table per struct, from which its Python view (a namedtuple),
+its numba structref type, the constructor of the struct over the view's buffers, and the allocator are made.
 
-Why: the same data as a namedtuple is passed by value, a tuple of 25 or 45 arrays flattened into hundreds of scalar
-arguments of every jitted call, each array reference-counted on the way in and out, and every function taking one
-costs the compiler close to a second even when trivial. A structref is one pointer; its fields are read in place.
-Measured (`python examples/struct_vs_namedtuple.py`, fresh numba cache): falling_rod 8.7 -> 2.4 us per step and
-37 -> 20 s for the first rollout call (compile included); box_push 29.6 -> 21.9 us per step.
+- `MODEL_LAYOUT` -> `ModelArrays` (written by `planar_lcp.model.compile_scene`, never changed after);
+- `WORK_LAYOUT` -> `StepWork` (a step's buffers, `make_step_work`; each row names the stage that writes it);
+- `OPTIONS_LAYOUT` -> `StepOptions` (scalars, passed by value);
+- `STATS` -> `Stat` (the index of each entry of a step's stats vector).
 
-The Python side keeps the namedtuples (`Model.arrays`, `Simulator.work`): `model_struct` and `work_struct` wrap the
-same numpy buffers (no copy), so whatever a kernel writes through the struct is visible in the namedtuple. Kernel
-code is the same for both (attribute access), and with NUMBA_DISABLE_JIT=1 the namedtuples are used as they are.
+Why structs: a namedtuple of arrays is passed by value, flattened into hundreds of scalar arguments of every jitted
+call, each array reference-counted on the way in and out, and every function taking one costs the compiler close to
+a second even when trivial. A structref is one pointer; its fields are read in place. Python keeps the namedtuples
+(`Model.arrays`, `Simulator.work`): `model_struct` and `work_struct` wrap the same numpy buffers (no copy), so
+whatever a kernel writes through the struct is visible in the namedtuple. Kernel code is the same for both
+(attribute access), and with NUMBA_DISABLE_JIT=1 the namedtuples are used as they are.
 """
 
+from collections import namedtuple
+from enum import IntEnum
+
 import numba
+import numpy as np
 from numba import njit, types
+from numba.core import cgutils
 from numba.experimental import structref
+from numba.experimental.jitclass.base import imp_dtor
+from numba.extending import intrinsic
 
-F1, F2, F3 = types.float64[::1], types.float64[:, ::1], types.float64[:, :, ::1]
-I1, I2 = types.int64[::1], types.int64[:, ::1]
-B1, B2 = types.boolean[::1], types.boolean[:, ::1]
-INT = types.int64
+#: One field of a struct. dtype: "f8", "i8", "bool" (arrays, C-contiguous) or "int", "float", "bool" with shape ""
+#: (scalars). shape: sizes separated by " x ", each a number or a size name (`work_sizes`; model sizes for the
+#: reader). writer: the stage that writes it. init: the value the allocator fills in.
+Field = namedtuple("Field", ["name", "dtype", "shape", "unit", "writer", "meaning", "init"], defaults=(0,))
 
-#: field name -> numba type, in the order of the namedtuple's fields
-MODEL_FIELDS = (
-    ("plane", INT),
-    ("gravity", F1),
-    ("body_kind", I1),
-    ("body_slot", I1),
-    ("static_pose", F2),
-    ("dyn_body", I1),
-    ("dyn_mass", F1),
-    ("dyn_inertia", F1),
-    ("shape_body", I1),
-    ("shape_kind", I1),
-    ("shape_vert_adr", I1),
-    ("shape_vert_num", I1),
-    ("shape_radius", F1),
-    ("hp_point_w", F2),
-    ("hp_normal_w", F2),
-    ("vert_local", F2),
-    ("pair_a", I1),
-    ("pair_b", I1),
-    ("pair_mu", F1),
-    ("sup_dyn", I1),
-    ("sup_local", F2),
-    ("sup_load", F1),
-    ("sup_mu", F1),
-    ("fric_dirs", F2),
-    ("seed_friction_arm", INT),
+
+def _table(text, init=None):
+    """The fields of a text table: a header line, then one line per field with the columns name, dtype, shape, unit,
+    writer and meaning separated by "|" ("-": empty); init: {name: fill value} where not 0."""
+    fields = []
+    for line in text.strip().splitlines()[1:]:
+        cells = [c.strip() for c in line.split("|", 5)]
+        cells = ["" if c == "-" else c for c in cells]
+        fields.append(Field(*cells, init=(init or {}).get(cells[0], 0)))
+    return tuple(fields)
+
+
+MODEL_LAYOUT = _table("""
+name              | dtype | shape      | unit   | writer  | meaning
+plane             | int   | -          | -      | compile | PLANE_VERTICAL | PLANE_HORIZONTAL
+gravity           | f8    | 2          | m/s^2  | compile | vertical plane (zero in the horizontal plane)
+body_kind         | i8    | nbody      | -      | compile | BODY_*
+body_slot         | i8    | nbody      | -      | compile | index among the dynamic (or kinematic) bodies; -1: static
+static_pose       | f8    | nbody x 3  | m, rad | compile | world pose of static bodies (other rows unused)
+dyn_body          | i8    | ndyn       | -      | compile | body index of each dynamic slot
+dyn_mass          | f8    | ndyn       | kg     | compile | mass
+dyn_inertia       | f8    | ndyn       | kg m^2 | compile | moment of inertia about the COM
+shape_body        | i8    | nshape     | -      | compile | body of each shape
+shape_kind        | i8    | nshape     | -      | compile | SHAPE_*
+shape_vert_adr    | i8    | nshape     | -      | compile | first core vertex in vert_local
+shape_vert_num    | i8    | nshape     | -      | compile | number of core vertices
+shape_radius      | f8    | nshape     | m      | compile | radius the core is inflated by
+hp_point_w        | f8    | nshape x 2 | m      | compile | half-plane point, world (half-planes are static)
+hp_normal_w       | f8    | nshape x 2 | -      | compile | half-plane outward unit normal, world
+vert_local        | f8    | nvert x 2  | m      | compile | core vertices, dynamics frame (dynamic bodies: COM frame)
+pair_a            | i8    | npair      | -      | compile | shape A of each pair (dynamic, never a half-plane)
+pair_b            | i8    | npair      | -      | compile | shape B of each candidate pair
+pair_mu           | f8    | npair      | -      | compile | Coulomb coefficient
+sup_dyn           | i8    | nsup       | -      | compile | dynamic slot of the body a support point belongs to
+sup_local         | f8    | nsup x 2   | m      | compile | support point, COM frame
+sup_load          | f8    | nsup       | N      | compile | known normal load on the table (m g w)
+sup_mu            | f8    | nsup       | -      | compile | body-table Coulomb coefficient
+fric_dirs         | f8    | k x 2      | -      | compile | unit friction directions of the table friction
+seed_friction_arm | int   | -          | -      | compile | 1: contact friction at the shapes' core points (the seed's)
+""")
+
+WORK_LAYOUT = _table("""
+name               | dtype | shape             | unit       | writer    | meaning
+body_pose          | f8    | body x 3          | m, rad     | contacts  | world pose of every body at the pose examined
+vert_world         | f8    | vert x 2          | m          | contacts  | core vertices, world
+pair_forced        | bool  | pair              | -          | check     | pairs the active-set check added (any gap)
+pair_set_count     | i8    | pair              | -          | contacts  | contacts of each pair in the active set
+con_pair           | i8    | contact           | -          | contacts  | pair of each contact of the active set
+con_phi            | f8    | contact           | m          | contacts  | gap (negative: penetration)
+con_n              | f8    | contact x 2       | -          | contacts  | unit normal from B to A, world
+con_p              | f8    | contact x 2       | m          | contacts  | contact point, world
+pair_phi           | f8    | 2                 | m          | contacts  | one pair's contacts (collision)
+pair_n             | f8    | 2 x 2             | -          | contacts  | their normals
+pair_p             | f8    | 2 x 2             | m          | contacts  | their points
+check_pair         | i8    | contact           | -          | check     | contacts at q+ (check, projection)
+check_phi          | f8    | contact           | m          | check     | their gaps
+check_n            | f8    | contact x 2       | -          | check     | their normals
+check_p            | f8    | contact x 2       | m          | check     | their points
+island_parent      | i8    | dyn               | -          | islands   | union-find parent of each dynamic slot
+body_island        | i8    | dyn               | -          | islands   | island of each dynamic slot
+island_con         | i8    | contact           | -          | islands   | the contacts of the island being solved
+island_sup         | i8    | support           | -          | islands   | the support points of that island
+column_slot        | i8    | unknown x 2       | -          | assemble  | its 2 bodies' slots (-1: none)
+column_g           | f8    | unknown x 2 x 3   | -          | assemble  | its generalized vectors on them
+lcp_matrix         | f8    | unknown2          | -          | assemble  | the island's matrix (n x n, row-major)
+lcp_vector         | f8    | unknown           | m/s        | assemble  | the island's constant vector
+pgs_impulse        | f8    | unknown           | N s        | pgs       | PGS unknowns
+lemke_tableau      | f8    | tableau           | -          | lemke     | tableau (n x 2n + 2, row-major)
+lemke_basis        | i8    | unknown           | -          | lemke     | basic variable of each tableau row
+lemke_z            | f8    | unknown           | N s        | lemke     | the LCP's answer z
+lemke_w            | f8    | unknown           | m/s        | lemke     | w = M z + q
+lemke_rows         | i8    | unknown           | -          | lemke     | candidate rows of the ratio test
+lemke_lu           | f8    | unknown x unknown | -          | lemke     | basis refinement's LU factors
+lemke_rhs          | f8    | unknown           | -          | lemke     | basis refinement's right-hand side
+lemke_perm         | i8    | unknown           | -          | lemke     | basis refinement's row permutation
+lemke_basic        | i8    | unknown           | -          | lemke     | indices of the basic z
+lemke_z_refined    | f8    | unknown           | N s        | lemke     | z recomputed from the original data
+lemke_w_refined    | f8    | unknown           | m/s        | lemke     | its w
+lemke_pivot_row    | f8    | tableau_row       | -          | lemke     | the normalized pivot row
+lemke_scaling      | f8    | unknown           | -          | lemke     | equilibration (powers of two)
+v_tilde            | f8    | dyn x 3           | m/s, rad/s | begin     | free-motion velocity v + h M^-1 f_ext
+v_hat              | f8    | dyn x 3           | m/s, rad/s | begin     | the linearization pose is q_hat = q + h v_hat
+q_hat              | f8    | dyn x 3           | m, rad     | begin     | the linearization pose
+v_new              | f8    | dyn x 3           | m/s, rad/s | solvers   | v+
+q_new              | f8    | dyn x 3           | m, rad     | integrate | q+
+con_cn             | f8    | contact           | N s        | solvers   | normal impulse of each contact
+con_ft             | f8    | contact           | N s        | solvers   | tangential impulse along t = (-n_y, n_x)
+con_vt             | f8    | contact           | m/s        | solvers   | post-solve tangential velocity, A minus B
+con_mode           | i8    | contact           | -          | solvers   | MODE_*
+warm_size          | i8    | dyn               | -          | lemke     | per island: last LCP's size (-1: none)
+warm_basic_z       | bool  | dyn x unknown     | -          | lemke     | per island: which z were basic in it
+warm_size_saved    | i8    | dyn               | -          | step      | warm_size before a step
+warm_basic_z_saved | bool  | dyn x unknown     | -          | step      | warm_basic_z before a step
+""", init={'warm_size': -1, 'warm_size_saved': -1})
+
+OPTIONS_LAYOUT = _table("""
+name         | dtype | shape | unit   | writer | meaning
+formulation  | int   | -     | -      | sim    | FORM_*
+fp_iters     | int   | -     | -      | sim    | fixed point: most re-linearizations
+fp_tol       | float | -     | m, rad | sim    | fixed point: stop when q_hat moves less
+pgs_iters    | int   | -     | -      | sim    | PGS sweeps
+margin       | float | -     | m      | sim    | a smaller gap at q_hat enters the LCP
+pen_tol      | float | -     | m      | sim    | the active-set check adds a pair penetrating deeper
+max_resolves | int   | -     | -      | sim    | most active-set re-solves
+piv_tol      | float | -     | -      | sim    | Lemke's pivot tolerance (relative to the column)
+ratio_tol    | float | -     | -      | sim    | Lemke's tie tolerance
+res_tol      | float | -     | -      | sim    | certification: residual tolerance, relative
+slip_tol     | float | -     | m/s    | sim    | a loaded contact slipping faster is sliding
+impulse_tol  | float | -     | N s    | sim    | a contact with a smaller normal impulse is separated
+warm_start   | bool  | -     | -      | sim    | try each island's previous basis first
+""")
+
+#: A step's diagnostics, one float64 entry each in the stats vector (the kernels' `stats`, `Simulator.stats`, a
+#: rollout's stats rows), in this order: (name, integer-valued, meaning). `Stat.<NAME>` is the index of each;
+#: `simulate` hands every entry but lemke_status to Trajectory.stats under its name (those keys are a contract).
+STATS = (
+    ("lcp_size", True, "unknowns summed over the step's island problems (the last solve of the step)"),
+    ("lcp_max", True, "unknowns of the largest island problem"),
+    ("pivots", True, "Lemke pivots, all islands and all tries"),
+    ("lemke_status", True, "worst lemke STATUS_* code among the islands no certified method solved (0: none)"),
+    ("n_contacts", True, "contacts in the step's active set"),
+    ("n_islands", True, "islands of dynamic bodies"),
+    ("fp_iterations", True, "fixed-point re-linearizations"),
+    ("resolves", True, "active-set re-solves (a pair penetrating at q+ added)"),
+    ("residual", False, "largest certified LCP residual (absolute; the QP's primal residual for osqp)"),
+    ("fp_change", False, "m or rad: the last fixed-point iterate's largest pose change"),
+    ("pgs_update", False, "largest last-sweep PGS update (N s)"),
+    ("penetration", False, "m: deepest penetration at the end of the step (>= 0)"),
+    ("lemke_retries", True, "Lemke tries after the first one of each island"),
+    ("warm_starts", True, "island LCPs solved by the previous step's basis"),
+    ("solved_lemke", True, "island LCPs solved by Lemke as assembled"),
+    ("solved_equilibrated", True, "island LCPs solved by Lemke on the equilibrated problem"),
+    ("solved_strict", True, "island LCPs solved by Lemke with stricter pivot tolerances"),
+    ("solved_velocity", True, "island LCPs solved in the velocity form's normal rows"),
+    ("pgs_uncertified", True, "islands that took PGS's uncertified answer after every certified method failed"),
 )
+Stat = IntEnum("Stat", [(name.upper(), i) for i, (name, _, _) in enumerate(STATS)], module=__name__)
+NSTAT = len(STATS)
 
-#: field name -> numba type, in the order of the namedtuple's fields
-WORK_FIELDS = (
-    ("poses", F2),
-    ("vw", F2),
-    ("force_pair", B1),
-    ("set_count", I1),
-    ("con_pair", I1),
-    ("con_phi", F1),
-    ("con_n", F2),
-    ("con_p", F2),
-    ("tmp_phi", F1),
-    ("tmp_n", F2),
-    ("tmp_p", F2),
-    ("chk_pair", I1),
-    ("chk_phi", F1),
-    ("chk_n", F2),
-    ("chk_p", F2),
-    ("parent", I1),
-    ("island", I1),
-    ("isl_con", I1),
-    ("isl_sup", I1),
-    ("col_dyn", I2),
-    ("col_g", F3),
-    ("Abuf", F1),
-    ("bvec", F1),
-    ("zvec", F1),
-    ("lT", F1),
-    ("lbasis", I1),
-    ("lz", F1),
-    ("lw", F1),
-    ("lcand", I1),
-    ("llu", F2),
-    ("lrhs", F1),
-    ("lperm", I1),
-    ("lzb", I1),
-    ("lzalt", F1),
-    ("lwalt", F1),
-    ("lprow", F1),
-    ("ld", F1),
-    ("v_tilde", F2),
-    ("v_hat", F2),
-    ("q_hat", F2),
-    ("v_new", F2),
-    ("q_new", F2),
-    ("con_cn", F1),
-    ("con_ft", F1),
-    ("con_vt", F1),
-    ("con_mode", I1),
-    ("ws_n", I1),
-    ("ws_zmask", B2),
-    ("ws_n_saved", I1),
-    ("ws_zmask_saved", B2),
-)
+ModelArrays = namedtuple("ModelArrays", [f.name for f in MODEL_LAYOUT])
+StepWork = namedtuple("StepWork", [f.name for f in WORK_LAYOUT])
+StepOptions = namedtuple("StepOptions", [f.name for f in OPTIONS_LAYOUT])
 
+_DTYPES = {"f8": (types.float64, np.float64), "i8": (types.int64, np.int64), "bool": (types.boolean, np.bool_)}
+_SCALARS = {"int": types.int64, "float": types.float64, "bool": types.boolean}
+
+
+def numba_type(field):
+    """The numba type of a field: a C-contiguous array of its dtype and number of dimensions, or a scalar."""
+    if not field.shape:
+        return _SCALARS[field.dtype]
+    return types.Array(_DTYPES[field.dtype][0], len(field.shape.split(" x ")), "C")
+
+
+def work_sizes(model):
+    """The sizes WORK_LAYOUT's shapes name, for `model` (each at least 1: numba needs no empty-array special cases).
+    unknown is the LCP size bound `Model.max_unknowns`, contact the contact capacity (2 per shape pair)."""
+    a = model.arrays
+    U = max(1, model.max_unknowns())
+    return dict(body=a.body_kind.shape[0], vert=max(1, a.vert_local.shape[0]), pair=max(1, a.pair_a.shape[0]),
+                contact=max(1, 2 * a.pair_a.shape[0]), dyn=max(1, model.ndyn), support=max(1, a.sup_dyn.shape[0]),
+                unknown=U, unknown2=U * U, tableau=U * (2 * U + 2), tableau_row=2 * U + 2)
+
+
+def make_step_work(model):
+    """Allocate every buffer a step needs, sized from the model (no allocation happens inside the kernels)."""
+    sizes = work_sizes(model)
+    return StepWork(*(np.full(tuple(int(d) if d.isdigit() else sizes[d] for d in f.shape.split(" x ")), f.init,
+                              _DTYPES[f.dtype][1]) for f in WORK_LAYOUT))
 
 
 @structref.register
@@ -115,130 +211,83 @@ class WorkStructType(types.StructRef):
     pass
 
 
-MODEL_STRUCT = ModelStructType(list(MODEL_FIELDS))
-WORK_STRUCT = WorkStructType(list(WORK_FIELDS))
+MODEL_STRUCT = ModelStructType([(f.name, numba_type(f)) for f in MODEL_LAYOUT])
+WORK_STRUCT = WorkStructType([(f.name, numba_type(f)) for f in WORK_LAYOUT])
 
 
 class ModelStruct(structref.StructRefProxy):
-    """Python handle of a model struct (fields are not exposed to Python: read `Model.arrays`)."""
+    """Python handle of a model struct (fields are not exposed to Python: read its `view`, `Model.arrays`)."""
 
 
 class WorkStruct(structref.StructRefProxy):
-    """Python handle of a work struct (fields are not exposed to Python: read `Simulator.work`)."""
+    """Python handle of a work struct (fields are not exposed to Python: read its `view`, `Simulator.work`)."""
 
 
 structref.define_boxing(ModelStructType, ModelStruct)
 structref.define_boxing(WorkStructType, WorkStruct)
 
 
-@njit(cache=True)
-def _new_model_struct(a):
-    s = structref.new(MODEL_STRUCT)
-    s.plane = a.plane
-    s.gravity = a.gravity
-    s.body_kind = a.body_kind
-    s.body_slot = a.body_slot
-    s.static_pose = a.static_pose
-    s.dyn_body = a.dyn_body
-    s.dyn_mass = a.dyn_mass
-    s.dyn_inertia = a.dyn_inertia
-    s.shape_body = a.shape_body
-    s.shape_kind = a.shape_kind
-    s.shape_vert_adr = a.shape_vert_adr
-    s.shape_vert_num = a.shape_vert_num
-    s.shape_radius = a.shape_radius
-    s.hp_point_w = a.hp_point_w
-    s.hp_normal_w = a.hp_normal_w
-    s.vert_local = a.vert_local
-    s.pair_a = a.pair_a
-    s.pair_b = a.pair_b
-    s.pair_mu = a.pair_mu
-    s.sup_dyn = a.sup_dyn
-    s.sup_local = a.sup_local
-    s.sup_load = a.sup_load
-    s.sup_mu = a.sup_mu
-    s.fric_dirs = a.fric_dirs
-    s.seed_friction_arm = a.seed_friction_arm
-    return s
+@intrinsic
+def _struct_from_tuple(typingctx, struct_type, values):
+    """A new struct of type `struct_type` whose fields are the entries of the tuple `values`, in order (each
+    referenced, not copied). One generic constructor for every struct, instead of one assignment per field:
+    numba's own `define_constructor` builds its code with exec, which numba cannot cache. The allocation is that of
+    `structref.new`."""
+    inst_type = struct_type.instance_type
+
+    def codegen(context, builder, sig, args):
+        alloc_type = context.data_model_manager[inst_type.get_data_type()].get_value_type()
+        meminfo = context.nrt.meminfo_alloc_dtor(builder, context.get_constant(types.uintp,
+                                                                              context.get_abi_sizeof(alloc_type)),
+                                                 imp_dtor(context, builder.module, inst_type))
+        data = builder.bitcast(context.nrt.meminfo_data(builder, meminfo), alloc_type.as_pointer())
+        builder.store(cgutils.get_null_value(alloc_type), data)
+        inst = context.make_helper(builder, inst_type)
+        inst.meminfo = meminfo
+        fields = structref._Utils(context, builder, inst_type).get_data_struct(inst._getvalue())
+        for i, (name, ftype) in enumerate(inst_type.field_dict.items()):
+            val = context.cast(builder, builder.extract_value(args[1], i), values[i], ftype)
+            context.nrt.incref(builder, ftype, val)
+            setattr(fields, name, val)
+        return inst._getvalue()
+
+    return inst_type(struct_type, values), codegen
 
 
 @njit(cache=True)
-def _new_work_struct(a):
-    s = structref.new(WORK_STRUCT)
-    s.poses = a.poses
-    s.vw = a.vw
-    s.force_pair = a.force_pair
-    s.set_count = a.set_count
-    s.con_pair = a.con_pair
-    s.con_phi = a.con_phi
-    s.con_n = a.con_n
-    s.con_p = a.con_p
-    s.tmp_phi = a.tmp_phi
-    s.tmp_n = a.tmp_n
-    s.tmp_p = a.tmp_p
-    s.chk_pair = a.chk_pair
-    s.chk_phi = a.chk_phi
-    s.chk_n = a.chk_n
-    s.chk_p = a.chk_p
-    s.parent = a.parent
-    s.island = a.island
-    s.isl_con = a.isl_con
-    s.isl_sup = a.isl_sup
-    s.col_dyn = a.col_dyn
-    s.col_g = a.col_g
-    s.Abuf = a.Abuf
-    s.bvec = a.bvec
-    s.zvec = a.zvec
-    s.lT = a.lT
-    s.lbasis = a.lbasis
-    s.lz = a.lz
-    s.lw = a.lw
-    s.lcand = a.lcand
-    s.llu = a.llu
-    s.lrhs = a.lrhs
-    s.lperm = a.lperm
-    s.lzb = a.lzb
-    s.lzalt = a.lzalt
-    s.lwalt = a.lwalt
-    s.lprow = a.lprow
-    s.ld = a.ld
-    s.v_tilde = a.v_tilde
-    s.v_hat = a.v_hat
-    s.q_hat = a.q_hat
-    s.v_new = a.v_new
-    s.q_new = a.q_new
-    s.con_cn = a.con_cn
-    s.con_ft = a.con_ft
-    s.con_vt = a.con_vt
-    s.con_mode = a.con_mode
-    s.ws_n = a.ws_n
-    s.ws_zmask = a.ws_zmask
-    s.ws_n_saved = a.ws_n_saved
-    s.ws_zmask_saved = a.ws_zmask_saved
+def _new_struct(struct_type, values):
+    return _struct_from_tuple(struct_type, values)
+
+
+def _struct(view, struct_type, layout):
+    """The struct of `struct_type` over the buffers of the namedtuple `view` (checked against `layout`), with the
+    view attached; with NUMBA_DISABLE_JIT, the view itself."""
+    if numba.config.DISABLE_JIT:
+        return view
+    what = type(view).__name__
+    names = tuple(f.name for f in layout)
+    if tuple(view._fields) != names:
+        raise TypeError(f"{what}: fields {view._fields} do not match the struct's {names}")
+    for f, v in zip(layout, view):
+        got, want = numba.typeof(v), numba_type(f)
+        if got != want:
+            raise TypeError(f"{what}.{f.name}: expected {want}, got {got}")
+    s = _new_struct(struct_type, view)
+    s.view = view
     return s
-
-
-def _check(a, fields, what):
-    names = tuple(k for k, _ in fields)
-    if tuple(a._fields) != names:
-        raise TypeError(f"{what}: fields {a._fields} do not match the struct's {names}")
-    for (k, t), v in zip(fields, a):
-        got = numba.typeof(v)
-        if got != t:
-            raise TypeError(f"{what}.{k}: expected {t}, got {got}")
 
 
 def model_struct(arrays):
     """The kernels' view of a ModelArrays namedtuple (same buffers). With NUMBA_DISABLE_JIT, the namedtuple."""
-    if numba.config.DISABLE_JIT:
-        return arrays
-    _check(arrays, MODEL_FIELDS, "ModelArrays")
-    return _new_model_struct(arrays)
+    return _struct(arrays, MODEL_STRUCT, MODEL_LAYOUT)
 
 
 def work_struct(work):
     """The kernels' view of a StepWork namedtuple (same buffers). With NUMBA_DISABLE_JIT, the namedtuple."""
-    if numba.config.DISABLE_JIT:
-        return work
-    _check(work, WORK_FIELDS, "StepWork")
-    return _new_work_struct(work)
+    return _struct(work, WORK_STRUCT, WORK_LAYOUT)
+
+
+def python_view(s):
+    """The namedtuple over the same buffers as a struct made by `model_struct` or `work_struct`, for Python code
+    that reads the arrays (a struct's fields are not exposed to Python); without the JIT, s itself."""
+    return getattr(s, "view", s)

@@ -1,91 +1,115 @@
-"""Many steps in one jitted call (for planners and `simulate`): exactly a loop of `step_kernel`.
+"""Many steps in one jitted call (for planners and `simulate`): exactly a loop of a step variant (engine/step.py).
 
-Two kernels: `rollout_kernel` steps with `step_kernel` (any solver, PGS fallback included); `rollout_kernel_lemke`
-steps with `step_kernel_lemke` (solver lemke, no PGS compiled in) and hands a step whose LCP Lemke cannot solve
-back to Python, which runs that one step with `step_kernel` and resumes (`Simulator.rollout`).
+`rollout_loop` is the one loop; the kernels below are its compiled variants, one per step variant. It is resumable
+(a rollout run in pieces equals one call, warm-start memory included), which is how `Simulator.rollout` returns to
+Python between chunks and re-runs a step that a variant without fallback handed back (STEP_NEEDS_FALLBACK).
 """
+
+from collections import namedtuple
 
 from numba import njit
 
-from planar_lcp.engine.step import ST_NCON, STEP_NEEDS_FALLBACK, STEP_OK, step_kernel, step_kernel_lemke
+from planar_lcp.engine.layout import Stat
+from planar_lcp.engine.step import STEP_NEEDS_FALLBACK, STEP_OK, step_lemke, step_lemke_full, step_pgs
+
+#: A rollout's output buffers. States q, v (nsteps + 1, ndyn, 3) and qk (nsteps + 1, nkin, 3), row 0 the initial
+#: state; per step: stats (nsteps, NSTAT), status (nsteps,) STEP_* codes, and the contacts of the step's active set
+#: (rows nsteps, columns the capacity C; C = 0 records none): con_count (nsteps,), con_pair, con_phi (m),
+#: con_n (unit normal from B to A, world), con_p (m, world), con_cn, con_ft (N s), con_vt (m/s), con_mode (MODE_*).
+Recording = namedtuple("Recording", ["q", "v", "qk", "stats", "status", "con_count", "con_pair", "con_phi", "con_n",
+                                     "con_p", "con_cn", "con_ft", "con_vt", "con_mode"])
 
 
 @njit(cache=True, inline='always')
-def _start(w, q0, v0, qk0, q_traj, v_traj, qk_traj, reset_warm_start):
+def record_contacts(w, i, nc, rec):
+    """Copy the step's nc contacts (w.con_*) into row i of the recording (at most its capacity; none if it is 0)."""
+    ccap = rec.con_phi.shape[1]
+    if ccap > 0:
+        rec.con_count[i] = nc
+        for j in range(min(nc, ccap)):
+            rec.con_pair[i, j] = w.con_pair[j]
+            rec.con_phi[i, j] = w.con_phi[j]
+            rec.con_n[i, j, 0] = w.con_n[j, 0]
+            rec.con_n[i, j, 1] = w.con_n[j, 1]
+            rec.con_p[i, j, 0] = w.con_p[j, 0]
+            rec.con_p[i, j, 1] = w.con_p[j, 1]
+            rec.con_cn[i, j] = w.con_cn[j]
+            rec.con_ft[i, j] = w.con_ft[j]
+            rec.con_vt[i, j] = w.con_vt[j]
+            rec.con_mode[i, j] = w.con_mode[j]
+
+
+@njit(cache=True, inline='always')
+def start_rollout(w, q0, v0, qk0, rec, reset_warm_start):
+    """Row 0 of the recording is the initial state; a rollout from scratch forgets the warm-start memory (so its
+    result depends on its inputs only), a resumed one keeps it."""
     if reset_warm_start:
-        # a rollout starts cold (no warm-start basis from earlier calls): its result depends on its inputs only
-        for i in range(w.ws_n.shape[0]):
-            w.ws_n[i] = -1
+        for i in range(w.warm_size.shape[0]):
+            w.warm_size[i] = -1
     for d in range(q0.shape[0]):
         for c in range(3):
-            q_traj[0, d, c] = q0[d, c]
-            v_traj[0, d, c] = v0[d, c]
+            rec.q[0, d, c] = q0[d, c]
+            rec.v[0, d, c] = v0[d, c]
     for k in range(qk0.shape[0]):
         for c in range(3):
-            qk_traj[0, k, c] = qk0[k, c]
+            rec.qk[0, k, c] = qk0[k, c]
 
 
 @njit(cache=True, inline='always')
-def _record_contacts(w, i, nc, con_count, con_pair, con_phi, con_n, con_p, con_cn, con_ft, con_vt, con_mode):
-    ccap = con_phi.shape[1]
-    if ccap > 0:
-        con_count[i] = nc
-        for j in range(min(nc, ccap)):
-            con_pair[i, j] = w.con_pair[j]
-            con_phi[i, j] = w.con_phi[j]
-            con_n[i, j, 0] = w.con_n[j, 0]
-            con_n[i, j, 1] = w.con_n[j, 1]
-            con_p[i, j, 0] = w.con_p[j, 0]
-            con_p[i, j, 1] = w.con_p[j, 1]
-            con_cn[i, j] = w.con_cn[j]
-            con_ft[i, j] = w.con_ft[j]
-            con_vt[i, j] = w.con_vt[j]
-            con_mode[i, j] = w.con_mode[j]
+def rollout_loop(step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
+    """THE rollout: nsteps steps of `step` from (q0, v0, qk0), recorded into `rec`.
 
+    Parameters
+    ----------
+    step : a step variant (engine/step.py), or any function with its arguments
+    m, opt, w, h : as the step takes them
+    q0, v0 : (ndyn, 3) float64;  qk0 : (nkin, 3) float64
+        The initial state (row 0 of the recording).
+    vk_seq : (nvk, nkin, 3) float64
+        Kinematic velocities: step i uses vk_seq[min(step0 + i, nvk - 1)].
+    step0 : int
+        Index of the first step in vk_seq (a resumed rollout).
+    nsteps : int
+    rec : Recording
+        Output buffers with nsteps + 1 state rows and nsteps step rows.
+    stop_on_failure, reset_warm_start : bool
 
-@njit(cache=True)
-def rollout_kernel(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, q_traj, v_traj, qk_traj, stats_traj,
-                   status_traj, con_count, con_pair, con_phi, con_n, con_p, con_cn, con_ft, con_vt, con_mode,
-                   stop_on_failure, reset_warm_start):
-    """Run nsteps steps from (q0, v0, qk0). Step i uses kinematic velocities vk_seq[min(step0 + i, len - 1)].
-
-    Trajectory buffers have nsteps + 1 rows (row 0 = the initial state); contact buffers have nsteps rows and
-    capacity columns (pass zero-column arrays to skip recording contacts). Resumable: the warm-start memory is kept
-    when reset_warm_start is false, so a rollout run in pieces equals one call. Returns the number of steps done
-    (fewer than nsteps only when stop_on_failure and a step failed)."""
-    _start(w, q0, v0, qk0, q_traj, v_traj, qk_traj, reset_warm_start)
+    Returns
+    -------
+    int
+        The steps done: nsteps, or fewer when stop_on_failure and a step failed (that step included), or when a step
+        returned STEP_NEEDS_FALLBACK (that step excluded: nothing of it was written but its status).
+    """
+    start_rollout(w, q0, v0, qk0, rec, reset_warm_start)
     nvk = vk_seq.shape[0]
     for i in range(nsteps):
         vk = vk_seq[min(step0 + i, nvk - 1)]
-        st = step_kernel(m, q_traj[i], v_traj[i], qk_traj[i], vk, h, opt, w, q_traj[i + 1], v_traj[i + 1],
-                         qk_traj[i + 1], stats_traj[i])
-        status_traj[i] = st
-        _record_contacts(w, i, int(stats_traj[i, ST_NCON]), con_count, con_pair, con_phi, con_n, con_p, con_cn,
-                         con_ft, con_vt, con_mode)
-        if st != STEP_OK and stop_on_failure:
-            return i + 1
-    return nsteps
-
-
-@njit(cache=True)
-def rollout_kernel_lemke(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, q_traj, v_traj, qk_traj, stats_traj,
-                         status_traj, con_count, con_pair, con_phi, con_n, con_p, con_cn, con_ft, con_vt, con_mode,
-                         stop_on_failure, reset_warm_start):
-    """`rollout_kernel` with `step_kernel_lemke`, resumable: step i uses vk_seq[min(step0 + i, len - 1)], and the
-    warm-start memory is kept when reset_warm_start is false (a resumed rollout). Returns the number of steps done;
-    if that is less than nsteps and status_traj[done] == STEP_NEEDS_FALLBACK, step `done` still has to be run with
-    `step_kernel` (nothing of it was written)."""
-    _start(w, q0, v0, qk0, q_traj, v_traj, qk_traj, reset_warm_start)
-    nvk = vk_seq.shape[0]
-    for i in range(nsteps):
-        vk = vk_seq[min(step0 + i, nvk - 1)]
-        st = step_kernel_lemke(m, q_traj[i], v_traj[i], qk_traj[i], vk, h, opt, w, q_traj[i + 1], v_traj[i + 1],
-                               qk_traj[i + 1], stats_traj[i])
-        status_traj[i] = st
+        st = step(m, rec.q[i], rec.v[i], rec.qk[i], vk, h, opt, w, rec.q[i + 1], rec.v[i + 1], rec.qk[i + 1],
+                  rec.stats[i])
+        rec.status[i] = st
         if st == STEP_NEEDS_FALLBACK:
             return i
-        _record_contacts(w, i, int(stats_traj[i, ST_NCON]), con_count, con_pair, con_phi, con_n, con_p, con_cn,
-                         con_ft, con_vt, con_mode)
+        record_contacts(w, i, int(rec.stats[i, Stat.N_CONTACTS]), rec)
         if st != STEP_OK and stop_on_failure:
             return i + 1
     return nsteps
+
+
+# The compiled variants, one per step variant (same arguments as `rollout_loop` without `step`).
+
+@njit(cache=True)
+def rollout_lemke(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
+    return rollout_loop(step_lemke, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
+                        reset_warm_start)
+
+
+@njit(cache=True)
+def rollout_lemke_full(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
+    return rollout_loop(step_lemke_full, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
+                        reset_warm_start)
+
+
+@njit(cache=True)
+def rollout_pgs(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
+    return rollout_loop(step_pgs, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
+                        reset_warm_start)

@@ -284,7 +284,7 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
     from planar_lcp.model import compile_scene
     from planar_lcp.spec.scene import load_scene
     from planar_lcp.sim import SimOptions, Simulator
-    from planar_lcp.engine.step import ST_WARM_STARTS
+    from planar_lcp.engine.layout import Stat
     from planar_lcp.experiments.pymunk_bridge import PymunkRun
     rows = []
     for name in scenes:
@@ -303,12 +303,13 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
         m = _alternate(runners, rounds=rounds, min_round_s=min_round_s)
         per = m["per_unit"]
         st, stw = stats[False], stats[True]
-        with_lcp = stw[:, 0] > 0
+        with_lcp = stw[:, Stat.LCP_SIZE] > 0
         row = dict(scene=name, steps=n, h=sc.sim.h, us_per_step=float(np.median(per["ours"])) / n * 1e6,
                    warm_us_per_step=float(np.median(per["ours_warm"])) / n * 1e6,
-                   mean_lcp_size=float(st[:, 0].mean()), max_lcp_size=int(st[:, 1].max()),
-                   pivots_per_step=float(st[:, 2].mean()), warm_pivots_per_step=float(stw[:, 2].mean()),
-                   warm_start_share=float(stw[with_lcp, ST_WARM_STARTS].mean()) if with_lcp.any() else 0.0,
+                   mean_lcp_size=float(st[:, Stat.LCP_SIZE].mean()), max_lcp_size=int(st[:, Stat.LCP_MAX].max()),
+                   pivots_per_step=float(st[:, Stat.PIVOTS].mean()),
+                   warm_pivots_per_step=float(stw[:, Stat.PIVOTS].mean()),
+                   warm_start_share=float(stw[with_lcp, Stat.WARM_STARTS].mean()) if with_lcp.any() else 0.0,
                    rounds=rounds, runs_per_round={k: int(v) for k, v in m["reps"].items()},
                    other_threads_cpu_share=m["other_threads_cpu_share"])
         if pymunk:
@@ -387,6 +388,7 @@ def bench_scaling(sizes=SCALING_SIZES, steps=20, rounds=SCALING_ROUNDS, min_roun
     and `fits` is its median over rounds, `fit_spread` its min, q1, q3 and max. Each row's us_per_step is the
     median over rounds, with us_min and us_max."""
     from planar_lcp.model import compile_scene
+    from planar_lcp.engine.layout import Stat
     from planar_lcp.sim import SimOptions, Simulator
     rows, fits, fit_spread = [], {}, {}
     for kind in ("pile", "islands"):
@@ -402,8 +404,8 @@ def bench_scaling(sizes=SCALING_SIZES, steps=20, rounds=SCALING_ROUNDS, min_roun
             st = outs[n]["stats"]
             us = per_step[n] * 1e6
             rows.append(dict(kind=kind, bodies=n, us_per_step=float(np.median(us)), us_min=float(us.min()),
-                             us_max=float(us.max()), lcp_max=int(st[:, 1].max()),
-                             pivots_per_step=float(st[:, 2].mean()), rounds=rounds,
+                             us_max=float(us.max()), lcp_max=int(st[:, Stat.LCP_MAX].max()),
+                             pivots_per_step=float(st[:, Stat.PIVOTS].mean()), rounds=rounds,
                              runs_per_round=int(m["reps"][n])))
         fit_n = [n for n in sizes if n >= 4]
         x = np.log(fit_n)

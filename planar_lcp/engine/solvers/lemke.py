@@ -13,10 +13,17 @@ Tableau (n rows, 2n + 2 columns), the system  I w - M z - e z0 = q  premultiplie
     column  2n + 1       right-hand side: the values of the basic variables
 
 Variable index k means: w_k for k < n, z_{k-n} for n <= k < 2n, the artificial variable for k == 2n.
+
+`solve_island_lemke` (at the end) is the time-stepper's island solver: the certified chain of Lemke methods, behind
+the island-solver signature of engine/step.py.
 """
 
 import numpy as np
 from numba import njit
+
+from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, contact_velocities, island_problem_size,
+                                        record_impulses)
+from planar_lcp.engine.layout import Stat
 
 STATUS_SOLVED = 0
 STATUS_RAY = 1
@@ -69,7 +76,7 @@ def lcp_scale(M, q):
 @njit(cache=True)
 def _pivot(T, n, r, j, prow):
     """Pivot on (r, j). The normalized pivot row is copied to `prow` first: updating T[i, :] from T[r, :] of the
-    same array is a potential alias that keeps LLVM from vectorizing the row update (about 4x slower)."""
+    same array is a potential alias that keeps LLVM from vectorizing the row update."""
     ncol = 2 * n + 2
     p = T[r, j]
     for c in range(ncol):
@@ -242,7 +249,7 @@ def _solve_basic_z(M, q, zb, m, z, lu, rhs, perm):
 
 
 @njit(cache=True)
-def _refine_from_basis(M, q, basis, n, z, lu, rhs, perm, zb, zmask):
+def refine_from_basis(M, q, basis, n, z, lu, rhs, perm, zb, zmask):
     """Recompute the basic z of the final basis from the original M and q: the z_i that are basic solve
     M[Z, Z] z_Z = -q[Z]. For a complementary basis the rows with w_i = 0 are exactly Z; while the artificial variable
     is still basic one index has neither z_i nor w_i basic: z_i = 0 there and its w_i is left free, so a basis that
@@ -327,7 +334,7 @@ def _certify(M, q, T, basis, n, d, z, w, res_tol, scale, zalt, walt, lu, rhs, pe
     # Refine from the original data: the tableau accumulates round-off over the pivots, the basis does not.
     # Skipped when the tableau's answer is already well inside the tolerance (it then costs more than it gains).
     if res > 1e-3 * res_tol * scale:
-        ok, neg = _refine_from_basis(M, q, basis, n, zalt, lu, rhs, perm, zb, cand)
+        ok, neg = refine_from_basis(M, q, basis, n, zalt, lu, rhs, perm, zb, cand)
         if ok:
             res2 = max(lcp_residual(M, q, zalt, walt), -neg)
             if res2 < res:
@@ -450,6 +457,12 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, 
     return status, pivots, res
 
 
+@njit(cache=True, inline='always')
+def default_max_pivots(n):
+    """The pivot cap for a problem of size n: Lemke typically needs O(n) pivots, Murty's exponential examples 2^n."""
+    return 50 * n + 100
+
+
 def make_lemke_work(n):
     """Work arrays for `lemke_kernel` for problems up to size n: (T, basis, z, w, cand, lu, rhs, perm, zb, zalt,
     walt, prow, d). Plain Python so callers outside numba (bench, tests) share one definition with `lemke_solve`."""
@@ -471,3 +484,109 @@ def lemke_solve(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate):
     status, pivots, res = lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, basis, z, w,
                                        cand, lu, rhs, perm, zb, zalt, walt, prow, d)
     return z, w, status, pivots, res
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The island solver
+# ---------------------------------------------------------------------------------------------------------------
+
+# How an island's LCP is solved, in the order tried (one Stat.SOLVED_* count per island LCP solved;
+# Stat.WARM_STARTS counts the warm start). Every answer is certified by its residual on the island's original LCP
+# before it is accepted.
+#   lemke         Lemke on the problem as assembled, covering vector e: the method as published, the default path
+#   equilibrated  Lemke on the exactly (power-of-two) equilibrated problem: another pivot path, on which the rows of
+#                 light and heavy bodies weigh the same (docs/lcp.md)
+#   strict        as assembled, with the stricter pivot tolerances RETRY_PIV_TOLS: a nearly degenerate contact LCP (a
+#                 rod lying flat: two friction columns that differ by round-off-sized lever arms) can offer a pivot
+#                 ~1e-7 of its column that blows the tableau up and ends on a false ray; rejecting such pivots solves it
+#   velocity      position forms only: the same island (same contacts, same geometry) with the velocity form's
+#                 normal rows, n.v+ >= -max(phi, 0)/h: no drift correction in this step and no linearization about
+#                 v_hat. With no kinematic body in the island, Lemke processes this LCP (Anitescu & Potra 1997; the
+#                 seed's section 3.3; docs/method.md), while the position form's need not have a solution (a body
+#                 pressed into a corner it cannot leave in one step) or can end Lemke on a secondary ray
+# When none is certified the step pipeline hands the island to its fallback (PGS: uncertified, the step is reported
+# as failed) or, in the variant without one, hands the step back to the caller.
+RETRY_PIV_TOLS = (1e-6, 1e-4)
+# The chain, in order: (stats counter, pivot tolerance (-1: the options'), equilibrate, velocity-form normal rows)
+LEMKE_CHAIN = ((int(Stat.SOLVED_LEMKE), -1.0, False, False), (int(Stat.SOLVED_EQUILIBRATED), -1.0, True, False),
+               (int(Stat.SOLVED_STRICT), RETRY_PIV_TOLS[0], False, False),
+               (int(Stat.SOLVED_STRICT), RETRY_PIV_TOLS[1], False, False),
+               (int(Stat.SOLVED_VELOCITY), -1.0, False, True), (int(Stat.SOLVED_VELOCITY), -1.0, True, True))
+
+
+@njit(cache=True, inline='always')
+def lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate):
+    """`lemke_kernel` on the LCP (A, b) of size n, in the step's work buffers (answer in w.lemke_z), with the options'
+    ratio and residual tolerances and the pivot tolerance piv_tol. Returns (status, pivots, residual)."""
+    T = w.lemke_tableau[:n * (2 * n + 2)].reshape((n, 2 * n + 2))
+    return lemke_kernel(A, b, default_max_pivots(n), piv_tol, opt.ratio_tol, opt.res_tol, equilibrate, T,
+                        w.lemke_basis, w.lemke_z, w.lemke_w, w.lemke_rows, w.lemke_lu, w.lemke_rhs, w.lemke_perm,
+                        w.lemke_basic, w.lemke_z_refined, w.lemke_w_refined, w.lemke_pivot_row, w.lemke_scaling)
+
+
+@njit(cache=True, inline='always')
+def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
+    """Island solver (signature: engine/step.py): the island's LCP by the warm start (opt.warm_start), then the
+    certified LEMKE_CHAIN. When solved, its impulses are added to w.v_new and recorded in w.con_*; returns the Lemke
+    status (a failure leaves w.v_new unchanged and forgets the island's warm-start basis)."""
+    n, nf, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
+    k = m.fric_dirs.shape[0]
+    A = w.lcp_matrix[:n * n].reshape((n, n))
+    b = w.lcp_vector[:n]
+    assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector)
+    warm = False
+    if opt.warm_start and w.warm_size[isl] == n:
+        # the previous step's basis for this island: contact modes rarely change from one step to the next
+        warm, res = lemke_from_basis(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu,
+                                     w.lemke_rhs, w.lemke_perm, w.lemke_basic)
+    piv = 0
+    if warm:
+        status = STATUS_SOLVED
+        stats[Stat.WARM_STARTS] += 1
+    else:
+        # One call site for the whole chain: each inlined call of lemke_kernel costs compile time
+        status = STATUS_RAY
+        method = LEMKE_CHAIN[0][0]
+        velocity_rows = False
+        for attempt in range(len(LEMKE_CHAIN)):
+            method, piv_tol, equilibrate, in_velocity_form = LEMKE_CHAIN[attempt]
+            if piv_tol < 0.0:
+                piv_tol = opt.piv_tol
+            elif piv_tol <= opt.piv_tol:
+                continue                     # not stricter than the first try
+            if in_velocity_form and not velocity_rows:
+                if velocity_form:
+                    break                    # the velocity form's rows were the first try's
+                # the island's LCP in the velocity form over the same contacts: only the normal rows' constants change
+                assemble_lcp(m, w, vk, nci, nsi, h, True, A, w.lcp_vector)
+                velocity_rows = True
+            if attempt > 0:
+                stats[Stat.LEMKE_RETRIES] += 1
+            status, p, res = lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate)
+            piv += p
+            if status == STATUS_SOLVED:
+                break
+        if status == STATUS_SOLVED:
+            stats[method] += 1
+    stats[Stat.LCP_SIZE] += n
+    stats[Stat.LCP_MAX] = max(stats[Stat.LCP_MAX], n)
+    stats[Stat.PIVOTS] += piv
+    stats[Stat.RESIDUAL] = max(stats[Stat.RESIDUAL], res)
+    if status != STATUS_SOLVED:
+        stats[Stat.LEMKE_STATUS] = max(stats[Stat.LEMKE_STATUS], status)
+        w.warm_size[isl] = -1
+        return status
+    if not warm:
+        # remember the final basis (z_i basic) for the next step's warm start
+        w.warm_size[isl] = n
+        for i in range(n):
+            w.warm_basic_z[isl, i] = False
+        if piv > 0:  # with no pivot (q >= 0: z = 0) lemke_kernel leaves lbasis as it was
+            for i in range(n):
+                kb = w.lemke_basis[i]
+                if kb >= n and kb < 2 * n:
+                    w.warm_basic_z[isl, kb - n] = True
+    apply_impulses(nci + 2 * nf + k * nsi, w.column_slot, w.column_g, w.lemke_z, m, w.v_new)
+    record_impulses(m, w, nci, w.lemke_z, False, nci)
+    contact_velocities(m, w, opt, vk, nci)
+    return status

@@ -9,25 +9,22 @@ converged in general - the iteration count is the speed/accuracy knob.
 import numpy as np
 from numba import njit
 
-from planar_lcp.engine.assemble import (column_dot, contact_column, delassus, friction_column, kinematic_velocity_along,
+from planar_lcp.engine.assemble import (apply_impulses, column_dot, contact_velocities, delassus, friction_column,
+                                        island_problem_size, kinematic_velocity_along, normal_column, record_impulses,
                                         support_column)
+from planar_lcp.engine.layout import Stat
+from planar_lcp.engine.solvers.lemke import STATUS_SOLVED
 
 
 @njit(cache=True)
-def assemble_pgs(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, con_n, con_p, v_tilde, v_hat, h,
-                 velocity_form, col_dyn, col_g, W, b):
-    """Columns: per contact [n, t (if mu > 0)], per support point [x, y]. Returns the number of unknowns."""
+def assemble_pgs(m, w, vk, nci, nsi, h, velocity_form, W, b):
+    """The impulse problem (W, b) of the island w.island_con[:nci], w.island_sup[:nsi] (as `assemble_lcp`, columns
+    in w.column_slot / w.column_g): per contact [n, t (if mu > 0)], per support point [x, y]. Returns its size."""
+    poses, con_pair, con_phi, con_n, con_p = w.body_pose, w.con_pair, w.con_phi, w.con_n, w.con_p
+    col_dyn, col_g, v_tilde, isl_sup = w.column_slot, w.column_g, w.v_tilde, w.island_sup
     u = 0
     for a in range(nci):
-        j = isl_con[a]
-        nx = con_n[j, 0]
-        ny = con_n[j, 1]
-        contact_column(m, poses, con_pair, con_p, j, nx, ny, col_dyn, col_g, u)
-        if velocity_form:
-            b[u] = column_dot(col_dyn, col_g, u, v_tilde) + max(con_phi[j], 0.0) / h + \
-                kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, nx, ny)
-        else:
-            b[u] = con_phi[j] / h + column_dot(col_dyn, col_g, u, v_tilde) - column_dot(col_dyn, col_g, u, v_hat)
+        j, nx, ny = normal_column(m, w, vk, h, velocity_form, a, u, b)
         u += 1
         if m.pair_mu[con_pair[j]] > 0.0:
             friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, -ny, nx, col_dyn, col_g, u)
@@ -46,8 +43,10 @@ def assemble_pgs(m, poses, vk, isl_con, nci, isl_sup, nsi, con_pair, con_phi, co
 
 
 @njit(cache=True)
-def solve_pgs(m, isl_con, nci, isl_sup, nsi, con_pair, h, W, b, x, iterations):
-    """Fixed number of projected Gauss-Seidel sweeps on W x + b, from x = 0. Returns the final max |update|."""
+def solve_pgs(m, w, nci, nsi, h, W, b, x, iterations):
+    """Fixed number of projected Gauss-Seidel sweeps on W x + b (the island of `assemble_pgs`), from x = 0. Returns
+    the final max |update|."""
+    isl_con, isl_sup, con_pair = w.island_con, w.island_sup, w.con_pair
     n = 0
     for a in range(nci):
         n += 2 if m.pair_mu[con_pair[isl_con[a]]] > 0.0 else 1
@@ -107,3 +106,20 @@ def solve_pgs(m, isl_con, nci, isl_sup, nsi, con_pair, h, W, b, x, iterations):
             x[u + 1] = fy
             u += 2
     return last
+
+
+@njit(cache=True, inline='always')
+def solve_island_pgs(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
+    """Island solver (signature: engine/step.py): the island's impulses by opt.pgs_iters projected Gauss-Seidel
+    sweeps, added to w.v_new and recorded in w.con_*. Uncertified, and never fails: returns STATUS_SOLVED."""
+    _, _, n = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
+    W = w.lcp_matrix[:n * n].reshape((n, n))
+    assemble_pgs(m, w, vk, nci, nsi, h, velocity_form, W, w.lcp_vector)
+    upd = solve_pgs(m, w, nci, nsi, h, W, w.lcp_vector, w.pgs_impulse, opt.pgs_iters)
+    stats[Stat.PGS_UPDATE] = max(stats[Stat.PGS_UPDATE], upd)
+    stats[Stat.LCP_SIZE] += n
+    stats[Stat.LCP_MAX] = max(stats[Stat.LCP_MAX], n)
+    apply_impulses(n, w.column_slot, w.column_g, w.pgs_impulse, m, w.v_new)
+    record_impulses(m, w, nci, w.pgs_impulse, True, 0)
+    contact_velocities(m, w, opt, vk, nci)
+    return STATUS_SOLVED
