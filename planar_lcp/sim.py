@@ -334,5 +334,5 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     contacts["shape_pairs"] = pairs
     return Trajectory(t=np.arange(T) * h, q=model.com_to_frame(q_com),
                       v=frame_velocity(q_com, v_com, model.com_local), q_com=q_com, v_com=v_com, qk=out["qk"][:T],
-                      body_names=model.dyn_names, kinematic_names=model.kin_names, stats=stats, contacts=contacts, options=opts, scene=scene,
-                      failures=failures)
+                      body_names=model.dyn_names, kinematic_names=model.kin_names, stats=stats, contacts=contacts,
+                      options=opts, scene=scene, failures=failures)

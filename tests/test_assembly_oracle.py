@@ -1,6 +1,6 @@
-"""Oracle for `kernels.assemble.assemble_lcp`: an independent dense numpy build of one island's contact LCP.
+"""Oracle for `engine.assemble.assemble_lcp`: an independent dense numpy build of one island's contact LCP.
 
-The reference below is written from the mathematics (docs/design.md section 1, seed paper eqs. 13-20 in 2D), not
+The reference below is written from the mathematics (docs/method.md, "The scheme", seed paper eqs. 13-20 in 2D), not
 from the kernel: it forms the generalized impulse matrix G = [N, D_c, D_s] over ALL dynamic dofs, the mass matrix
 M = blockdiag(m, m, J), the friction incidence matrices E_c, E_s and the Coulomb matrix U explicitly, then
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from planar_lcp.experiments import bench
-from planar_lcp.experiments.bench import (_alternate, _ratio_stats, bench_lcp, bench_scaling, bench_step,
+from planar_lcp.experiments.bench import (alternate_rounds, ratio_stats, bench_lcp, bench_scaling, bench_step,
                                           format_lcp_table, format_scaling_table, format_step_table)
 
 # the real runs time compiled code; without the JIT QuantEcon's Lemke alone runs for hours on the cycling instances
@@ -48,7 +48,7 @@ def test_alternate_runs_each_round_of_every_runner_in_turn():
     runners = dict(a=fake_runner("a", clock, log, [0.5] * 100), b=fake_runner("b", clock, log, [0.25] * 100),
                    c=fake_runner("c", clock, log, [1.0] * 100))
     runners["c"].prepare = prepared.append        # set-up hook, called before each of c's rounds
-    m = _alternate(runners, rounds=3, min_round_s=1.0, clock=clock)
+    m = alternate_rounds(runners, rounds=3, min_round_s=1.0, clock=clock)
     assert m["reps"] == dict(a=2, b=4, c=1)
     calibration, rounds = log[:6], log[6:]
     assert calibration == ["a", "a", "b", "b", "c", "c"]       # one untimed call, one timed call each
@@ -63,11 +63,11 @@ def test_ratio_is_the_median_of_the_per_round_ratios_with_their_spread():
     # after the two calibration calls, ours costs 2, 4, 6, 8, 20 and the peer 1, 1, 2, 2, 4 in rounds 1..5
     ours = fake_runner("ours", clock, log, [1.0, 1.0, 2.0, 4.0, 6.0, 8.0, 20.0])
     peer = fake_runner("peer", clock, log, [1.0, 1.0, 1.0, 1.0, 2.0, 2.0, 4.0])
-    m = _alternate(dict(ours=ours, peer=peer), rounds=5, min_round_s=1e-9, clock=clock)
+    m = alternate_rounds(dict(ours=ours, peer=peer), rounds=5, min_round_s=1e-9, clock=clock)
     assert m["reps"] == dict(ours=1, peer=1)
     np.testing.assert_array_equal(m["per_unit"]["ours"], [2, 4, 6, 8, 20])
     np.testing.assert_array_equal(m["per_unit"]["peer"], [1, 1, 2, 2, 4])
-    st = _ratio_stats(m["per_unit"]["ours"], m["per_unit"]["peer"])   # per round 2, 4, 3, 4, 5
+    st = ratio_stats(m["per_unit"]["ours"], m["per_unit"]["peer"])   # per round 2, 4, 3, 4, 5
     assert st == dict(median=4.0, min=2.0, q1=3.0, q3=4.0, max=5.0)
     # not the ratio of the medians (6 / 2 = 3): a slow round of one side is compared with its own round of the other
     assert st["median"] != np.median([2, 4, 6, 8, 20]) / np.median([1, 1, 2, 2, 4])
@@ -86,11 +86,11 @@ def busy(n):
 def test_real_rounds_measure_a_known_workload_ratio():
     """With the real clock a runner doing twice the work measures about twice the cost, one doing the same work
     about the same, whatever the order they run in."""
-    m = _alternate(dict(one=busy(20000), two=busy(40000), again=busy(20000)), rounds=7, min_round_s=0.02)
+    m = alternate_rounds(dict(one=busy(20000), two=busy(40000), again=busy(20000)), rounds=7, min_round_s=0.02)
     assert m["rounds"] == 7 and all(len(m["per_unit"][k]) == 7 for k in ("one", "two", "again"))
     assert m["reps"]["one"] > m["reps"]["two"] >= 1
-    two = _ratio_stats(m["per_unit"]["two"], m["per_unit"]["one"])
-    same = _ratio_stats(m["per_unit"]["again"], m["per_unit"]["one"])
+    two = ratio_stats(m["per_unit"]["two"], m["per_unit"]["one"])
+    same = ratio_stats(m["per_unit"]["again"], m["per_unit"]["one"])
     assert 1.7 < two["median"] < 2.3, two
     assert 0.85 < same["median"] < 1.15, same
     assert two["min"] <= two["q1"] <= two["median"] <= two["q3"] <= two["max"]
@@ -101,15 +101,16 @@ def test_default_clock_counts_this_threads_cpu_not_waiting():
     make a thread wait, not work) do not move the ratios."""
     import time
     # max_reps: the sleeper's calibration sees almost no CPU time and would ask for thousands of sleeps per round
-    m = _alternate(dict(sleeper=lambda: time.sleep(0.02), worker=busy(20000)), rounds=3, min_round_s=0.01, max_reps=3)
+    m = alternate_rounds(dict(sleeper=lambda: time.sleep(0.02), worker=busy(20000)), rounds=3, min_round_s=0.01,
+                         max_reps=3)
     assert np.median(m["per_unit"]["sleeper"]) < 0.002
     assert np.median(m["per_unit"]["worker"]) > 0
 
 
 def spy_alternate(monkeypatch, costs):
-    """Replace bench._alternate by one that runs the real runners (in the real order) but times them with a fake
+    """Replace bench.alternate_rounds by one that runs the real runners (in the real order) but times them with a fake
     clock advanced by costs[name] per call. Returns the call log."""
-    real, clock, log = bench._alternate, FakeClock(), []
+    real, clock, log = bench.alternate_rounds, FakeClock(), []
 
     def wrap(name, fn):
         def run():
@@ -122,7 +123,7 @@ def spy_alternate(monkeypatch, costs):
 
     def spy(runners, **kw):
         return real({k: wrap(k, f) for k, f in runners.items()}, clock=clock, **kw)
-    monkeypatch.setattr(bench, "_alternate", spy)
+    monkeypatch.setattr(bench, "alternate_rounds", spy)
     return log
 
 

@@ -34,8 +34,8 @@ def ids(pages):
 def test_paths_named_in_the_docs_exist(page):
     text = page.read_text()
     missing = []
-    for m in re.finditer(r"(?<![\w/.])((?:planar_lcp|planners|tests|examples|scenes|docs|engine|spec|experiments|kernels)"
-                         r"/[\w/.-]*\w)", text):
+    for m in re.finditer(r"(?<![\w/.])((?:planar_lcp|planners|tests|examples|scenes|docs|engine|spec|experiments"
+                         r"|kernels)/[\w/.-]*\w)", text):
         path = m.group(1).split("::")[0]
         if path in ("scenes/x.toml", "scenes/NAME.toml"):       # placeholders in examples
             continue
@@ -81,7 +81,8 @@ def test_modules_and_names_in_the_docs_exist(page):
         if not re.fullmatch(r"[A-Za-z_][\w.]*(\(.*\))?", token) or token.startswith("planar_lcp"):
             continue
         for name in re.findall(r"[A-Za-z_]\w*", token.split("(")[0]):
-            if ("_" in name.strip("_") or re.fullmatch(r"[A-Z][a-z]+[A-Z]\w*", name)) and name not in WORDS | NOT_IN_THE_SOURCES:
+            looks_like_code = "_" in name.strip("_") or re.fullmatch(r"[A-Z][a-z]+[A-Z]\w*", name)
+            if looks_like_code and name not in WORDS | NOT_IN_THE_SOURCES:
                 bad.append(token)
     assert not bad, f"{page.name} names what the code does not define: {sorted(set(bad))}"
 

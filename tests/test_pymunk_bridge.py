@@ -248,7 +248,8 @@ def test_compare_rejects_a_bad_scene_name_with_exit_2(tmp_path, capsys):
 
 
 def test_cli_and_bridge_imports_do_not_pull_in_pymunk_or_matplotlib():
-    code = ("import sys, planar_lcp, planar_lcp.cli, planar_lcp.experiments.compare, planar_lcp.experiments.compare_cli\n"
+    code = ("import sys, planar_lcp, planar_lcp.cli, planar_lcp.experiments.compare, "
+            "planar_lcp.experiments.compare_cli\n"
             "import planar_lcp.experiments.compare_plots, planar_lcp.experiments.pymunk_bridge, planar_lcp.geometry\n"
             "planar_lcp.cli.build_parser()\n"
             "print(','.join(m for m in ('pymunk', 'matplotlib') if m in sys.modules))\n")

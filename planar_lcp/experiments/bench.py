@@ -35,7 +35,7 @@ def _spread(x):
     return dict(median=float(med), min=float(x.min()), q1=float(q1), q3=float(q3), max=float(x.max()))
 
 
-def _alternate(runners, rounds=ROUNDS, min_round_s=MIN_ROUND_S, max_reps=100000, clock=None):
+def alternate_rounds(runners, rounds=ROUNDS, min_round_s=MIN_ROUND_S, max_reps=100000, clock=None):
     """Time the callables of `runners` (name -> callable doing one unit of work: a solve, a whole rollout) in
     alternating rounds: round r runs every runner in turn (a, b, c, a, b, c, ...), each its fixed number of units.
 
@@ -80,7 +80,7 @@ def _alternate(runners, rounds=ROUNDS, min_round_s=MIN_ROUND_S, max_reps=100000,
     return dict(per_unit=per, reps=reps, rounds=rounds, other_threads_cpu_share=share)
 
 
-def _ratio_stats(num, den):
+def ratio_stats(num, den):
     """The per-round ratios num[r] / den[r] (each round's two times were measured back to back) summarized by
     `_spread`: median, min, q1, q3, max."""
     return _spread(np.asarray(num, dtype=float) / np.asarray(den, dtype=float))
@@ -134,7 +134,7 @@ def bench_lcp(corpus_dir=None, slow_cap_s=1.0, rounds=ROUNDS, min_round_s=MIN_RO
     """Ours vs QuantEcon's lcp_lemke on every corpus instance. Returns a list of row dicts.
 
     Per instance, our kernel, QuantEcon's and our public lemke() are timed in `rounds` alternating rounds of thread
-    CPU time (`_alternate`); `ratio` is the median over rounds of ours / QuantEcon measured back to back, with its
+    CPU time (`alternate_rounds`); `ratio` is the median over rounds of ours / QuantEcon measured back to back, with its
     spread in ratio_min, ratio_q1, ratio_q3, ratio_max; us, qe_us, public_us are the medians per solve. Where one
     QuantEcon solve takes more than `slow_cap_s` (it cycles to its iteration cap) it is timed once, and the ratio
     is our median over that one time (`qe_rounds` 1, no spread)."""
@@ -161,13 +161,13 @@ def bench_lcp(corpus_dir=None, slow_cap_s=1.0, rounds=ROUNDS, min_round_s=MIN_RO
         public = (lambda M=inst.M, q=inst.q: lemke(M, q))
         slow = qe_once > slow_cap_s
         runners = dict(ours=ours, public=public) if slow else dict(ours=ours, qe=qe, public=public)
-        m = _alternate(runners, rounds=rounds, min_round_s=min_round_s)
+        m = alternate_rounds(runners, rounds=rounds, min_round_s=min_round_s)
         per = m["per_unit"]
         if slow:
             ratio = _spread(per["ours"] / qe_once)
             qe_s, qe_rounds = qe_once, 1
         else:
-            ratio = _ratio_stats(per["ours"], per["qe"])
+            ratio = ratio_stats(per["ours"], per["qe"])
             qe_s, qe_rounds = float(np.median(per["qe"])), rounds
         rows.append(dict(id=inst.id, n=inst.n, status=STATUS_NAMES[status], pivots=int(pivots), residual=float(res),
                          us=float(np.median(per["ours"])) * 1e6, public_us=float(np.median(per["public"])) * 1e6,
@@ -277,7 +277,7 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
     and with the LCP warm start the planners use, and, in the same process, of pymunk on the same scene and h through
     planar_lcp.experiments.pymunk_bridge (10 iterations, its defaults).
 
-    The three are timed in `rounds` alternating rounds of thread CPU time (`_alternate`): ours, ours warm-started,
+    The three are timed in `rounds` alternating rounds of thread CPU time (`alternate_rounds`): ours, ours warm-started,
     pymunk, ours, ... each round a fixed number of whole runs. `ratio` (`warm_ratio`) is the median over rounds of
     ours (warm-started) / pymunk measured back to back, with its spread in ratio_min, ratio_q1, ratio_q3,
     ratio_max; the µs per step are medians over rounds."""
@@ -300,7 +300,7 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
                 lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], n))
         if pymunk:
             runners["pymunk"] = PymunkRun(sc, n)
-        m = _alternate(runners, rounds=rounds, min_round_s=min_round_s)
+        m = alternate_rounds(runners, rounds=rounds, min_round_s=min_round_s)
         per = m["per_unit"]
         st, stw = stats[False], stats[True]
         with_lcp = stw[:, Stat.LCP_SIZE] > 0
@@ -314,8 +314,8 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
                    other_threads_cpu_share=m["other_threads_cpu_share"])
         if pymunk:
             row["pymunk_us_per_step"] = float(np.median(per["pymunk"])) / n * 1e6
-            row.update(_ratio_fields("ratio", _ratio_stats(per["ours"], per["pymunk"])))
-            row.update(_ratio_fields("warm_ratio", _ratio_stats(per["ours_warm"], per["pymunk"])))
+            row.update(_ratio_fields("ratio", ratio_stats(per["ours"], per["pymunk"])))
+            row.update(_ratio_fields("warm_ratio", ratio_stats(per["ours_warm"], per["pymunk"])))
         rows.append(row)
     return rows
 
@@ -398,7 +398,7 @@ def bench_scaling(sizes=SCALING_SIZES, steps=20, rounds=SCALING_ROUNDS, min_roun
             q, v, qk, vk = sim.initial_state()
             outs[n] = sim.rollout(q, v, qk, vk[None], steps)
             runners[n] = lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], steps)
-        m = _alternate(runners, rounds=rounds, min_round_s=min_round_s)
+        m = alternate_rounds(runners, rounds=rounds, min_round_s=min_round_s)
         per_step = {n: m["per_unit"][n] / steps for n in sizes}
         for n in sizes:
             st = outs[n]["stats"]
