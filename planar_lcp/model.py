@@ -65,23 +65,12 @@ START_OVERLAP_TOL = 1e-6
 
 def _check_start_overlaps(scene, model):
     """Reject a scene whose bodies interpenetrate at the start by more than START_OVERLAP_TOL."""
-    from planar_lcp.engine.contacts import body_poses, find_contacts, world_vertices
-    from planar_lcp.engine.layout import model_struct
+    from planar_lcp.engine.contacts import contacts_at
     a = model.arrays
-    nbody = a.body_kind.shape[0]
-    npair = a.pair_a.shape[0]
-    if npair == 0:
+    if a.pair_a.shape[0] == 0:
         return
-    km = model_struct(a)  # the kernels' view (the step compiles for it; a namedtuple would compile them again)
-    poses = np.zeros((nbody, 3))
-    vw = np.zeros((max(1, a.vert_local.shape[0]), 2))
-    body_poses(km, model.q0, model.qk0, poses)
-    world_vertices(km, poses, vw)
-    C = 2 * npair
-    con_pair, con_phi = np.zeros(C, np.int64), np.zeros(C)
-    con_n, con_p = np.zeros((C, 2)), np.zeros((C, 2))
-    n = find_contacts(km, vw, -START_OVERLAP_TOL, np.zeros(npair, np.bool_), con_pair, con_phi, con_n, con_p,
-                      np.zeros(2), np.zeros((2, 2)), np.zeros((2, 2)))
+    con_pair, con_phi, _, con_p = contacts_at(a, model.q0, model.qk0, -START_OVERLAP_TOL)
+    n = len(con_phi)
     if n == 0:
         return
     j = int(np.argmin(con_phi[:n]))

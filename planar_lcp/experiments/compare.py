@@ -37,29 +37,16 @@ def _pose_gaps(model, q_com, qk):
 
     q_com (T, ndyn, 3) centre-of-mass poses, qk (T, nkin, 3). Returns (T,); +inf when the scene has no pairs.
     """
-    from planar_lcp.engine.contacts import body_poses, find_contacts, world_vertices
-    from planar_lcp.engine.layout import model_struct
+    from planar_lcp.engine.contacts import contacts_at
 
     a = model.arrays
-    km = model_struct(a)
-    T = q_com.shape[0]
-    npair = a.pair_a.shape[0]
-    out = np.full(T, np.inf)
-    if npair == 0:
+    out = np.full(q_com.shape[0], np.inf)
+    if a.pair_a.shape[0] == 0:
         return out
-    poses = np.zeros((a.body_kind.shape[0], 3))
-    vw = np.zeros((max(1, a.vert_local.shape[0]), 2))
-    C = 2 * npair
-    con_pair, con_phi = np.zeros(C, np.int64), np.zeros(C)
-    con_n, con_p = np.zeros((C, 2)), np.zeros((C, 2))
-    force = np.ones(npair, np.bool_)
-    tmp = (np.zeros(2), np.zeros((2, 2)), np.zeros((2, 2)))
-    for i in range(T):
-        body_poses(km, np.ascontiguousarray(q_com[i]), np.ascontiguousarray(qk[i]), poses)
-        world_vertices(km, poses, vw)
-        n = find_contacts(km, vw, np.inf, force, con_pair, con_phi, con_n, con_p, *tmp)
-        if n:
-            out[i] = float(np.min(con_phi[:n]))
+    for i in range(q_com.shape[0]):
+        phi = contacts_at(a, q_com[i], qk[i], np.inf, all_pairs=True)[1]
+        if len(phi):
+            out[i] = float(np.min(phi))
     return out
 
 
