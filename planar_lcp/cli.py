@@ -42,7 +42,7 @@ def _missing_optional(e):
     return None
 
 
-def _cmd_demo(args):
+def cmd_demo(args):
     import time
     from pathlib import Path
 
@@ -92,7 +92,7 @@ def _cmd_demo(args):
     for name, M, q in examples:
         r = lemke(M, q)
         print(f"   {name:32s} n={len(q):3d}  {r.status:16s} pivots={r.pivots:4d}  residual={r.residual:.1e}")
-    status = _demo_plan(out, written)
+    status = demo_plan(out, written)
     print("wrote:")
     for p in written:
         print(f"  {p}")
@@ -104,7 +104,7 @@ def _cmd_demo(args):
 DEMO_PLAN = dict(task="push_box", planner="RRT", seed=5, iterations=5000)
 
 
-def _demo_plan(out, written):
+def demo_plan(out, written):
     """Part 3 of the demo: plan push_box with OMPL in a child process (the ompl 2.0.1 bindings need the cyclic GC
     off, which must not leak into the caller). Returns the demo's exit status: 0 only when the part succeeded, i.e.
     the child found an exact plan (the seed and budget are fixed so that it does on every machine); otherwise the
@@ -137,7 +137,7 @@ def _demo_plan(out, written):
     return 1
 
 
-def _cmd_bench(args):
+def cmd_bench(args):
     from planar_lcp.experiments.bench import run_bench
     run_bench(args.what, json_path=args.json)
     return 0
@@ -344,14 +344,14 @@ def build_parser():
     d = sub.add_parser("demo", help="the main job: a short tour of what the toolkit does")
     d.add_argument("--out", default="planar_lcp_demo", metavar="DIR",
                    help="where to write the demo's files (default ./planar_lcp_demo)")
-    d.set_defaults(func=_cmd_demo)
+    d.set_defaults(func=cmd_demo)
 
     b = sub.add_parser("bench", help="benchmarks against peers measured in the same run")
     b.add_argument("what", choices=["step", "lcp", "scaling", "all"],
                    help="step: microseconds per step and compile time; lcp: our Lemke vs QuantEcon's lcp_lemke; "
                         "scaling: cost per step against the number of bodies")
     b.add_argument("--json", metavar="FILE", help="also write the measurements as JSON")
-    b.set_defaults(func=_cmd_bench)
+    b.set_defaults(func=cmd_bench)
 
     s = one_line_errors(sub.add_parser(
         "simulate", help="simulate a scene; print a summary, optionally write CSV, a plot and an animation",

@@ -323,8 +323,8 @@ def test_simulator_value_error_exit_2(capsys, monkeypatch):
 
 def test_demo_and_bench_still_parse():
     p = cli.build_parser()
-    assert p.parse_args(["bench", "lcp", "--json", "x.json"]).func is cli._cmd_bench
-    assert p.parse_args(["demo"]).func is cli._cmd_demo
+    assert p.parse_args(["bench", "lcp", "--json", "x.json"]).func is cli.cmd_bench
+    assert p.parse_args(["demo"]).func is cli.cmd_demo
 
 
 # --- viz geometry --------------------------------------------------------------------------------------------

@@ -41,7 +41,7 @@ def test_demo_fails_loudly_when_its_plan_fails(tmp_path, monkeypatch, capsys):
     import planar_lcp.cli as cli
     monkeypatch.setattr(cli, "DEMO_PLAN", dict(cli.DEMO_PLAN, iterations=1))   # too small to reach the goal
     written = []
-    assert cli._demo_plan(tmp_path, written) == 1
+    assert cli.demo_plan(tmp_path, written) == 1
     err = capsys.readouterr().err
     assert "planar-lcp demo: error: part 3" in err and "no exact plan within the budget" in err, err
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numba
 
 
-def _kernel_source_hash():
+def kernel_source_hash():
     h = hashlib.sha256()
     here = Path(__file__).resolve().parent
     for p in sorted(here.rglob("*.py")):
@@ -27,7 +27,7 @@ def _kernel_source_hash():
 
 def _cache_dir():
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return os.path.join(base, "planar_lcp", "numba", _kernel_source_hash())
+    return os.path.join(base, "planar_lcp", "numba", kernel_source_hash())
 
 
 if not os.environ.get("NUMBA_CACHE_DIR"):
