@@ -144,11 +144,9 @@ def summary_markdown(task, rows, runs, time_limit, jobs):
 
 
 def box_plots(records, planners, time_limit, path, task):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from planar_lcp.viz import new_figure
 
-    fig = Figure(figsize=(10, 3.6), dpi=100)
-    FigureCanvasAgg(fig)
+    fig = new_figure((10, 3.6), dpi=100)
     axs = fig.subplots(1, 3)
     # time: unsolved runs count at the time limit (as OMPL's plots do)
     data_t = [[r["solve_time"] if r["exact"] else time_limit for r in records if r["planner"] == p]

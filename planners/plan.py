@@ -146,14 +146,10 @@ def _frame_poses(tm, X):
 
 def plot_plan(tm, X, path, title="", goal_state=None):
     """A strobe of object and pusher along the states X (n, 8) over the scene, with the goal outline."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    from planar_lcp.viz import draw_scene
+    from planar_lcp.viz import draw_scene, new_figure
 
     qf, qk = _frame_poses(tm, X)
-    fig = Figure(figsize=(7, 5.5), dpi=110)
-    FigureCanvasAgg(fig)
+    fig = new_figure((7, 5.5), dpi=110)
     ax = fig.add_subplot(1, 1, 1)
     n = len(X)
     idx = np.unique(np.linspace(0, n - 1, min(n, 14)).round().astype(int))
@@ -187,15 +183,12 @@ def plot_plan(tm, X, path, title="", goal_state=None):
 
 def animate_plan(tm, X, path, fps=20, max_frames=120):
     from matplotlib.animation import PillowWriter
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
 
-    from planar_lcp.viz import draw_scene
+    from planar_lcp.viz import draw_scene, new_figure
 
     qf, qk = _frame_poses(tm, X)
     idx = np.unique(np.linspace(0, len(X) - 1, min(len(X), max_frames)).round().astype(int))
-    fig = Figure(figsize=(5, 4), dpi=80)
-    FigureCanvasAgg(fig)
+    fig = new_figure((5, 4), dpi=80)
     ax = fig.add_subplot(1, 1, 1)
     (ox0, ox1), (oy0, oy1) = tm.task.object_bounds
     (px0, px1), (py0, py1) = tm.task.pusher_bounds

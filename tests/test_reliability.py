@@ -11,13 +11,12 @@ import numpy as np
 import pytest
 
 from planar_lcp.spec.random_scenes import random_scene, scene_to_toml
-from planar_lcp.spec.scene import load_scene, parse_scene
+from planar_lcp.spec.scene import FORMULATIONS, load_scene, parse_scene
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimulationError, simulate
 from planar_lcp.trajectory import energy_changes
 
 N_SCENES = 200
-FORMULATIONS = ("position", "fixed_point", "velocity")
 # Deepest overlap at the end of a run, m: every body has settled or is in flight by then, and each formulation
 # corrects penetration (the position forms through phi/h in the LCP, the velocity form by its projection). The
 # largest measured on this set is 2.4 mm (position form, a 12-body pile still moving at t_end).

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from planar_lcp.engine.layout import Stat
-from planar_lcp.spec.scene import parse_scene
+from planar_lcp.spec.scene import FORMULATIONS, parse_scene
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, SimulationError, Simulator, simulate
 
@@ -89,7 +89,7 @@ def incline_scene(angle_deg, mu, h, t_end):
                  friction=mu, h=h, t_end=t_end)
 
 
-@pytest.mark.parametrize("formulation", ["position", "fixed_point", "velocity"])
+@pytest.mark.parametrize("formulation", FORMULATIONS)
 def test_box_on_incline_sticks_exactly_when_tan_a_below_mu(formulation):
     tr = simulate(incline_scene(20.0, 0.5, 0.01, 10.0), formulation=formulation)
     drift = np.linalg.norm(tr.q[:, 0, :2] - tr.q[0, 0, :2], axis=1).max()
@@ -100,7 +100,7 @@ def test_box_on_incline_sticks_exactly_when_tan_a_below_mu(formulation):
     assert modes.size > 0
 
 
-@pytest.mark.parametrize("formulation", ["position", "fixed_point", "velocity"])
+@pytest.mark.parametrize("formulation", FORMULATIONS)
 def test_box_on_incline_slides_with_g_sin_minus_mu_cos(formulation):
     a, mu, h = math.radians(30.0), 0.3, 0.005
     tr = simulate("block_on_incline", formulation=formulation)

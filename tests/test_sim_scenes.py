@@ -4,14 +4,14 @@ import numpy as np
 import pytest
 
 from planar_lcp.model import compile_scene
-from planar_lcp.spec.scene import list_scenes, load_scene
+from planar_lcp.spec.scene import FORMULATIONS, list_scenes, load_scene
 from planar_lcp.sim import SimOptions, Simulator, simulate
 
 SCENES = [name for name, _ in list_scenes()]
 
 
 @pytest.mark.parametrize("name", SCENES)
-@pytest.mark.parametrize("formulation", ["position", "fixed_point", "velocity"])
+@pytest.mark.parametrize("formulation", FORMULATIONS)
 @pytest.mark.parametrize("solver", ["lemke", "pgs", "osqp"])
 def test_every_scene_runs_with_every_formulation_and_solver(name, formulation, solver):
     tr = simulate(name, formulation=formulation, solver=solver)  # on_failure="raise": any failed step fails here
@@ -25,7 +25,7 @@ def test_every_scene_runs_with_every_formulation_and_solver(name, formulation, s
 
 
 @pytest.mark.parametrize("name", ["falling_rod", "box_push", "four_disks"])
-@pytest.mark.parametrize("formulation", ["position", "fixed_point", "velocity"])
+@pytest.mark.parametrize("formulation", FORMULATIONS)
 def test_rollout_equals_a_python_loop_of_step_bit_for_bit(name, formulation):
     sc = load_scene(name)
     sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, formulation=formulation))
