@@ -109,16 +109,18 @@ def find_contacts(m, vw, margin, force_pair, con_pair, con_phi, con_n, con_p, tm
     return nc
 
 
-def contacts_at(arrays, q, qk, margin, all_pairs=False):
+def contacts_at(arrays, q, qk, margin, all_pairs=False, m=None):
     """The contacts of one configuration, for Python callers outside a step (the compile step's start-overlap check,
     the pymunk comparison's gaps): allocates its buffers, unlike the kernels.
 
     arrays : the model's arrays (`ModelArrays`, engine/layout.py); q : (ndyn, 3) COM poses; qk : (nkin, 3) kinematic
-    poses; margin : m, contacts with a gap below it; all_pairs : every shape pair's closest contacts at any gap.
-    Returns (pair, phi, normal, point): (n,), (n,), (n, 2), (n, 2) arrays, one row per contact found.
+    poses; margin : m, contacts with a gap below it; all_pairs : every shape pair's closest contacts at any gap;
+    m : the kernels' struct over `arrays` (`model_struct(arrays)`), for a caller that examines many configurations
+    (made here when None). Returns (pair, phi, normal, point): (n,), (n,), (n, 2), (n, 2) arrays, one row per contact.
     """
-    from planar_lcp.engine.layout import model_struct
-    m = model_struct(arrays)  # the kernels' view: the step compiles for it, a namedtuple would compile them again
+    if m is None:
+        from planar_lcp.engine.layout import model_struct
+        m = model_struct(arrays)  # the kernels' view: the step compiles for it, a namedtuple would compile them again
     npair = arrays.pair_a.shape[0]
     poses = np.zeros((arrays.body_kind.shape[0], 3))
     vw = np.zeros((max(1, arrays.vert_local.shape[0]), 2))

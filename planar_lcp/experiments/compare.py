@@ -38,13 +38,15 @@ def _pose_gaps(model, q_com, qk):
     q_com (T, ndyn, 3) centre-of-mass poses, qk (T, nkin, 3). Returns (T,); +inf when the scene has no pairs.
     """
     from planar_lcp.engine.contacts import contacts_at
+    from planar_lcp.engine.layout import model_struct
 
     a = model.arrays
     out = np.full(q_com.shape[0], np.inf)
     if a.pair_a.shape[0] == 0:
         return out
+    km = model_struct(a)  # once for every pose
     for i in range(q_com.shape[0]):
-        phi = contacts_at(a, q_com[i], qk[i], np.inf, all_pairs=True)[1]
+        phi = contacts_at(a, q_com[i], qk[i], np.inf, all_pairs=True, m=km)[1]
         if len(phi):
             out[i] = float(np.min(phi))
     return out

@@ -43,14 +43,10 @@ def assemble_pgs(m, w, vk, nci, nsi, h, velocity_form, W, b):
 
 
 @njit(cache=True)
-def solve_pgs(m, w, nci, nsi, h, W, b, x, iterations):
-    """Fixed number of projected Gauss-Seidel sweeps on W x + b (the island of `assemble_pgs`), from x = 0. Returns
-    the final max |update|."""
+def solve_pgs(m, w, nci, nsi, n, h, W, b, x, iterations):
+    """Fixed number of projected Gauss-Seidel sweeps on W x + b, the island of `assemble_pgs` of size n, from x = 0.
+    Returns the final max |update|."""
     isl_con, isl_sup, con_pair = w.island_con, w.island_sup, w.con_pair
-    n = 0
-    for a in range(nci):
-        n += 2 if m.pair_mu[con_pair[isl_con[a]]] > 0.0 else 1
-    n += 2 * nsi
     for i in range(n):
         x[i] = 0.0
     last = 0.0
@@ -115,7 +111,7 @@ def solve_island_pgs(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     _, _, n = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
     W = w.lcp_matrix[:n * n].reshape((n, n))
     assemble_pgs(m, w, vk, nci, nsi, h, velocity_form, W, w.lcp_vector)
-    upd = solve_pgs(m, w, nci, nsi, h, W, w.lcp_vector, w.pgs_impulse, opt.pgs_iters)
+    upd = solve_pgs(m, w, nci, nsi, n, h, W, w.lcp_vector, w.pgs_impulse, opt.pgs_iters)
     stats[Stat.PGS_UPDATE] = max(stats[Stat.PGS_UPDATE], upd)
     stats[Stat.LCP_SIZE] += n
     stats[Stat.LCP_MAX] = max(stats[Stat.LCP_MAX], n)
