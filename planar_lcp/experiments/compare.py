@@ -153,8 +153,8 @@ def report_markdown(scene, ours, pm, rows, files, *, repeats, command=None):
               f"- planar_lcp: solver {o.solver}, formulation {o.formulation}, contact margin {o.contact_margin:g} m",
               f"- pymunk: iterations {po.iterations}, collision_slop {po.collision_slop:g} m, collision_bias "
               f"{po.collision_bias:.3g}, elasticity 0, friction by the {po.friction_mode} rule"
-              + (", table friction by PivotJoint + GearJoint (max_bias 0)" if scene.world.plane == "horizontal"
-                 else ""),
+              + (", table friction by one PivotJoint per support point (max_bias 0)"
+                 if scene.world.plane == "horizontal" else ""),
               f"- first contact: the first recorded step with any two shapes closer than {CONTACT_DISTANCE:g} m "
               "(gaps from our collision code at each simulator's poses)",
               "- max_penetration_m: ours `Trajectory.stats['penetration']`, pymunk the deepest overlap of its poses; "

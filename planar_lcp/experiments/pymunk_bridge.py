@@ -20,12 +20,19 @@ Mapping (docs/pymunk-comparison.md says more):
   pair (slower: one Python call per touching pair per step).
 - Elasticity 0 everywhere (our model is perfectly inelastic).
 - Kinematic bodies -> KINEMATIC pymunk bodies with the scene's constant velocity.
-- Horizontal plane: pymunk has no table. As pymunk's own top-down examples (tank.py) do, each dynamic body gets a
-  PivotJoint (at its centre of mass) and a GearJoint to the static body with max_bias = 0 (velocity only, no
-  position correction), max_force = mu m g (the Coulomb limit of the whole load) on the pivot and max torque =
-  mu m g sum_s w_s |p_s - c| on the gear (the torque of the same support points as ours when the body spins
-  about its centre of mass). Linear and angular friction are decoupled there: a body that slides and turns at
-  once feels more friction than Coulomb's law gives (ours couples them through the support points).
+- Horizontal plane: pymunk has no table. Each dynamic body gets one PivotJoint to the static body per support
+  point p_s of `massprops.support_points` (the points and load shares w_s of our support-point model), at p_s, with
+  max_bias = 0 (velocity only, no position correction) and max_force = mu m g w_s (that point's Coulomb limit;
+  they sum to mu m g). This is Coulomb friction at those points only as far as Chipmunk's solver gets it: each
+  pivot is an isotropic clamp on its own accumulated impulse, solved one after another for `iterations` sweeps
+  (10 by default) with no coupling beyond what the sweeps converge to, and the clamp projects in impulse space,
+  so a sliding point's force converges to the direction of K_s^-1 (-v_s) (K_s the point's inverse
+  effective-mass matrix, impulse -> velocity change) rather than -v_s: box_push's 0.2 x 0.1 m box sliding
+  without spin decelerates at 0.976 mu g, not mu g (tests/test_pymunk_bridge.py). pymunk cannot represent the
+  limit surface of a uniform pressure (`support_model = "limit_surface"` in planar_lcp), nor a set of
+  support-point forces coupled by maximal dissipation in one rigid solve (our LCP). The older set-up, one pivot
+  at the COM plus a GearJoint (pymunk's tank.py), capped force and torque separately and left the box of
+  box_push unturned.
 """
 
 from dataclasses import dataclass, field
@@ -110,7 +117,8 @@ class SpaceHandles:
     com_local : name -> (2,) centre of mass in the body frame (dynamic bodies)
     friction_mode : "product" (shape frictions reproduce every pair's mu) or "pre_solve" (a callback sets them)
     pair_mu : {(a, b) sorted: mu}
-    support_joints : name -> (PivotJoint, GearJoint) in the horizontal plane
+    support_joints : dynamic body name -> tuple of its table-friction PivotJoints to the static body, one
+        per support point in `massprops.support_points` order (horizontal plane; an empty dict otherwise)
     h : the time step the space is meant to be stepped with (s)
     settings : iterations, collision_slop, collision_bias as set
     """
@@ -235,16 +243,17 @@ def build_space(scene, *, iterations=DEFAULT_ITERATIONS, collision_slop=DEFAULT_
                 continue
             body = bodies[b.name]
             pts, wts, mu = support_points(b, scene.world)
-            arm = float(np.sum(np.asarray(wts) * np.linalg.norm(np.asarray(pts) - com_local[b.name], axis=1)))
-            cog_world = body.local_to_world(body.center_of_gravity)
-            pivot = pymunk.PivotJoint(space.static_body, body, tuple(cog_world), tuple(body.center_of_gravity))
-            pivot.max_bias = 0.0
-            pivot.max_force = float(mu * b.mass * g)
-            gear = pymunk.GearJoint(space.static_body, body, 0.0, 1.0)
-            gear.max_bias = 0.0
-            gear.max_force = float(mu * b.mass * g * arm)
-            space.add(pivot, gear)
-            joints[b.name] = (pivot, gear)
+            made = []
+            for p, w in zip(np.asarray(pts, float), np.asarray(wts, float)):
+                # pymunk's anchors are in the body's local frame, relative to `position` (the body-frame origin,
+                # not the centre of gravity), i.e. our body frame: the support point goes in as is. The static
+                # body's frame is the world, so its anchor is the same point in world coordinates.
+                pivot = pymunk.PivotJoint(space.static_body, body, tuple(body.local_to_world(tuple(p))), tuple(p))
+                pivot.max_bias = 0.0                           # velocity only: the table has no rest position
+                pivot.max_force = float(mu * b.mass * g * w)   # this point's Coulomb limit, mu times its load
+                made.append(pivot)
+            space.add(*made)
+            joints[b.name] = tuple(made)
 
     mode = "product" if exact else "pre_solve"
     if not exact:
