@@ -214,6 +214,8 @@ def prepare_output_dir(path, option):
 #: How `simulate()`'s messages name the settings this command sets by flags.
 SIMULATE_FLAGS = {"h": "--h", "t_end": "--t-end", "solver": "--solver", "formulation": "--formulation",
                   "fixed_point_iterations": "--fixed-point-iterations", "friction_directions": "--friction-directions",
+                  "support_model": "--support-model", "limit_surface_twists": "--limit-surface-twists",
+                  "limit_surface_resolution": "--limit-surface-resolution",
                   "on_failure": "--on-failure record"}
 
 
@@ -248,7 +250,7 @@ def _simulate(args):
 
     import numpy as np
 
-    from planar_lcp.spec.scene import SceneError, load_scene, sim_settings
+    from planar_lcp.spec.scene import SceneError, load_scene, sim_settings, support_model_setting
     from planar_lcp.sim import SimulationError, simulate
 
     for path, option in ((args.csv, "--csv"), (args.plot, "--plot"), (args.animate, "--animate")):
@@ -261,11 +263,15 @@ def _simulate(args):
     except SceneError as e:
         raise InputError(str(e)) from None
     settings = dict(t_end=args.t_end, h=args.h, solver=args.solver, formulation=args.formulation,
-                    fixed_point_iterations=args.fixed_point_iterations, friction_directions=args.friction_directions)
+                    fixed_point_iterations=args.fixed_point_iterations, friction_directions=args.friction_directions,
+                    limit_surface_twists=args.limit_surface_twists,
+                    limit_surface_resolution=args.limit_surface_resolution)
     try:
         sim_settings(scene, settings, SIMULATE_FLAGS)             # checked again by simulate(); here so that
-    except SceneError as e:                                           # nothing is printed before a bad setting
+        support_model_setting(scene, args.support_model, "--support-model")   # nothing is printed before a bad
+    except SceneError as e:                                                   # setting
         raise InputError(str(e)) from None
+    settings["support_model"] = args.support_model
     print(f"scene          {scene.name} ({scene.source})", flush=True)
     t0 = time.perf_counter()
     try:
@@ -335,8 +341,9 @@ COMMAND_ENTRY_POINTS = "planar_lcp.commands"
 
 
 def build_parser():
-    from planar_lcp.spec.scene import (FORMULATIONS, MAX_FIXED_POINT_ITERATIONS, MAX_FRICTION_DIRECTIONS, MAX_STEPS,
-                                       SOLVERS)
+    from planar_lcp.spec.scene import (FORMULATIONS, MAX_FIXED_POINT_ITERATIONS, MAX_FRICTION_DIRECTIONS,
+                                       MAX_LIMIT_SURFACE_RESOLUTION, MAX_LIMIT_SURFACE_TWISTS, MAX_STEPS, SOLVERS,
+                                       SUPPORT_MODELS)
 
     p = argparse.ArgumentParser(prog="planar-lcp", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
@@ -370,6 +377,14 @@ def build_parser():
     s.add_argument("--friction-directions", type=finite_number(int, 3, False), metavar="K",
                    help=f"friction directions per support point (3 to {MAX_FRICTION_DIRECTIONS}; horizontal-plane "
                         "scenes only)")
+    s.add_argument("--support-model", choices=SUPPORT_MODELS,
+                   help="table friction in the horizontal plane: limit_surface (default: the support pressure's limit "
+                        "surface) or points (Coulomb friction at each support point); docs/method.md")
+    s.add_argument("--limit-surface-twists", type=finite_number(int, 6, False), metavar="K",
+                   help=f"fixed twists of the limit surface's polytope (even, 6 to {MAX_LIMIT_SURFACE_TWISTS}: the "
+                        "accuracy knob; each body's table friction has K + 2 LCP unknowns)")
+    s.add_argument("--limit-surface-resolution", type=finite_number(int, 1, False), metavar="N",
+                   help=f"Gauss points per direction on curved support pieces (1 to {MAX_LIMIT_SURFACE_RESOLUTION})")
     s.add_argument("--on-failure", choices=["raise", "record"], default="raise",
                    help="raise (default): stop with exit status 1 at the first failed step; record: continue and "
                         "count the failures")

@@ -12,12 +12,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from planar_lcp.frames import com_to_frame, com_velocity, frame_to_com, rotation
+from planar_lcp.spec.limit_surface import gyration_radius, support_pressure, twist_directions
 from planar_lcp.spec.massprops import body_mass_properties, support_points
-from planar_lcp.spec.scene import Scene, SceneError
+from planar_lcp.spec.scene import SUPPORT_MODELS, Scene, SceneError
 
 from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC,  # noqa: F401
-                                         PLANE_HORIZONTAL, PLANE_VERTICAL, SHAPE_CORE, SHAPE_HALFPLANE)
+                                         PLANE_HORIZONTAL, PLANE_VERTICAL, SHAPE_CORE, SHAPE_HALFPLANE,
+                                         SUPPORT_LIMIT_SURFACE, SUPPORT_POINTS)
 from planar_lcp.engine.layout import ModelArrays  # the arrays handed to the kernels: engine/layout.py MODEL_LAYOUT
+from planar_lcp.engine.limit_surface import unit_load_wrench
 
 
 @dataclass(frozen=True)
@@ -45,10 +48,15 @@ class Model:
     def max_contacts(self):
         return 2 * len(self.arrays.pair_a)
 
+    def support_columns(self):
+        """Friction columns of one support element: k directions (points), or K fixed twists and the re-centred one
+        (limit surface). The kernels' `engine.assemble.support_column_count`."""
+        a = self.arrays
+        return a.fric_dirs.shape[0] if a.support_model == SUPPORT_POINTS else a.ls_wrench.shape[1] + 1
+
     def max_unknowns(self):
-        """LCP size bound: 4 per contact (normal, two friction rays, slack) plus k + 1 per support point."""
-        k = self.arrays.fric_dirs.shape[0]
-        return 4 * self.max_contacts() + (k + 1) * len(self.arrays.sup_dyn)
+        """LCP size bound: 4 per contact (normal, two friction rays, slack) plus columns + 1 per support element."""
+        return 4 * self.max_contacts() + (self.support_columns() + 1) * len(self.arrays.sup_dyn)
 
     def com_to_frame(self, q):
         """COM poses (..., ndyn, 3) -> body-frame origin poses, as the scene file describes bodies."""
@@ -86,8 +94,35 @@ def _check_start_overlaps(scene, model):
                      f"({con_p[j, 0]:.6g}, {con_p[j, 1]:.6g})")
 
 
-def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=False) -> Model:
-    """Flatten a validated Scene into a Model. `friction_directions` overrides scene.sim.friction_directions.
+def _add_limit_surface(ls, body, nls, resolution):
+    """Append one body's limit-surface element to the lists in `ls`: its pressure's pieces about the COM
+    (spec/limit_surface.py `support_pressure`; ls_node holds its curved-piece nodes, then its far nodes) and the
+    unit-load wrenches of its nls fixed twists."""
+    edges, scale, nodes, far, size = support_pressure(body, resolution)
+    adr = sum(len(n) for n in ls["nodes"])
+    ls["edge_adr"].append(sum(len(e) for e in ls["edges"]))
+    ls["edge_num"].append(len(edges))
+    ls["edge_scale"].append(scale)
+    ls["node_adr"].append(adr)
+    ls["node_num"].append(len(nodes))
+    ls["far_adr"].append(adr + len(nodes))
+    ls["far_num"].append(len(far))
+    ls["size"].append(size)
+    ls["edges"].append(edges)
+    ls["nodes"].append(np.concatenate([nodes, far]))
+    both = np.ascontiguousarray(ls["nodes"][-1])
+    cols = np.zeros((nls, 3))
+    for j, t in enumerate(twist_directions(nls, gyration_radius(body))):
+        unit_load_wrench(edges, 0, len(edges), scale, both, 0, len(nodes), len(nodes), len(far), size, t[0], t[1],
+                         t[2], cols[j])
+    ls["wrench"].append(cols)
+
+
+def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=False, support_model=None,
+                  limit_surface_twists=None, limit_surface_resolution=None) -> Model:
+    """Flatten a validated Scene into a Model. `friction_directions`, `limit_surface_twists` and
+    `limit_surface_resolution` override the scene's [sim] keys, `support_model` its world.support_model (the
+    horizontal plane's table friction: docs/method.md, "Table friction").
 
     seed_friction_arm: apply contact friction at each shape's core point (a capsule's end-cap centre) instead of the
     contact point, reproducing the seed paper's friction vectors d = [+-1, 0, +-(l/2) sin theta] (for comparison only;
@@ -178,19 +213,37 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
         raise ValueError(f"friction_directions must be >= 3 (the directions must positively span the plane), got {k}")
     ang = 2.0 * np.pi * np.arange(k) / k
     fric_dirs = np.column_stack([np.cos(ang), np.sin(ang)])
+    support = support_model if support_model is not None else scene.world.support_model
+    if support not in SUPPORT_MODELS:
+        raise ValueError(f"support_model must be one of {SUPPORT_MODELS}, got {support!r}")
+    support_code = SUPPORT_MODELS.index(support)
+    nls = int(limit_surface_twists if limit_surface_twists is not None else scene.sim.limit_surface_twists)
+    res = int(limit_surface_resolution if limit_surface_resolution is not None
+              else scene.sim.limit_surface_resolution)
     sup_dyn, sup_local, sup_load, sup_mu = [], [], [], []
+    ls = dict(edge_adr=[], edge_num=[], edge_scale=[], node_adr=[], node_num=[], far_adr=[], far_num=[], size=[],
+              edges=[], nodes=[], wrench=[])
     if plane == PLANE_HORIZONTAL:
         g = float(scene.world.support_gravity)
         for i, b in enumerate(bodies):
             if body_kind[i] != BODY_DYNAMIC:
                 continue
             slot = body_slot[i]
-            pts, w, mu = support_points(b, scene.world)
-            for p, wi in zip(pts - com_local[slot], w):
-                sup_dyn.append(slot)
-                sup_local.append(p)
-                sup_load.append(dyn_mass[slot] * g * wi)
-                sup_mu.append(float(mu))
+            if support_code == SUPPORT_POINTS:
+                pts, w, mu = support_points(b, scene.world)
+                for p, wi in zip(pts - com_local[slot], w):
+                    sup_dyn.append(slot)
+                    sup_local.append(p)
+                    sup_load.append(dyn_mass[slot] * g * wi)
+                    sup_mu.append(float(mu))
+                continue
+            # limit surface: one element per body, its whole load m g
+            _, _, mu = support_points(b, scene.world)
+            sup_dyn.append(slot)
+            sup_local.append(np.zeros(2))
+            sup_load.append(dyn_mass[slot] * g)
+            sup_mu.append(float(mu))
+            _add_limit_surface(ls, b, nls, res)
         gravity = np.zeros(2)
     else:
         gravity = np.asarray(scene.world.gravity, float)
@@ -211,6 +264,13 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
         pair_a=arr(pa, np.int64), pair_b=arr(pb, np.int64), pair_mu=arr(pmu),
         sup_dyn=arr(sup_dyn, np.int64), sup_local=arr(sup_local, shape=(0, 2)), sup_load=arr(sup_load),
         sup_mu=arr(sup_mu), fric_dirs=arr(fric_dirs), seed_friction_arm=int(bool(seed_friction_arm)),
+        support_model=support_code, sup_edge_adr=arr(ls["edge_adr"], np.int64),
+        sup_edge_num=arr(ls["edge_num"], np.int64), sup_edge_scale=arr(ls["edge_scale"]),
+        sup_node_adr=arr(ls["node_adr"], np.int64), sup_node_num=arr(ls["node_num"], np.int64),
+        sup_far_adr=arr(ls["far_adr"], np.int64), sup_far_num=arr(ls["far_num"], np.int64),
+        sup_size=arr(ls["size"]), ls_edge=arr(np.concatenate(ls["edges"]) if ls["edges"] else [], shape=(0, 4)),
+        ls_node=arr(np.concatenate(ls["nodes"]) if ls["nodes"] else [], shape=(0, 3)),
+        ls_wrench=arr(ls["wrench"], shape=(0, nls if support_code == SUPPORT_LIMIT_SURFACE else 0, 3)),
     )
     model = Model(scene=scene, arrays=arrays, dyn_names=tuple(dyn_names), kin_names=tuple(kin_names),
                   com_local=arr(com_local, shape=(0, 2)), q0=arr(q0, shape=(0, 3)), v0=arr(v0, shape=(0, 3)),

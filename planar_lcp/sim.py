@@ -18,7 +18,7 @@ from planar_lcp.engine.step import (FORM_VELOCITY, STEP_LCP_FAILED, STEP_NEEDS_F
                                     step_lemke, step_lemke_full, step_pgs)
 from planar_lcp.model import Model, compile_scene
 from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
-from planar_lcp.spec.scene import SOLVERS, Scene, SceneError, load_scene, sim_settings
+from planar_lcp.spec.scene import SOLVERS, Scene, SceneError, load_scene, sim_settings, support_model_setting
 from planar_lcp.frames import frame_velocity
 from planar_lcp.trajectory import Trajectory, energy
 
@@ -275,9 +275,12 @@ _KEYWORD_NAMES = {"on_failure": "on_failure='record'"}
 
 
 def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_point_iterations=None,
-             friction_directions=None, pgs_iterations=None, on_failure="raise", record_contacts=True,
-             seed_friction_arm=False, option_names=None, **options) -> Trajectory:
-    """Simulate a scene (a Scene, a shipped scene name, or a .toml path). Keywords override the scene's [sim].
+             friction_directions=None, pgs_iterations=None, support_model=None, limit_surface_twists=None,
+             limit_surface_resolution=None, on_failure="raise", record_contacts=True, seed_friction_arm=False,
+             option_names=None, **options) -> Trajectory:
+    """Simulate a scene (a Scene, a shipped scene name, or a .toml path). Keywords override the scene's [sim], and
+    support_model ("limit_surface" or "points") its world.support_model: the horizontal plane's table friction
+    (docs/method.md, "Table friction"; limit_surface_twists and limit_surface_resolution are that model's knobs).
 
     on_failure: "raise" (default) raises SimulationError at the first failed step (one where no method gave a
     certified answer); "record" continues (the failed island takes PGS's uncertified answer) and lists every failure
@@ -297,11 +300,15 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     names = {**_KEYWORD_NAMES, **(option_names or {})}
     sim, nsteps, _ = sim_settings(scene, dict(
         t_end=t_end, h=h, solver=solver, formulation=formulation, fixed_point_iterations=fixed_point_iterations,
-        friction_directions=friction_directions, pgs_iterations=pgs_iterations), names)
+        friction_directions=friction_directions, pgs_iterations=pgs_iterations,
+        limit_surface_twists=limit_surface_twists, limit_surface_resolution=limit_surface_resolution), names)
+    support = support_model_setting(scene, support_model, names.get("support_model", "support_model"))
     h = sim.h
     opts = SimOptions(h=h, solver=sim.solver, formulation=sim.formulation,
                       fixed_point_iterations=sim.fixed_point_iterations, pgs_iterations=sim.pgs_iterations, **options)
-    model = compile_scene(scene, friction_directions=sim.friction_directions, seed_friction_arm=seed_friction_arm)
+    model = compile_scene(scene, friction_directions=sim.friction_directions, seed_friction_arm=seed_friction_arm,
+                          support_model=support, limit_surface_twists=sim.limit_surface_twists,
+                          limit_surface_resolution=sim.limit_surface_resolution)
     check_run_size(model, nsteps, names, record_contacts)
     simr = Simulator(model, opts)
     q0, v0, qk0, vk0 = simr.initial_state()

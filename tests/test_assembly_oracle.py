@@ -22,7 +22,7 @@ from planar_lcp.engine import assemble as AS
 from planar_lcp.engine import contacts as C
 from planar_lcp.engine.layout import WORK_LAYOUT, Stat, StepWork, model_struct, work_struct
 from planar_lcp.lcp import lemke
-from planar_lcp.model import BODY_DYNAMIC, BODY_KINEMATIC, compile_scene
+from planar_lcp.model import BODY_DYNAMIC, BODY_KINEMATIC, SUPPORT_POINTS, compile_scene
 from planar_lcp.spec.scene import list_scenes, load_scene, parse_scene
 from planar_lcp.sim import SimOptions, Simulator
 
@@ -67,6 +67,27 @@ def _support_column(m, poses, s, d):
     return g
 
 
+def recentred_columns(m):
+    """The limit-surface elements' re-centred columns (body frame) as the stage before assembly leaves them: here a
+    fixed random array, so that the assembly's use of them is checked (their values: tests/test_limit_surface.py)."""
+    return np.ascontiguousarray(np.random.default_rng(len(m.sup_dyn)).normal(size=(max(1, len(m.sup_dyn)), 3)))
+
+
+def _limit_surface_columns(m, poses, s):
+    """(3 ndyn,) generalized impulses of a limit-surface element's columns: its fixed twists' unit-load wrenches and
+    the re-centred one, rotated from the body frame to the world at the linearization pose."""
+    slot = int(m.sup_dyn[s])
+    th = poses[int(m.dyn_body[slot]), 2]
+    R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+    cols = []
+    for wb in list(m.ls_wrench[s]) + [recentred_columns(m)[s]]:
+        g = np.zeros(3 * len(m.dyn_mass))
+        g[3 * slot:3 * slot + 2] = R @ wb[:2]
+        g[3 * slot + 2] = wb[2]
+        cols.append(g)
+    return cols
+
+
 def kinematic_relative_velocity(m, poses, vk, con_pair, con_p, j):
     """(2,) velocity at p_j of the kinematic bodies of contact j: A's minus B's (static and dynamic bodies: 0)."""
     out = np.zeros(2)
@@ -83,7 +104,8 @@ def reference_lcp(m, poses, vk, isl_con, isl_sup, con_pair, con_phi, con_n, con_
                   velocity_form):
     """Dense (A, b, G, parts) of one island's LCP; parts holds the block sizes and the matrices it is made of."""
     ndyn = len(m.dyn_mass)
-    k = m.fric_dirs.shape[0]
+    points = m.support_model == SUPPORT_POINTS
+    k = m.fric_dirs.shape[0] if points else m.ls_wrench.shape[1] + 1
     con = [int(j) for j in isl_con]
     sup = [int(s) for s in isl_sup]
     mu = np.array([m.pair_mu[con_pair[j]] for j in con])
@@ -97,7 +119,8 @@ def reference_lcp(m, poses, vk, isl_con, isl_sup, con_pair, con_phi, con_n, con_
         cols += [_contact_column(m, poses, con_pair, con_p, j, tang[j]),
                  _contact_column(m, poses, con_pair, con_p, j, -tang[j])]
     for s in sup:
-        cols += [_support_column(m, poses, s, m.fric_dirs[i]) for i in range(k)]
+        cols += ([_support_column(m, poses, s, m.fric_dirs[i]) for i in range(k)] if points
+                 else _limit_surface_columns(m, poses, s))
     G = np.column_stack(cols) if cols else np.zeros((3 * ndyn, 0))
     nforce = G.shape[1]
     assert nforce == nc + 2 * nf + k * ns
@@ -170,7 +193,8 @@ def kernel_lcp(m, poses, vk, isl_con, isl_sup, con_pair, con_phi, con_n, con_p, 
     b = np.full(n + 3, np.nan)
     w = work_with(body_pose=poses, island_con=isl_con, island_sup=isl_sup, con_pair=con_pair, con_phi=con_phi,
                   con_n=con_n, con_p=con_p, v_tilde=np.ascontiguousarray(v_tilde, float),
-                  v_hat=np.ascontiguousarray(v_hat, float), column_slot=col_dyn, column_g=col_g)
+                  v_hat=np.ascontiguousarray(v_hat, float), column_slot=col_dyn, column_g=col_g,
+                  sup_recentred=recentred_columns(m))
     if hasattr(AS.assemble_lcp, "py_func"):
         m, w = model_struct(m), work_struct(w)  # the kernel as the step calls it (a python run reads the tuples)
     nret, nf = AS.assemble_lcp(m, w, np.ascontiguousarray(vk, float), len(isl_con), len(isl_sup), float(h),
@@ -412,8 +436,8 @@ def _contacts_between(prob, model, a, b):
     return [j for j in range(prob.ncon) if set(_contact_bodies(prob.m, prob.con_pair, j)) == {ia, ib}]
 
 
-def _synthetic_problems(scene, seeds):
-    model = compile_scene(scene)
+def _synthetic_problems(scene, seeds, support_model=None):
+    model = compile_scene(scene, support_model=support_model)
     for seed in seeds:
         rng = np.random.default_rng(seed)
         q, v, qk, vk = _random_state(model, rng)
@@ -424,14 +448,17 @@ def _synthetic_problems(scene, seeds):
                 yield model, rng, Problem(model, q, v, qk, vk, h, velocity_form, v_hat=v_hat, force_all=True)
 
 
-def test_synthetic_horizontal_pusher_two_bodies_mu_zero():
+# points: friction_directions = 6 per support point, 4 + 3 points; limit surface: 6 fixed twists and the re-centred
+# one per body, one element per body
+@pytest.mark.parametrize("support, columns, elements", [("points", 6, 4 + 3), ("limit_surface", 7, 2)])
+def test_synthetic_horizontal_pusher_two_bodies_mu_zero(support, columns, elements):
     seen_kin_tangent = seen_mu0 = seen_coupling = 0
-    for model, rng, prob in _synthetic_problems(_horizontal_scene(), range(6)):
+    for model, rng, prob in _synthetic_problems(_horizontal_scene(), range(6), support):
         assert len(prob.groups) == 1      # box-hex contact joins the two bodies
         (isl_con, isl_sup), = prob.groups.values()
         A_ref, b_ref, G, parts = check_island(prob, isl_con, isl_sup, rng)
         k = parts["k"]
-        assert k == 6 and parts["ns"] == 4 + 3 and parts["nc"] > parts["nf"] > 0
+        assert k == columns and parts["ns"] == elements and parts["nc"] > parts["nf"] > 0
         # the pusher-box contact: the kinematic tangential velocity enters the two friction rows with opposite signs
         fric = [j for j in isl_con if prob.m.pair_mu[prob.con_pair[j]] > 0]
         for j in _contacts_between(prob, model, "box", "pusher"):
@@ -620,7 +647,7 @@ def _shifted_poses(orig):
 MUTANTS = {
     "kinematic velocity dropped": ("kinematic_velocity_along", lambda orig: (lambda *a: 0.0)),
     "column . v off by 1e-9": ("column_dot", lambda orig: (lambda *a: orig(*a) * (1.0 + 1e-9))),
-    "support directions rotated": ("support_column",
+    "support directions rotated": ("table_column",
                                    lambda orig: (lambda m, poses, s, dx, dy, *r: orig(m, poses, s, dy, -dx, *r))),
     "lever arm about a shifted point": ("contact_column", _shifted_poses),
 }
@@ -633,8 +660,9 @@ def test_oracle_catches_a_mutated_kernel(mutant, monkeypatch):
     name, make = MUTANTS[mutant]
     assemble = getattr(AS.assemble_lcp, "py_func", AS.assemble_lcp)
     problems = []
-    for scene in (_horizontal_scene(), _vertical_scene()):
-        model = compile_scene(scene)
+    for scene, support in ((_horizontal_scene(), "limit_surface"), (_horizontal_scene(), "points"),
+                           (_vertical_scene(), None)):
+        model = compile_scene(scene, support_model=support)
         q, v, qk, vk = _random_state(model, np.random.default_rng(11))
         for velocity_form in (False, True):
             prob = Problem(model, q, v, qk, vk, scene.sim.h, velocity_form, force_all=True)
@@ -648,6 +676,7 @@ def test_oracle_catches_a_mutated_kernel(mutant, monkeypatch):
                 mp.setattr(AS, "assemble_lcp", assemble)
                 # its helper that calls the mutated ones runs as python too, so that it sees them
                 mp.setattr(AS, "normal_column", getattr(AS.normal_column, "py_func", AS.normal_column))
+                mp.setattr(AS, "support_column", getattr(AS.support_column, "py_func", AS.support_column))
                 A, b, *_ = kernel_lcp(*prob.args(isl_con, isl_sup), parts["n"])
             out.append(lcp_mismatch(A, b, A_ref, b_ref))
         return out

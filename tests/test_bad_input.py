@@ -279,7 +279,7 @@ def test_h_not_below_t_end_is_an_error(tmp_path):
 def test_friction_directions_in_the_vertical_plane():
     r = run_cli("simulate", "falling_rod", "--friction-directions", "5")
     assert error_line(r) == (f"{ROD}: --friction-directions applies only in the horizontal plane (the "
-                                   "table-friction cone), got 5 for a scene with world.plane = 'vertical'")
+                                   "table friction), got 5 for a scene with world.plane = 'vertical'")
     with pytest.raises(SceneError, match=r"friction_directions applies only in the horizontal plane .* got 5 for"):
         simulate("falling_rod", friction_directions=5)
     assert simulate("box_push", friction_directions=5, t_end=0.02).t.shape == (3,)
@@ -334,3 +334,32 @@ def test_failure_message_cli_names_the_flag(monkeypatch, capsys):
     assert err.endswith("; the run stopped at this step. Pass --on-failure record to continue (a failed island then "
                         "takes PGS's answer) and list the failures.\n"), err
     assert "on_failure=" not in err and "PGS's uncertified answer" not in err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--support-model", "points"], "--support-model applies only in the horizontal plane (the table friction), got "
+                                    "'points' for a scene with world.plane = 'vertical'"),
+    (["--limit-surface-twists", "8"], "--limit-surface-twists applies only in the horizontal plane (the table "
+                                      "friction), got 8 for a scene with world.plane = 'vertical'"),
+])
+def test_table_friction_flags_in_the_vertical_plane(argv, message):
+    r = run_cli("simulate", "falling_rod", *argv)
+    assert error_line(r) == f"{ROD}: {message}"
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--limit-surface-twists", "7"], "--limit-surface-twists must be even (the twists come in opposite pairs), got 7"),
+    (["--limit-surface-twists", "258"], "--limit-surface-twists must be <= 256, got 258"),
+    (["--limit-surface-resolution", "65"], "--limit-surface-resolution must be <= 64, got 65"),
+])
+def test_limit_surface_knobs_out_of_range(argv, message):
+    r = run_cli("simulate", "box_push", *argv)
+    assert error_line(r) == f"{PUSH}: {message}"
+
+
+def test_unknown_support_model_in_a_scene(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text('name = "s"\n[world]\nplane = "horizontal"\nsupport_model = "disk"\n[[bodies]]\nname = "b"\n'
+                    'type = "dynamic"\nmass = 1.0\nshapes = [ { type = "disk", radius = 0.1 } ]\n')
+    with pytest.raises(SceneError, match=r"world.support_model must be one of 'limit_surface', 'points', got 'disk'"):
+        load_scene(path)

@@ -200,7 +200,10 @@ def test_h_and_t_end_overrides_change_the_steps(tmp_path, capsys):
     ("box_tip", ["--formulation", "velocity"], dict(formulation="velocity"), "formulation", "velocity"),
     ("falling_rod", ["--t-end", "0.5", "--formulation", "fixed_point", "--fixed-point-iterations", "1"],
      dict(t_end=0.5, formulation="fixed_point", fixed_point_iterations=1), "formulation", "fixed_point"),
-    ("box_push", ["--friction-directions", "4"], dict(friction_directions=4), "solver", "lemke"),
+    ("box_push", ["--support-model", "points", "--friction-directions", "4"],
+     dict(support_model="points", friction_directions=4), "solver", "lemke"),
+    ("box_push", ["--limit-surface-twists", "14"], dict(limit_surface_twists=14), "solver", "lemke"),
+    ("box_push", ["--support-model", "points"], dict(support_model="points"), "solver", "lemke"),
 ])
 def test_overrides_reach_the_simulation(tmp_path, capsys, scene, argv, kwargs, field, value):
     f = tmp_path / "out.csv"
@@ -387,10 +390,12 @@ def test_plot_trajectory_horizontal_scene_and_every(tmp_path):
 
 def test_ctrl_c_stops_a_long_simulation_cleanly(tmp_path):
     """The rollout runs in chunks of about a quarter second, between which Python handles SIGINT: a long run stops
-    within about a second with one line and exit status 130, no traceback. 200,000 steps of push_t take tens of
-    seconds in one kernel call; the signal comes 4 s after the start, inside the rollout."""
+    within about a second with one line and exit status 130, no traceback. 200,000 steps of push_t with the points
+    model take tens of seconds in one kernel call (the limit surface's take about one); the signal comes 4 s after
+    the start, inside the rollout."""
     from cli_helpers import interrupt_cli
-    rc, err, dt = interrupt_cli(["simulate", "push_t", "--t-end", "2000"], "scene", tmp_path, wait=4.0)
+    rc, err, dt = interrupt_cli(["simulate", "push_t", "--t-end", "2000", "--support-model", "points"], "scene",
+                                tmp_path, wait=4.0)
     assert rc == 130 and err == "planar-lcp simulate: error: interrupted (Ctrl-C); stopped\n", err
     assert dt < 2.0, dt
 

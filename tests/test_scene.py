@@ -402,10 +402,11 @@ CASES = [
     ("top-unknown", base, [put(("foo",), 1)],
      "unknown key 'foo' (allowed: name, description, world, sim, bodies)"),
     ("world-unknown", base, [put(("world", "gravty"), [0, 0])],
-     "world: unknown key 'gravty' (allowed: plane, gravity, support_gravity, friction, friction_pairs)"),
+     "world: unknown key 'gravty' (allowed: plane, gravity, support_gravity, friction, friction_pairs, "
+     "support_model)"),
     ("sim-unknown", base, [put(("sim", "dt"), 0.1)],
      "sim: unknown key 'dt' (allowed: h, t_end, solver, formulation, fixed_point_iterations, friction_directions, "
-     "pgs_iterations)"),
+     "pgs_iterations, limit_surface_twists, limit_surface_resolution)"),
     ("body-unknown", base, [put(B0 + ("masss",), 1.0)], f"bodies[0]: unknown key 'masss' (allowed: {BODY_KEYS})"),
     ("shape-unknown", base, [put(S20 + ("raduis",), 0.1)],
      "bodies[2].shapes[0]: unknown key 'raduis' (allowed: offset, angle, angle_deg, radius, type)"),

@@ -2,8 +2,12 @@
 
 Unknowns of the LCP, blocked (see docs/method.md):
 
-    z = [ c_n (one per contact) | beta (+t, -t for each contact with mu > 0) | beta (k per support point)
-          | lambda (one per contact with mu > 0) | lambda (one per support point) ]
+    z = [ c_n (one per contact) | beta (+t, -t for each contact with mu > 0) | beta (k per support element)
+          | lambda (one per contact with mu > 0) | lambda (one per support element) ]
+
+A support element is a support point (points model: k world directions) or a body's limit surface (K fixed
+twists' wrenches and the re-centred one, `support_column`); either way its friction is D beta with
+sum beta <= mu h load, chosen by maximal dissipation (docs/method.md, "Table friction").
 
 All impulses (N s). A "generalized column" is the generalized impulse of a unit impulse along a world direction d
 at world point p: (d_x, d_y, (p - c) x d) on the body with COM c, and the negative on the other body of the contact.
@@ -14,7 +18,8 @@ import numpy as np
 from numba import njit
 
 from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC, MODE_SEPARATED, MODE_SLIDING,
-                                         MODE_STICKING)
+                                         MODE_STICKING, SUPPORT_POINTS)
+from planar_lcp.engine.limit_surface import unit_load_wrench
 
 
 @njit(cache=True)
@@ -76,8 +81,9 @@ def friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, dx, dy, col_dy
 
 
 @njit(cache=True)
-def support_column(m, poses, s, dx, dy, col_dyn, col_g, u):
-    """Generalized column of a unit table-friction impulse along (dx, dy) at support point s."""
+def table_column(m, poses, s, dx, dy, torque, col_dyn, col_g, u):
+    """Generalized column of a table-friction impulse of support element s: the world force (dx, dy) at its support
+    point (the COM for a limit-surface element) plus a pure torque (N s, N s, N m s per unit)."""
     d = m.sup_dyn[s]
     b = m.dyn_body[d]
     # the support point's world offset from the COM, at the linearization pose
@@ -89,7 +95,54 @@ def support_column(m, poses, s, dx, dy, col_dyn, col_g, u):
     col_dyn[u, 1] = -1
     col_g[u, 0, 0] = dx
     col_g[u, 0, 1] = dy
-    col_g[u, 0, 2] = _cross(rx, ry, dx, dy)
+    col_g[u, 0, 2] = _cross(rx, ry, dx, dy) + torque
+
+
+@njit(cache=True, inline='always')
+def support_column_count(m):
+    """Friction columns of one support element: the k directions of a support point (points), or the K fixed twists'
+    wrenches and the re-centred one (limit surface)."""
+    if m.support_model == SUPPORT_POINTS:
+        return m.fric_dirs.shape[0]
+    return m.ls_wrench.shape[1] + 1
+
+
+@njit(cache=True)
+def support_column(m, w, s, i, u):
+    """Friction column i of support element s as generalized column u, at the linearization pose w.body_pose.
+    points: a unit impulse along the world direction fric_dirs[i] at the support point. Limit surface: the
+    unit-load wrench of fixed twist i, or (i = K) the re-centred one, rotated from the body frame to the world."""
+    if m.support_model == SUPPORT_POINTS:
+        table_column(m, w.body_pose, s, m.fric_dirs[i, 0], m.fric_dirs[i, 1], 0.0, w.column_slot, w.column_g, u)
+        return
+    if i < m.ls_wrench.shape[1]:
+        wx, wy, wt = m.ls_wrench[s, i, 0], m.ls_wrench[s, i, 1], m.ls_wrench[s, i, 2]
+    else:
+        wx, wy, wt = w.sup_recentred[s, 0], w.sup_recentred[s, 1], w.sup_recentred[s, 2]
+    th = w.body_pose[m.dyn_body[m.sup_dyn[s]], 2]
+    c = np.cos(th)
+    sn = np.sin(th)
+    table_column(m, w.body_pose, s, c * wx - sn * wy, sn * wx + c * wy, wt, w.column_slot, w.column_g, u)
+
+
+@njit(cache=True)
+def recentre_limit_surfaces(m, w):
+    """The re-centred column of every limit-surface element: -L(t) for the body's free-motion twist t = v_tilde
+    (body frame at the linearization pose), the wrench that opposes a body still sliding the way it slides, exact
+    on the limit surface. A body at rest (L = 0) repeats fixed column 0: any point of the limit surface is valid."""
+    for s in range(m.sup_dyn.shape[0]):
+        d = m.sup_dyn[s]
+        th = w.body_pose[m.dyn_body[d], 2]
+        c = np.cos(th)
+        sn = np.sin(th)
+        vx = w.v_tilde[d, 0]
+        vy = w.v_tilde[d, 1]
+        out = w.sup_recentred[s]
+        moving = unit_load_wrench(m.ls_edge, m.sup_edge_adr[s], m.sup_edge_num[s], m.sup_edge_scale[s], m.ls_node,
+                                  m.sup_node_adr[s], m.sup_node_num[s], m.sup_far_adr[s], m.sup_far_num[s],
+                                  m.sup_size[s], c * vx + sn * vy, -sn * vx + c * vy, w.v_tilde[d, 2], out)
+        for a in range(3):
+            out[a] = -out[a] if moving else m.ls_wrench[s, 0, a]
 
 
 @njit(cache=True)
@@ -168,7 +221,7 @@ def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b):
     """
     poses, con_pair, con_phi, con_n, con_p = w.body_pose, w.con_pair, w.con_phi, w.con_n, w.con_p
     col_dyn, col_g, v_tilde, isl_sup = w.column_slot, w.column_g, w.v_tilde, w.island_sup
-    k = m.fric_dirs.shape[0]
+    k = support_column_count(m)
     n, nf, _ = island_problem_size(m, w.island_con, nci, nsi, con_pair)
     o_bc = nci
     o_bs = o_bc + 2 * nf
@@ -187,7 +240,7 @@ def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b):
     for a in range(nsi):
         s = isl_sup[a]
         for i in range(k):
-            support_column(m, poses, s, m.fric_dirs[i, 0], m.fric_dirs[i, 1], col_dyn, col_g, o_bs + k * a + i)
+            support_column(m, w, s, i, o_bs + k * a + i)
     for i in range(n):
         for c in range(n):
             A[i, c] = 0.0
@@ -241,13 +294,15 @@ def apply_impulses(nforce, col_dyn, col_g, z, m, v):
 
 @njit(cache=True)
 def island_problem_size(m, isl_con, nci, nsi, con_pair):
-    """(LCP size, number of frictional contacts, PGS size) of an island with nci contacts and nsi support points."""
+    """(LCP size, number of frictional contacts, PGS size) of an island with nci contacts and nsi support elements.
+    PGS takes a support point's friction as a 2-D force, a limit-surface element's as a wrench (3 unknowns)."""
     nf = 0
     for a in range(nci):
         if m.pair_mu[con_pair[isl_con[a]]] > 0.0:
             nf += 1
-    k = m.fric_dirs.shape[0]
-    return nci + 3 * nf + (k + 1) * nsi, nf, nci + nf + 2 * nsi
+    k = support_column_count(m)
+    per_sup = 2 if m.support_model == SUPPORT_POINTS else 3
+    return nci + 3 * nf + (k + 1) * nsi, nf, nci + nf + per_sup * nsi
 
 
 @njit(cache=True)

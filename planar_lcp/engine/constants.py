@@ -6,3 +6,6 @@ PLANE_VERTICAL, PLANE_HORIZONTAL = 0, 1
 
 #: Contact modes after a step's solve (Trajectory.contacts["mode"]): no load, loaded without slip, loaded slipping.
 MODE_SEPARATED, MODE_STICKING, MODE_SLIDING = 0, 1, 2
+
+#: Table-friction models: the index of each name in spec.scene.SUPPORT_MODELS.
+SUPPORT_LIMIT_SURFACE, SUPPORT_POINTS = 0, 1

@@ -63,11 +63,23 @@ vert_local        | f8    | nvert x 2  | m      | compile | core vertices, dynam
 pair_a            | i8    | npair      | -      | compile | shape A of each pair (dynamic, never a half-plane)
 pair_b            | i8    | npair      | -      | compile | shape B of each candidate pair
 pair_mu           | f8    | npair      | -      | compile | Coulomb coefficient
-sup_dyn           | i8    | nsup       | -      | compile | dynamic slot of the body a support point belongs to
-sup_local         | f8    | nsup x 2   | m      | compile | support point, COM frame
+support_model     | int   | -          | -      | compile | SUPPORT_LIMIT_SURFACE | SUPPORT_POINTS (table friction)
+sup_dyn           | i8    | nsup       | -      | compile | dynamic slot of a support element's body (points: a point)
+sup_local         | f8    | nsup x 2   | m      | compile | points: the support point, COM frame (limit surface: 0)
 sup_load          | f8    | nsup       | N      | compile | known normal load on the table (m g w)
 sup_mu            | f8    | nsup       | -      | compile | body-table Coulomb coefficient
-fric_dirs         | f8    | k x 2      | -      | compile | unit friction directions of the table friction
+fric_dirs         | f8    | k x 2      | -      | compile | points: unit friction directions of the table friction
+sup_edge_adr      | i8    | nsup       | -      | compile | limit surface: first edge of the element in ls_edge
+sup_edge_num      | i8    | nsup       | -      | compile | its number of polygon-piece edges
+sup_edge_scale    | f8    | nsup       | 1/m^2  | compile | 1 / the element's support area
+sup_node_adr      | i8    | nsup       | -      | compile | first quadrature node of the element in ls_node
+sup_node_num      | i8    | nsup       | -      | compile | its number of nodes (curved pieces, support points)
+sup_far_adr       | i8    | nsup       | -      | compile | first far node (polygon pieces, far twists) in ls_node
+sup_far_num       | i8    | nsup       | -      | compile | its number of far nodes
+sup_size          | f8    | nsup       | m      | compile | largest distance of its support from the COM
+ls_edge           | f8    | nedge x 4  | m      | compile | edges (a_x, a_y, b_x, b_y) of polygon pieces, COM frame
+ls_node           | f8    | nnode x 3  | m, -   | compile | quadrature nodes (x, y, weight), COM frame
+ls_wrench         | f8    | nsup x K x 3 | -, m | compile | unit-load wrenches L(t_j) of the K fixed twists, COM frame
 seed_friction_arm | int   | -          | -      | compile | 1: contact friction at the shapes' core points (the seed's)
 """)
 
@@ -91,7 +103,8 @@ check_p            | f8    | contact x 2       | m          | check     | their 
 island_parent      | i8    | dyn               | -          | islands   | union-find parent of each dynamic slot
 body_island        | i8    | dyn               | -          | islands   | island of each dynamic slot
 island_con         | i8    | contact           | -          | islands   | the contacts of the island being solved
-island_sup         | i8    | support           | -          | islands   | the support points of that island
+island_sup         | i8    | support           | -          | islands   | the support elements of that island
+sup_recentred      | f8    | support x 3       | -, m       | contacts  | limit surface: -L(v_tilde), body frame
 column_slot        | i8    | unknown x 2       | -          | assemble  | its 2 bodies' slots (-1: none)
 column_g           | f8    | unknown x 2 x 3   | -          | assemble  | its generalized vectors on them
 lcp_matrix         | f8    | unknown2          | -          | assemble  | the island's matrix (n x n, row-major)

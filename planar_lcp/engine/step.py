@@ -15,7 +15,8 @@ step is solved again (at most max_resolves times).
 import numpy as np
 from numba import njit
 
-from planar_lcp.engine.assemble import apply_impulses, contact_column, delassus
+from planar_lcp.engine.assemble import apply_impulses, contact_column, delassus, recentre_limit_surfaces
+from planar_lcp.engine.constants import SUPPORT_LIMIT_SURFACE
 from planar_lcp.engine.contacts import body_poses, find_contacts, world_vertices
 from planar_lcp.engine.islands import find_islands, island_members
 from planar_lcp.engine.layout import Stat
@@ -129,9 +130,12 @@ def begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats):
 
 @njit(cache=True, inline='always')
 def prepare_contacts(m, w, opt, qk_lin, stats):
-    """Contacts at (w.q_hat, qk_lin), the per-pair count of the set, islands; w.v_new = v_tilde.
+    """Contacts at (w.q_hat, qk_lin), the per-pair count of the set, islands; w.v_new = v_tilde; the limit surfaces'
+    re-centred columns at that pose.
     Returns (number of contacts, number of islands)."""
     body_poses(m, w.q_hat, qk_lin, w.body_pose)
+    if m.support_model == SUPPORT_LIMIT_SURFACE:
+        recentre_limit_surfaces(m, w)
     world_vertices(m, w.body_pose, w.vert_world)
     ncon = find_contacts(m, w.vert_world, opt.margin, w.pair_forced, w.con_pair, w.con_phi, w.con_n, w.con_p,
                          w.pair_phi, w.pair_n, w.pair_p)

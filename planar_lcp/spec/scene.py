@@ -16,6 +16,7 @@ import math
 import numbers
 import os
 import tomllib
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,6 +29,9 @@ BODY_TYPES = ("dynamic", "static", "kinematic")
 PLANES = ("vertical", "horizontal")
 SOLVERS = ("lemke", "pgs", "osqp")
 FORMULATIONS = ("position", "fixed_point", "velocity")
+#: How the table carries a body in the horizontal plane (docs/method.md, "Table friction"): its support pressure's
+#: limit surface (the default), or Coulomb friction at each support point (the seed-style reference model).
+SUPPORT_MODELS = ("limit_surface", "points")
 
 # Polygon vertex checks are relative to the polygon's size: a turn whose sine is below this is "collinear", two
 # points closer than this times the size are "repeated".
@@ -39,6 +43,8 @@ MAX_STEPS = 10_000_000                 # round(t_end / h): 10 to 100 us per step
 MAX_PGS_ITERATIONS = 100_000           # sweeps per island per step
 MAX_FIXED_POINT_ITERATIONS = 1_000     # LCP solves per step
 MAX_FRICTION_DIRECTIONS = 256          # edges of the table-friction polygon (8 already approximates the disk to 8 %)
+MAX_LIMIT_SURFACE_TWISTS = 256         # fixed twists of the polyhedral limit surface (LCP unknowns per body)
+MAX_LIMIT_SURFACE_RESOLUTION = 64      # Gauss points per direction of a curved piece (nodes grow as its square)
 # A support point may lie outside the bounding box of its body's shapes by at most this fraction of the box's
 # diagonal (rounding only): a point outside would carry load where the body has no material.
 _SUPPORT_REL_TOL = 1e-6
@@ -132,6 +138,7 @@ class WorldSpec:
     support_gravity: float = 9.81
     friction: float = 0.5
     friction_pairs: tuple = ()
+    support_model: str = "limit_surface"
 
 
 @dataclass(frozen=True)
@@ -145,6 +152,8 @@ class SimSpec:
     fixed_point_iterations: int = 10
     friction_directions: int = 8
     pgs_iterations: int = 20
+    limit_surface_twists: int = 6
+    limit_surface_resolution: int = 8
 
 
 @dataclass(frozen=True)
@@ -285,8 +294,11 @@ def _decode_utf8(raw: bytes, path) -> str:
 
 
 _TOP_KEYS = ("name", "description", "world", "sim", "bodies")
-_WORLD_KEYS = ("plane", "gravity", "support_gravity", "friction", "friction_pairs")
-_SIM_KEYS = ("h", "t_end", "solver", "formulation", "fixed_point_iterations", "friction_directions", "pgs_iterations")
+_WORLD_KEYS = ("plane", "gravity", "support_gravity", "friction", "friction_pairs", "support_model")
+_SIM_KEYS = ("h", "t_end", "solver", "formulation", "fixed_point_iterations", "friction_directions", "pgs_iterations",
+             "limit_surface_twists", "limit_surface_resolution")
+#: [sim] keys that shape the horizontal plane's table friction only
+_TABLE_KEYS = ("friction_directions", "limit_surface_twists", "limit_surface_resolution")
 _BODY_KEYS = ("name", "type", "shapes", "mass", "inertia", "position", "angle", "angle_deg", "velocity",
               "angular_velocity", "support_friction", "support_points")
 _PAIR_KEYS = ("a", "b", "mu")
@@ -478,8 +490,7 @@ def parse_scene(data: dict, source: str = "<dict>") -> Scene:
         bodies.append(body)
 
     pairs = _parse_friction_pairs(v, world_tbl.get("friction_pairs", []), [b.name for b in bodies])
-    world = WorldSpec(plane=world.plane, gravity=world.gravity, support_gravity=world.support_gravity,
-                      friction=world.friction, friction_pairs=pairs)
+    world = dataclasses.replace(world, friction_pairs=pairs)
     return Scene(name=name, description=description, world=world, sim=sim, bodies=tuple(bodies), source=source)
 
 
@@ -497,6 +508,13 @@ def _sim_value(v: _Validator, key: str, label: str, value):
         return v.integer(label, value, 3, MAX_FRICTION_DIRECTIONS)
     if key == "pgs_iterations":
         return v.integer(label, value, 1, MAX_PGS_ITERATIONS)
+    if key == "limit_surface_twists":
+        n = v.integer(label, value, 6, MAX_LIMIT_SURFACE_TWISTS)
+        if n % 2:
+            v.fail(f"{label} must be even (the twists come in opposite pairs), got {n}")
+        return n
+    if key == "limit_surface_resolution":
+        return v.integer(label, value, 1, MAX_LIMIT_SURFACE_RESOLUTION)
     raise KeyError(key)
 
 
@@ -558,12 +576,26 @@ def sim_settings(scene: Scene, overrides: dict, names: dict | None = None) -> tu
     for key in overrides:
         if key not in _SIM_KEYS:
             raise KeyError(f"sim_settings: {key!r} is not a [sim] key")
-    if overrides.get("friction_directions") is not None and scene.world.plane != "horizontal":
-        v.fail(f"{labels['friction_directions']} applies only in the horizontal plane (the table-friction cone), "
-               f"got {kw['friction_directions']} for a scene with world.plane = {scene.world.plane!r}")
+    for key in _TABLE_KEYS:
+        if overrides.get(key) is not None and scene.world.plane != "horizontal":
+            v.fail(f"{labels[key]} applies only in the horizontal plane (the table friction), "
+                   f"got {kw[key]} for a scene with world.plane = {scene.world.plane!r}")
     knobs = {key: names.get(key, key) for key in ("h", "t_end")}
     nsteps = _check_duration(v, kw["h"], kw["t_end"], labels, knobs)
     return SimSpec(**kw), nsteps, labels
+
+
+def support_model_setting(scene: Scene, value, label: str = "support_model") -> str:
+    """The support model of a run: `scene.world.support_model`, or `value` (one of SUPPORT_MODELS) when given, which
+    only the horizontal plane takes. Raises SceneError naming `label`."""
+    if value is None:
+        return scene.world.support_model
+    v = _Validator(scene.source)
+    model = v.choice(label, value, SUPPORT_MODELS)
+    if scene.world.plane != "horizontal":
+        v.fail(f"{label} applies only in the horizontal plane (the table friction), got {model!r} for a scene with "
+               f"world.plane = {scene.world.plane!r}")
+    return model
 
 
 def _parse_world(v: _Validator, t: dict) -> WorldSpec:
@@ -583,7 +615,10 @@ def _parse_world(v: _Validator, t: dict) -> WorldSpec:
     support_gravity = v.nonneg("world.support_gravity", t["support_gravity"]) if "support_gravity" in t \
         else d.support_gravity
     friction = v.nonneg("world.friction", t["friction"]) if "friction" in t else d.friction
-    return WorldSpec(plane=plane, gravity=gravity, support_gravity=support_gravity, friction=friction)
+    support_model = v.choice("world.support_model", t["support_model"], SUPPORT_MODELS) if "support_model" in t \
+        else d.support_model
+    return WorldSpec(plane=plane, gravity=gravity, support_gravity=support_gravity, friction=friction,
+                     support_model=support_model)
 
 
 def _parse_friction_pairs(v: _Validator, raw, names: list) -> tuple:

@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, contact_velocities, island_problem_size,
-                                        record_impulses)
+                                        record_impulses, support_column_count)
 from planar_lcp.engine.layout import Stat
 
 STATUS_SOLVED = 0
@@ -530,7 +530,7 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     certified LEMKE_CHAIN. When solved, its impulses are added to w.v_new and recorded in w.con_*; returns the Lemke
     status (a failure leaves w.v_new unchanged and forgets the island's warm-start basis)."""
     n, nf, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
-    k = m.fric_dirs.shape[0]
+    k = support_column_count(m)
     A = w.lcp_matrix[:n * n].reshape((n, n))
     b = w.lcp_vector[:n]
     assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector)

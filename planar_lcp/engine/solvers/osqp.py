@@ -22,7 +22,7 @@ import sys
 import numpy as np
 
 from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, contact_velocities, island_problem_size,
-                                        record_impulses)
+                                        record_impulses, support_column_count)
 from planar_lcp.engine.layout import Stat, python_view
 from planar_lcp.engine.solvers.lemke import STATUS_INACCURATE, STATUS_SOLVED
 from planar_lcp.engine.solvers.pgs import solve_island_pgs
@@ -62,7 +62,7 @@ def solve_island_osqp(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     mv, wv = python_view(m), python_view(w)
     n, nf, _ = island_problem_size(m, wv.island_con, nci, nsi, wv.con_pair)
     isl_con, isl_sup = wv.island_con[:nci], wv.island_sup[:nsi]
-    k = mv.fric_dirs.shape[0]
+    k = support_column_count(m)
     A = np.zeros((n, n))
     b = np.zeros(n)
     assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b)

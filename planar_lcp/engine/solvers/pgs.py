@@ -2,8 +2,9 @@
 
 Unknowns per contact: the normal impulse c_n >= 0 and, if mu > 0, one tangential impulse |f_t| <= mu c_n (the
 planar friction "cone" is that interval, exact); per support point a 2-D table-friction impulse in the disk
-|f| <= mu h load (the circle itself, not a polygon). A fixed number of sweeps from zero: deterministic, and not
-converged in general - the iteration count is the speed/accuracy knob.
+|f| <= mu h load (the circle itself, not a polygon); per limit-surface element a wrench in an ellipsoid through the
+limit surface's sliding force and spin torque (`_limit_surface_block`). A fixed number of sweeps from zero:
+deterministic, and not converged in general - the iteration count is the speed/accuracy knob.
 """
 
 import numpy as np
@@ -11,7 +12,8 @@ from numba import njit
 
 from planar_lcp.engine.assemble import (apply_impulses, column_dot, contact_velocities, delassus, friction_column,
                                         island_problem_size, kinematic_velocity_along, normal_column, record_impulses,
-                                        support_column)
+                                        table_column)
+from planar_lcp.engine.constants import SUPPORT_POINTS
 from planar_lcp.engine.layout import Stat
 from planar_lcp.engine.solvers.lemke import STATUS_SOLVED
 
@@ -19,7 +21,8 @@ from planar_lcp.engine.solvers.lemke import STATUS_SOLVED
 @njit(cache=True)
 def assemble_pgs(m, w, vk, nci, nsi, h, velocity_form, W, b):
     """The impulse problem (W, b) of the island w.island_con[:nci], w.island_sup[:nsi] (as `assemble_lcp`, columns
-    in w.column_slot / w.column_g): per contact [n, t (if mu > 0)], per support point [x, y]. Returns its size."""
+    in w.column_slot / w.column_g): per contact [n, t (if mu > 0)], per support point [x, y], per limit-surface
+    element [x, y, torque]. Returns its size."""
     poses, con_pair, con_phi, con_n, con_p = w.body_pose, w.con_pair, w.con_phi, w.con_n, w.con_p
     col_dyn, col_g, v_tilde, isl_sup = w.column_slot, w.column_g, w.v_tilde, w.island_sup
     u = 0
@@ -31,13 +34,15 @@ def assemble_pgs(m, w, vk, nci, nsi, h, velocity_form, W, b):
             b[u] = column_dot(col_dyn, col_g, u, v_tilde) + \
                 kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, -ny, nx)
             u += 1
+    per_sup = 2 if m.support_model == SUPPORT_POINTS else 3
     for a in range(nsi):
         s = isl_sup[a]
-        support_column(m, poses, s, 1.0, 0.0, col_dyn, col_g, u)
-        b[u] = column_dot(col_dyn, col_g, u, v_tilde)
-        support_column(m, poses, s, 0.0, 1.0, col_dyn, col_g, u + 1)
-        b[u + 1] = column_dot(col_dyn, col_g, u + 1, v_tilde)
-        u += 2
+        for c in range(per_sup):
+            # a world force (x, y) at the support point; a limit-surface element also a torque about the COM
+            table_column(m, poses, s, 1.0 if c == 0 else 0.0, 1.0 if c == 1 else 0.0, 1.0 if c == 2 else 0.0,
+                         col_dyn, col_g, u + c)
+            b[u + c] = column_dot(col_dyn, col_g, u + c, v_tilde)
+        u += per_sup
     delassus(m, u, col_dyn, col_g, W)
     return u
 
@@ -74,6 +79,10 @@ def solve_pgs(m, w, nci, nsi, n, h, W, b, x, iterations):
                 u += 1
         for a in range(nsi):
             s = isl_sup[a]
+            if m.support_model != SUPPORT_POINTS:
+                u, upd = _limit_surface_block(m, s, u, n, h, W, b, x)
+                last = max(last, upd)
+                continue
             rx = b[u]
             ry = b[u + 1]
             for c in range(n):
@@ -102,6 +111,43 @@ def solve_pgs(m, w, nci, nsi, n, h, W, b, x, iterations):
             x[u + 1] = fy
             u += 2
     return last
+
+
+@njit(cache=True, inline='always')
+def _residual(W, b, x, n, u):
+    """Row u of W x + b."""
+    r = b[u]
+    for j in range(n):
+        r += W[u, j] * x[j]
+    return r
+
+
+@njit(cache=True, inline='always')
+def _limit_surface_block(m, s, u, n, h, W, b, x):
+    """PGS on a limit-surface element's wrench x[u:u+3] = (f_x, f_y, torque): the block step (its three columns are
+    M^-1-orthogonal on one body, so its block of W is diagonal), then a radial scaling onto the ellipsoid
+    (f_x^2 + f_y^2) / F^2 + torque^2 / T^2 <= 1 with F = mu h m g and T = F L_spin: the limit surface's exact sliding
+    force and spin torque, an ellipsoid in between (Howe & Cutkosky's approximation; PGS is the uncertified solver).
+    Returns (the next unknown's index, the largest update)."""
+    fx = x[u] - _residual(W, b, x, n, u) / W[u, u] if W[u, u] > 0.0 else 0.0
+    fy = x[u + 1] - _residual(W, b, x, n, u + 1) / W[u + 1, u + 1] if W[u + 1, u + 1] > 0.0 else 0.0
+    ft = x[u + 2] - _residual(W, b, x, n, u + 2) / W[u + 2, u + 2] if W[u + 2, u + 2] > 0.0 else 0.0
+    lim_f = m.sup_mu[s] * h * m.sup_load[s]
+    lim_t = lim_f * m.ls_wrench[s, 2, 2]          # fixed twist 2 is the pure spin
+    if lim_f <= 0.0:
+        fx = fy = ft = 0.0                        # no friction (mu = 0 or no load)
+    else:
+        g = (fx * fx + fy * fy) / (lim_f * lim_f) + (ft * ft / (lim_t * lim_t) if lim_t > 0.0 else 0.0)
+    if lim_f > 0.0 and g > 1.0:
+        sc = 1.0 / np.sqrt(g)
+        fx *= sc
+        fy *= sc
+        ft *= sc
+    upd = max(abs(fx - x[u]), abs(fy - x[u + 1]), abs(ft - x[u + 2]))
+    x[u] = fx
+    x[u + 1] = fy
+    x[u + 2] = ft
+    return u + 3, upd
 
 
 @njit(cache=True, inline='always')

@@ -1,0 +1,192 @@
+"""The table's friction on a body in the horizontal plane as a limit surface (docs/method.md, "Table friction").
+
+With the normal load m g known and spread over the body by a support pressure p (uniform over the body's shapes, or
+equal shares at given support points), Coulomb's law at every point gives the friction wrench of a body moving with
+twist t = (v_x, v_y, omega) about its centre of mass:
+
+    w(t) = -mu m g  integral p(r) (u(r), r x u(r)) dA / integral p dA,   u(r) = v(r) / |v(r)|,
+    v(r) = (v_x - omega r_y, v_y + omega r_x).
+
+The set of all such wrenches (with |u(r)| <= 1 anywhere) is the limit surface's interior W, convex and symmetric; the
+friction a sliding body feels is the point of W that dissipates most, -mu m g L(t) with L(t) the "unit-load wrench"
+of t below. Here: the quadrature of that integral (nodes and weights, computed once per body at compile time), L(t)
+in numpy (the engine has its own numba copy of the sum, engine/assemble.py `unit_load_wrench`), and the fixed twist
+directions whose wrenches span the polyhedral part of the model.
+
+All in the body's COM frame: lengths m, weights dimensionless (summing to 1), twists (m/s, m/s, rad/s).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from planar_lcp.spec.massprops import body_area_properties
+
+#: Gauss points per direction of each quadrature piece (a fan triangle, an edge strip, a corner sector; a disk gets
+#: 4x as many around). docs/method.md gives the accuracy this buys (tests/test_limit_surface.py measures it).
+DEFAULT_RESOLUTION = 6
+
+
+def _gauss01(n):
+    x, w = np.polynomial.legendre.leggauss(n)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+def _sector_nodes(c, r, a0, a1, n):
+    """Circular sector of radius r about c from angle a0 to a1 (a1 > a0): Gauss in the radius with the polar weight;
+    in the angle, Gauss on a partial sector, the midpoint rule (exact for the periodic integrand) on a full circle.
+    Returns nodes (P, 2) and weights (P,), m^2."""
+    s, ws = _gauss01(n)
+    span = a1 - a0
+    if span >= 2.0 * math.pi - 1e-12:
+        m = 4 * n
+        ang = a0 + (np.arange(m) + 0.5) * span / m
+        wa = np.full(m, span / m)
+    else:
+        m = max(n, int(math.ceil(n * span / (0.5 * math.pi))))
+        x, wx = _gauss01(m)
+        ang = a0 + span * x
+        wa = span * wx
+    R, A = np.meshgrid(r * s, ang, indexing="ij")
+    pts = c + np.stack([R * np.cos(A), R * np.sin(A)], -1)
+    w = np.outer(r * r * ws * s, wa)
+    return pts.reshape(-1, 2), w.ravel()
+
+
+#: Gauss points per direction on each fan triangle of a polygon piece for twists whose centre of rotation is far from
+#: the body (engine/limit_surface.py FAR_RATIO): there the integrand is analytic over the body and the closed form
+#: would lose digits to cancellation. tests/test_limit_surface.py measures the agreement where the two meet.
+FAR_RESOLUTION = 3
+
+
+def _fan_nodes(poly, n):
+    """Gauss nodes and weights (m^2) over a convex CCW polygon: n x n per fan triangle from the vertex mean."""
+    poly = np.asarray(poly, dtype=np.float64)
+    o = poly.mean(axis=0)
+    s, ws = _gauss01(n)
+    S, T = np.meshgrid(s, s, indexing="ij")
+    pts, wts = [], []
+    for i in range(len(poly)):
+        ea, eb = poly[i] - o, poly[(i + 1) % len(poly)] - o
+        area2 = abs(ea[0] * eb[1] - ea[1] * eb[0])
+        pts.append((o + S[..., None] * ((1.0 - T)[..., None] * ea + T[..., None] * eb)).reshape(-1, 2))
+        wts.append((area2 * np.outer(ws * s, ws)).ravel())
+    return np.concatenate(pts), np.concatenate(wts)
+
+
+def _ccw_edges(poly):
+    """Directed edges (k, 4) = (a_x, a_y, b_x, b_y) of a convex polygon, counter-clockwise."""
+    poly = np.asarray(poly, dtype=np.float64)
+    x, y = poly[:, 0], poly[:, 1]
+    if np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)) < 0.0:
+        poly = poly[::-1]
+    return np.hstack([poly, np.roll(poly, -1, axis=0)])
+
+
+def shape_pressure(shape, n=DEFAULT_RESOLUTION):
+    """One shape's area in the pieces of `massprops` (its convex core, a strip of width r outward of each core edge,
+    a sector of radius r at each core vertex; a capsule: the rectangle around its segment and two half-disks):
+
+    edges (E, 4): the directed edges of its polygon pieces (integrated in closed form), body frame, m;
+    nodes (P, 2), weights (P,) (m^2): Gauss quadrature of its curved pieces, n points per direction;
+    far nodes (F, 2), weights (F,) (m^2): Gauss quadrature of its polygon pieces, for a far centre of rotation."""
+    core = shape.core_vertices_body()
+    r = float(shape.radius)
+    k = len(core)
+    edges, nodes = [], []
+    if k >= 3:
+        edges.append(_ccw_edges(core))
+    if r > 0.0:
+        if k == 2:
+            e = core[1] - core[0]
+            nrm = np.array([e[1], -e[0]]) / np.hypot(e[0], e[1])
+            edges.append(_ccw_edges([core[0] + r * nrm, core[1] + r * nrm, core[1] - r * nrm, core[0] - r * nrm]))
+        elif k >= 3:
+            ccw = _ccw_edges(core)
+            for a, b in zip(ccw[:, :2], ccw[:, 2:]):
+                e = b - a
+                nrm = np.array([e[1], -e[0]]) / np.hypot(e[0], e[1])    # outward of a CCW core
+                edges.append(_ccw_edges([a, b, b + r * nrm, a + r * nrm]))
+        if k == 1:
+            nodes.append(_sector_nodes(core[0], r, 0.0, 2.0 * math.pi, n))
+        else:
+            ring = core if k == 2 else _ccw_edges(core)[:, :2]
+            for i in range(len(ring)):
+                # the corner sector between the outward normals of the two edges that meet at vertex i
+                if k == 2:
+                    e_in = ring[i] - ring[1 - i]
+                    e_out = e_in
+                else:
+                    e_in, e_out = ring[i] - ring[i - 1], ring[(i + 1) % len(ring)] - ring[i]
+                a0 = math.atan2(-e_in[0], e_in[1])
+                a1 = a0 + math.pi if k == 2 else math.atan2(-e_out[0], e_out[1])
+                while a1 <= a0:
+                    a1 += 2.0 * math.pi
+                nodes.append(_sector_nodes(ring[i], r, a0, a1, n))
+    pieces = [_fan_nodes(e[:, :2], FAR_RESOLUTION) for e in edges]
+    edges = np.concatenate(edges) if edges else np.zeros((0, 4))
+
+    def cat(parts):
+        if not parts:
+            return np.zeros((0, 2)), np.zeros(0)
+        return np.concatenate([p for p, _ in parts]), np.concatenate([w for _, w in parts])
+    return (edges, *cat(nodes), *cat(pieces))
+
+
+def support_pressure(body, n=DEFAULT_RESOLUTION):
+    """A dynamic body's support pressure about its centre of mass, as one limit-surface element.
+
+    Uniform over the body's shapes (overlaps counted twice, as in `massprops`), or equal shares at
+    `body.support_points` when the scene gives them. Returns (edges (E, 4), m, COM frame; edge_scale = 1 / area,
+    1/m^2; nodes (P, 3) = (x, y, weight) of the curved pieces (or the support points), weights of the whole body
+    summing to 1 with the polygon pieces' share; far nodes (F, 3) of the polygon pieces, likewise; size: the largest
+    distance of the support from the COM, m)."""
+    _, com, _ = body_area_properties(body)
+    if body.support_points is not None:
+        pts = np.array(body.support_points, dtype=np.float64).reshape(-1, 2) - com
+        nodes = np.column_stack([pts, np.full(len(pts), 1.0 / len(pts))])
+        return np.zeros((0, 4)), 0.0, nodes, np.zeros((0, 3)), float(np.max(np.hypot(pts[:, 0], pts[:, 1])))
+    area, _, _ = body_area_properties(body)
+    parts = [shape_pressure(s, n) for s in body.shapes]
+    edges = np.concatenate([p[0] for p in parts]) - np.tile(com, 2)
+
+    def nodes_of(i):
+        pts = np.concatenate([p[i] for p in parts]) - com
+        w = np.concatenate([p[i + 1] for p in parts]) / area
+        keep = w > 0.0
+        return np.ascontiguousarray(np.column_stack([pts[keep], w[keep]]))
+    nodes, far = nodes_of(1), nodes_of(3)
+    pts = nodes[:, :2]
+    reach = np.concatenate([np.hypot(edges[:, 0], edges[:, 1]), np.hypot(pts[:, 0], pts[:, 1])])
+    size = float(reach.max()) if len(reach) else 0.0
+    return np.ascontiguousarray(edges), 1.0 / area, nodes, far, size
+
+
+def gyration_radius(body):
+    """sqrt(integral p |r - com|^2 dA / integral p dA), m: the radius that makes a twist's spin commensurate with its
+    slide (the support pressure's, like `support_pressure`)."""
+    area, com, polar = body_area_properties(body)
+    if body.support_points is not None:
+        pts = np.array(body.support_points, dtype=np.float64).reshape(-1, 2) - com
+        return float(np.sqrt(np.mean(np.sum(pts * pts, axis=1))))
+    return float(np.sqrt(polar / area))
+
+
+def twist_directions(count, rho):
+    """`count` (even, >= 6) fixed twist directions (count, 3) in antipodal pairs: first +-x, +-y, +-spin, then pairs
+    spread evenly over the sphere of (v_x, v_y, rho omega) (a Fibonacci lattice on the upper half). Unit in that
+    scaled norm; omega is returned in rad/s per (m/s)."""
+    if count < 6 or count % 2:
+        raise ValueError(f"the number of limit-surface twists must be an even number >= 6, got {count}")
+    half = [np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])]
+    extra = count // 2 - 3
+    golden = math.pi * (3.0 - math.sqrt(5.0))
+    for i in range(extra):
+        z = 1.0 - (i + 0.5) / extra          # upper hemisphere, z in (0, 1)
+        rr = math.sqrt(max(0.0, 1.0 - z * z))
+        half.append(np.array([rr * math.cos(golden * i), rr * math.sin(golden * i), z]))
+    d = np.array(half + [-x for x in half])
+    d[:, 2] /= rho
+    return d
