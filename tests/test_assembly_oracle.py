@@ -647,8 +647,8 @@ def _shifted_poses(orig):
 MUTANTS = {
     "kinematic velocity dropped": ("kinematic_velocity_along", lambda orig: (lambda *a: 0.0)),
     "column . v off by 1e-9": ("column_dot", lambda orig: (lambda *a: orig(*a) * (1.0 + 1e-9))),
-    "support directions rotated": ("table_column",
-                                   lambda orig: (lambda m, poses, s, dx, dy, *r: orig(m, poses, s, dy, -dx, *r))),
+    "support directions rotated": ("table_column_at",
+                                   lambda orig: (lambda d, rx, ry, dx, dy, *r: orig(d, rx, ry, dy, -dx, *r))),
     "lever arm about a shifted point": ("contact_column", _shifted_poses),
 }
 
@@ -676,7 +676,7 @@ def test_oracle_catches_a_mutated_kernel(mutant, monkeypatch):
                 mp.setattr(AS, "assemble_lcp", assemble)
                 # its helper that calls the mutated ones runs as python too, so that it sees them
                 mp.setattr(AS, "normal_column", getattr(AS.normal_column, "py_func", AS.normal_column))
-                mp.setattr(AS, "support_column", getattr(AS.support_column, "py_func", AS.support_column))
+                mp.setattr(AS, "support_columns", getattr(AS.support_columns, "py_func", AS.support_columns))
                 A, b, *_ = kernel_lcp(*prob.args(isl_con, isl_sup), parts["n"])
             out.append(lcp_mismatch(A, b, A_ref, b_ref))
         return out

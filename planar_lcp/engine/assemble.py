@@ -6,7 +6,7 @@ Unknowns of the LCP, blocked (see docs/method.md):
           | lambda (one per contact with mu > 0) | lambda (one per support element) ]
 
 A support element is a support point (points model: k world directions) or a body's limit surface (K fixed
-twists' wrenches and the re-centred one, `support_column`); either way its friction is D beta with
+twists' wrenches and the re-centred one, `support_columns`); either way its friction is D beta with
 sum beta <= mu h load, chosen by maximal dissipation (docs/method.md, "Table friction").
 
 All impulses (N s). A "generalized column" is the generalized impulse of a unit impulse along a world direction d
@@ -81,21 +81,33 @@ def friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, dx, dy, col_dy
 
 
 @njit(cache=True)
-def table_column(m, poses, s, dx, dy, torque, col_dyn, col_g, u):
-    """Generalized column of a table-friction impulse of support element s: the world force (dx, dy) at its support
-    point (the COM for a limit-surface element) plus a pure torque (N s, N s, N m s per unit)."""
-    d = m.sup_dyn[s]
-    b = m.dyn_body[d]
-    # the support point's world offset from the COM, at the linearization pose
-    c = np.cos(poses[b, 2])
-    sn = np.sin(poses[b, 2])
-    rx = c * m.sup_local[s, 0] - sn * m.sup_local[s, 1]
-    ry = sn * m.sup_local[s, 0] + c * m.sup_local[s, 1]
+def table_column_at(d, rx, ry, dx, dy, torque, col_dyn, col_g, u):
+    """Generalized column u of a table-friction impulse on dynamic slot d: the world force (dx, dy) at the world
+    offset (rx, ry) from the COM plus a pure torque (N s, N s, N m s per unit)."""
     col_dyn[u, 0] = d
     col_dyn[u, 1] = -1
     col_g[u, 0, 0] = dx
     col_g[u, 0, 1] = dy
     col_g[u, 0, 2] = _cross(rx, ry, dx, dy) + torque
+
+
+@njit(cache=True, inline='always')
+def _support_offset(m, poses, s):
+    """(cos, sin) of the body's angle at the linearization pose and the support point's world offset from the COM
+    (zero for a limit-surface element)."""
+    d = m.sup_dyn[s]
+    th = poses[m.dyn_body[d], 2]
+    c = np.cos(th)
+    sn = np.sin(th)
+    return c, sn, c * m.sup_local[s, 0] - sn * m.sup_local[s, 1], sn * m.sup_local[s, 0] + c * m.sup_local[s, 1]
+
+
+@njit(cache=True)
+def table_column(m, poses, s, dx, dy, torque, col_dyn, col_g, u):
+    """Generalized column of a table-friction impulse of support element s: the world force (dx, dy) at its support
+    point (the COM for a limit-surface element) plus a pure torque."""
+    _, _, rx, ry = _support_offset(m, poses, s)
+    table_column_at(m.sup_dyn[s], rx, ry, dx, dy, torque, col_dyn, col_g, u)
 
 
 @njit(cache=True, inline='always')
@@ -108,21 +120,24 @@ def support_column_count(m):
 
 
 @njit(cache=True)
-def support_column(m, w, s, i, u):
-    """Friction column i of support element s as generalized column u, at the linearization pose w.body_pose.
-    points: a unit impulse along the world direction fric_dirs[i] at the support point. Limit surface: the
-    unit-load wrench of fixed twist i, or (i = K) the re-centred one, rotated from the body frame to the world."""
+def support_columns(m, w, s, u0):
+    """The friction columns of support element s as generalized columns u0, u0 + 1, ..., at the linearization pose
+    w.body_pose. points: unit impulses along the world directions fric_dirs at the support point. Limit surface: the
+    unit-load wrenches of the K fixed twists and (last) the re-centred one, rotated from the body frame to the
+    world."""
+    c, sn, rx, ry = _support_offset(m, w.body_pose, s)
+    d = m.sup_dyn[s]
     if m.support_model == SUPPORT_POINTS:
-        table_column(m, w.body_pose, s, m.fric_dirs[i, 0], m.fric_dirs[i, 1], 0.0, w.column_slot, w.column_g, u)
+        for i in range(m.fric_dirs.shape[0]):
+            table_column_at(d, rx, ry, m.fric_dirs[i, 0], m.fric_dirs[i, 1], 0.0, w.column_slot, w.column_g, u0 + i)
         return
-    if i < m.ls_wrench.shape[1]:
-        wx, wy, wt = m.ls_wrench[s, i, 0], m.ls_wrench[s, i, 1], m.ls_wrench[s, i, 2]
-    else:
-        wx, wy, wt = w.sup_recentred[s, 0], w.sup_recentred[s, 1], w.sup_recentred[s, 2]
-    th = w.body_pose[m.dyn_body[m.sup_dyn[s]], 2]
-    c = np.cos(th)
-    sn = np.sin(th)
-    table_column(m, w.body_pose, s, c * wx - sn * wy, sn * wx + c * wy, wt, w.column_slot, w.column_g, u)
+    nfix = m.ls_wrench.shape[1]
+    for i in range(nfix + 1):
+        if i < nfix:
+            wx, wy, wt = m.ls_wrench[s, i, 0], m.ls_wrench[s, i, 1], m.ls_wrench[s, i, 2]
+        else:
+            wx, wy, wt = w.sup_recentred[s, 0], w.sup_recentred[s, 1], w.sup_recentred[s, 2]
+        table_column_at(d, rx, ry, c * wx - sn * wy, sn * wx + c * wy, wt, w.column_slot, w.column_g, u0 + i)
 
 
 @njit(cache=True)
@@ -158,8 +173,8 @@ def delassus(m, nu, col_dyn, col_g, A):
                 for sv in range(2):
                     if col_dyn[v, sv] != du:
                         continue
-                    im = 1.0 / m.dyn_mass[du]
-                    s += (col_g[u, su, 0] * col_g[v, sv, 0] + col_g[u, su, 1] * col_g[v, sv, 1]) * im
+                    s += (col_g[u, su, 0] * col_g[v, sv, 0] + col_g[u, su, 1] * col_g[v, sv, 1]) * m.dyn_inv_mass[du]
+                    # J: divided, as recorded in the golden runs (the mass term multiplied, as recorded)
                     s += col_g[u, su, 2] * col_g[v, sv, 2] / m.dyn_inertia[du]
             A[u, v] = s
             A[v, u] = s
@@ -238,9 +253,7 @@ def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b):
             friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, ny, -nx, col_dyn, col_g, o_bc + 2 * f + 1)
             f += 1
     for a in range(nsi):
-        s = isl_sup[a]
-        for i in range(k):
-            support_column(m, w, s, i, o_bs + k * a + i)
+        support_columns(m, w, isl_sup[a], o_bs + k * a)
     for i in range(n):
         for c in range(n):
             A[i, c] = 0.0

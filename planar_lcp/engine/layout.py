@@ -52,6 +52,7 @@ static_pose       | f8    | nbody x 3  | m, rad | compile | world pose of static
 dyn_body          | i8    | ndyn       | -      | compile | body index of each dynamic slot
 dyn_mass          | f8    | ndyn       | kg     | compile | mass
 dyn_inertia       | f8    | ndyn       | kg m^2 | compile | moment of inertia about the COM
+dyn_inv_mass      | f8    | ndyn       | 1/kg   | compile | 1 / mass (the Delassus loop multiplies: a division costs more)
 shape_body        | i8    | nshape     | -      | compile | body of each shape
 shape_kind        | i8    | nshape     | -      | compile | SHAPE_*
 shape_vert_adr    | i8    | nshape     | -      | compile | first core vertex in vert_local
