@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from planar_lcp.frames import com_to_frame, com_velocity, frame_to_com, rotation
-from planar_lcp.spec.limit_surface import gyration_radius, support_pressure, twist_directions
+from planar_lcp.spec.limit_surface import (DISK_TABLE_STEP, disk_table, gyration_radius, support_pressure,
+                                           twist_directions)
 from planar_lcp.spec.massprops import body_mass_properties, support_points
 from planar_lcp.spec.scene import SUPPORT_MODELS, Scene, SceneError
 
@@ -94,28 +95,40 @@ def _check_start_overlaps(scene, model):
                      f"({con_p[j, 0]:.6g}, {con_p[j, 1]:.6g})")
 
 
-def _add_limit_surface(ls, body, nls, resolution):
+def _add_limit_surface(ls, body, resolution):
     """Append one body's limit-surface element to the lists in `ls`: its pressure's pieces about the COM
-    (spec/limit_surface.py `support_pressure`; ls_node holds its curved-piece nodes, then its far nodes) and the
-    unit-load wrenches of its nls fixed twists."""
-    edges, scale, nodes, far, size = support_pressure(body, resolution)
+    (spec/limit_surface.py `support_pressure`). ls_node holds per element its curved-piece nodes, its far nodes,
+    then its disks' nodes."""
+    sp = support_pressure(body, resolution)
     adr = sum(len(n) for n in ls["nodes"])
     ls["edge_adr"].append(sum(len(e) for e in ls["edges"]))
-    ls["edge_num"].append(len(edges))
-    ls["edge_scale"].append(scale)
+    ls["edge_num"].append(len(sp.edges))
+    ls["edge_scale"].append(sp.edge_scale)
     ls["node_adr"].append(adr)
-    ls["node_num"].append(len(nodes))
-    ls["far_adr"].append(adr + len(nodes))
-    ls["far_num"].append(len(far))
-    ls["size"].append(size)
-    ls["edges"].append(edges)
-    ls["nodes"].append(np.concatenate([nodes, far]))
-    both = np.ascontiguousarray(ls["nodes"][-1])
-    cols = np.zeros((nls, 3))
-    for j, t in enumerate(twist_directions(nls, gyration_radius(body))):
-        unit_load_wrench(edges, 0, len(edges), scale, both, 0, len(nodes), len(nodes), len(far), size, t[0], t[1],
-                         t[2], cols[j])
-    ls["wrench"].append(cols)
+    ls["node_num"].append(len(sp.nodes))
+    ls["far_adr"].append(adr + len(sp.nodes))
+    ls["far_num"].append(len(sp.far))
+    ls["disk_adr"].append(len(ls["disks"]))
+    ls["disk_num"].append(len(sp.disks))
+    nadr = adr + len(sp.nodes) + len(sp.far)
+    for disk, dn in zip(sp.disks, sp.disk_nodes):
+        ls["disks"].append(disk)
+        ls["disk_node_adr"].append(nadr)
+        ls["disk_node_num"].append(len(dn))
+        nadr += len(dn)
+    ls["size"].append(sp.size)
+    ls["edges"].append(sp.edges)
+    ls["nodes"].append(np.concatenate([sp.nodes, sp.far, *sp.disk_nodes]))
+
+
+def _fill_fixed_columns(arrays, bodies, nls):
+    """ls_wrench[s, j] = L(t_j) for the fixed twists of each element, by the kernels' own `unit_load_wrench` (on the
+    model struct, as the step calls it)."""
+    from planar_lcp.engine.layout import model_struct
+    m = model_struct(arrays)
+    for s, body in enumerate(bodies):
+        for j, t in enumerate(twist_directions(nls, gyration_radius(body))):
+            unit_load_wrench(m, s, float(t[0]), float(t[1]), float(t[2]), arrays.ls_wrench[s, j])
 
 
 def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=False, support_model=None,
@@ -221,8 +234,9 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
     res = int(limit_surface_resolution if limit_surface_resolution is not None
               else scene.sim.limit_surface_resolution)
     sup_dyn, sup_local, sup_load, sup_mu = [], [], [], []
-    ls = dict(edge_adr=[], edge_num=[], edge_scale=[], node_adr=[], node_num=[], far_adr=[], far_num=[], size=[],
-              edges=[], nodes=[], wrench=[])
+    ls = dict(edge_adr=[], edge_num=[], edge_scale=[], node_adr=[], node_num=[], far_adr=[], far_num=[], disk_adr=[],
+              disk_num=[], disks=[], disk_node_adr=[], disk_node_num=[], size=[], edges=[], nodes=[])
+    ls_bodies = []
     if plane == PLANE_HORIZONTAL:
         g = float(scene.world.support_gravity)
         for i, b in enumerate(bodies):
@@ -243,7 +257,8 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
             sup_local.append(np.zeros(2))
             sup_load.append(dyn_mass[slot] * g)
             sup_mu.append(float(mu))
-            _add_limit_surface(ls, b, nls, res)
+            _add_limit_surface(ls, b, res)
+            ls_bodies.append(b)
         gravity = np.zeros(2)
     else:
         gravity = np.asarray(scene.world.gravity, float)
@@ -270,8 +285,14 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
         sup_far_adr=arr(ls["far_adr"], np.int64), sup_far_num=arr(ls["far_num"], np.int64),
         sup_size=arr(ls["size"]), ls_edge=arr(np.concatenate(ls["edges"]) if ls["edges"] else [], shape=(0, 4)),
         ls_node=arr(np.concatenate(ls["nodes"]) if ls["nodes"] else [], shape=(0, 3)),
-        ls_wrench=arr(ls["wrench"], shape=(0, nls if support_code == SUPPORT_LIMIT_SURFACE else 0, 3)),
+        sup_disk_adr=arr(ls["disk_adr"], np.int64), sup_disk_num=arr(ls["disk_num"], np.int64),
+        ls_disk=arr(ls["disks"], shape=(0, 3)), ls_disk_node_adr=arr(ls["disk_node_adr"], np.int64),
+        ls_disk_node_num=arr(ls["disk_node_num"], np.int64), ls_disk_table=disk_table().copy(),
+        ls_disk_step=float(DISK_TABLE_STEP),
+        ls_wrench=np.zeros((len(ls_bodies), nls if support_code == SUPPORT_LIMIT_SURFACE else 0, 3)),
     )
+    if ls_bodies:
+        _fill_fixed_columns(arrays, ls_bodies, nls)
     model = Model(scene=scene, arrays=arrays, dyn_names=tuple(dyn_names), kin_names=tuple(kin_names),
                   com_local=arr(com_local, shape=(0, 2)), q0=arr(q0, shape=(0, 3)), v0=arr(v0, shape=(0, 3)),
                   qk0=arr(qk0, shape=(0, 3)), vk0=arr(vk0, shape=(0, 3)))

@@ -153,9 +153,7 @@ def recentre_limit_surfaces(m, w):
         vx = w.v_tilde[d, 0]
         vy = w.v_tilde[d, 1]
         out = w.sup_recentred[s]
-        moving = unit_load_wrench(m.ls_edge, m.sup_edge_adr[s], m.sup_edge_num[s], m.sup_edge_scale[s], m.ls_node,
-                                  m.sup_node_adr[s], m.sup_node_num[s], m.sup_far_adr[s], m.sup_far_num[s],
-                                  m.sup_size[s], c * vx + sn * vy, -sn * vx + c * vy, w.v_tilde[d, 2], out)
+        moving = unit_load_wrench(m, s, c * vx + sn * vy, -sn * vx + c * vy, w.v_tilde[d, 2], out)
         for a in range(3):
             out[a] = -out[a] if moving else m.ls_wrench[s, 0, a]
 

@@ -77,9 +77,16 @@ sup_node_adr      | i8    | nsup       | -      | compile | first quadrature nod
 sup_node_num      | i8    | nsup       | -      | compile | its number of nodes (curved pieces, support points)
 sup_far_adr       | i8    | nsup       | -      | compile | first far node (polygon pieces, far twists) in ls_node
 sup_far_num       | i8    | nsup       | -      | compile | its number of far nodes
+sup_disk_adr      | i8    | nsup       | -      | compile | first full disk of the element in ls_disk
+sup_disk_num      | i8    | nsup       | -      | compile | its number of full disks
 sup_size          | f8    | nsup       | m      | compile | largest distance of its support from the COM
 ls_edge           | f8    | nedge x 4  | m      | compile | edges (a_x, a_y, b_x, b_y) of polygon pieces, COM frame
 ls_node           | f8    | nnode x 3  | m, -   | compile | quadrature nodes (x, y, weight), COM frame
+ls_disk           | f8    | ndisk x 3  | m      | compile | full disks (centre x, y, radius), COM frame
+ls_disk_node_adr  | i8    | ndisk      | -      | compile | first polar node of each disk in ls_node
+ls_disk_node_num  | i8    | ndisk      | -      | compile | its number of nodes
+ls_disk_table     | f8    | ntab x 2   | -      | compile | the unit disk's (Phi, G_x) by distance (spec `disk_table`)
+ls_disk_step      | float | -          | -      | compile | the table's distance step, radii
 ls_wrench         | f8    | nsup x K x 3 | -, m | compile | unit-load wrenches L(t_j) of the K fixed twists, COM frame
 seed_friction_arm | int   | -          | -      | compile | 1: contact friction at the shapes' core points (the seed's)
 """)

@@ -18,7 +18,9 @@ All in the body's COM frame: lengths m, weights dimensionless (summing to 1), tw
 
 from __future__ import annotations
 
+import functools
 import math
+from collections import namedtuple
 
 import numpy as np
 
@@ -87,15 +89,18 @@ def _ccw_edges(poly):
 
 def shape_pressure(shape, n=DEFAULT_RESOLUTION):
     """One shape's area in the pieces of `massprops` (its convex core, a strip of width r outward of each core edge,
-    a sector of radius r at each core vertex; a capsule: the rectangle around its segment and two half-disks):
+    a sector of radius r at each core vertex; a capsule: the rectangle around its segment and two half-disks; a
+    disk: itself). Body frame, m; weights m^2. Returns a dict:
 
-    edges (E, 4): the directed edges of its polygon pieces (integrated in closed form), body frame, m;
-    nodes (P, 2), weights (P,) (m^2): Gauss quadrature of its curved pieces, n points per direction;
-    far nodes (F, 2), weights (F,) (m^2): Gauss quadrature of its polygon pieces, for a far centre of rotation."""
+    edges (E, 4): the directed edges of its polygon pieces (integrated in closed form);
+    far (F, 2), far_w (F,): Gauss quadrature of those polygon pieces, for a far centre of rotation;
+    disks (D, 3): (centre x, y, radius) of a full disk (by the unit disk's table, `disk_table`), with
+    disk_nodes [(Q, 2), (Q,)]: its polar Gauss nodes, for a very far centre of rotation and translations;
+    nodes (P, 2), weights (P,): Gauss quadrature of its other curved pieces, n points per direction."""
     core = shape.core_vertices_body()
     r = float(shape.radius)
     k = len(core)
-    edges, nodes = [], []
+    edges, nodes, disks, disk_nodes = [], [], [], []
     if k >= 3:
         edges.append(_ccw_edges(core))
     if r > 0.0:
@@ -110,7 +115,8 @@ def shape_pressure(shape, n=DEFAULT_RESOLUTION):
                 nrm = np.array([e[1], -e[0]]) / np.hypot(e[0], e[1])    # outward of a CCW core
                 edges.append(_ccw_edges([a, b, b + r * nrm, a + r * nrm]))
         if k == 1:
-            nodes.append(_sector_nodes(core[0], r, 0.0, 2.0 * math.pi, n))
+            disks.append([core[0][0], core[0][1], r])
+            disk_nodes.append(_sector_nodes(core[0], r, 0.0, 2.0 * math.pi, n))
         else:
             ring = core if k == 2 else _ccw_edges(core)[:, :2]
             for i in range(len(ring)):
@@ -125,43 +131,85 @@ def shape_pressure(shape, n=DEFAULT_RESOLUTION):
                 while a1 <= a0:
                     a1 += 2.0 * math.pi
                 nodes.append(_sector_nodes(ring[i], r, a0, a1, n))
-    pieces = [_fan_nodes(e[:, :2], FAR_RESOLUTION) for e in edges]
-    edges = np.concatenate(edges) if edges else np.zeros((0, 4))
+    far = _cat([_fan_nodes(e[:, :2], FAR_RESOLUTION) for e in edges])
+    return dict(edges=np.concatenate(edges) if edges else np.zeros((0, 4)), far=far[0], far_w=far[1],
+                disks=np.array(disks, dtype=np.float64).reshape(-1, 3), disk_nodes=disk_nodes,
+                nodes=_cat(nodes)[0], weights=_cat(nodes)[1])
 
-    def cat(parts):
-        if not parts:
-            return np.zeros((0, 2)), np.zeros(0)
-        return np.concatenate([p for p, _ in parts]), np.concatenate([w for _, w in parts])
-    return (edges, *cat(nodes), *cat(pieces))
+
+def _cat(parts):
+    if not parts:
+        return np.zeros((0, 2)), np.zeros(0)
+    return np.concatenate([p for p, _ in parts]), np.concatenate([w for _, w in parts])
+
+
+#: A body's support pressure about its centre of mass, as one limit-surface element (`support_pressure`): m, COM
+#: frame; node weights (x, y, w) normalized by the area; edge_scale = 1 / area (1/m^2) for the closed forms.
+SupportPressure = namedtuple("SupportPressure", ["edges", "edge_scale", "nodes", "far", "disks", "disk_nodes", "size"])
 
 
 def support_pressure(body, n=DEFAULT_RESOLUTION):
-    """A dynamic body's support pressure about its centre of mass, as one limit-surface element.
-
-    Uniform over the body's shapes (overlaps counted twice, as in `massprops`), or equal shares at
-    `body.support_points` when the scene gives them. Returns (edges (E, 4), m, COM frame; edge_scale = 1 / area,
-    1/m^2; nodes (P, 3) = (x, y, weight) of the curved pieces (or the support points), weights of the whole body
-    summing to 1 with the polygon pieces' share; far nodes (F, 3) of the polygon pieces, likewise; size: the largest
-    distance of the support from the COM, m)."""
-    _, com, _ = body_area_properties(body)
+    """A dynamic body's support pressure as a `SupportPressure`: uniform over the body's shapes (overlaps counted
+    twice, as in `massprops`), or equal shares at `body.support_points` when the scene gives them (then nodes only).
+    nodes: its curved pieces' (or the support points); far: its polygon pieces'; disk_nodes: one (Q, 3) array per
+    disk; size: the largest distance of the support from the COM, m."""
+    area, com, _ = body_area_properties(body)
     if body.support_points is not None:
         pts = np.array(body.support_points, dtype=np.float64).reshape(-1, 2) - com
         nodes = np.column_stack([pts, np.full(len(pts), 1.0 / len(pts))])
-        return np.zeros((0, 4)), 0.0, nodes, np.zeros((0, 3)), float(np.max(np.hypot(pts[:, 0], pts[:, 1])))
-    area, _, _ = body_area_properties(body)
+        return SupportPressure(np.zeros((0, 4)), 0.0, nodes, np.zeros((0, 3)), np.zeros((0, 3)), [],
+                               float(np.max(np.hypot(pts[:, 0], pts[:, 1]))))
     parts = [shape_pressure(s, n) for s in body.shapes]
-    edges = np.concatenate([p[0] for p in parts]) - np.tile(com, 2)
 
-    def nodes_of(i):
-        pts = np.concatenate([p[i] for p in parts]) - com
-        w = np.concatenate([p[i + 1] for p in parts]) / area
-        keep = w > 0.0
-        return np.ascontiguousarray(np.column_stack([pts[keep], w[keep]]))
-    nodes, far = nodes_of(1), nodes_of(3)
-    pts = nodes[:, :2]
-    reach = np.concatenate([np.hypot(edges[:, 0], edges[:, 1]), np.hypot(pts[:, 0], pts[:, 1])])
+    def weighted(pts, w):
+        keep = w > 0.0                       # a radius-0 segment has no area
+        return np.ascontiguousarray(np.column_stack([pts[keep] - com, w[keep] / area]))
+    edges = np.concatenate([p["edges"] for p in parts]) - np.tile(com, 2)
+    nodes = weighted(np.concatenate([p["nodes"] for p in parts]), np.concatenate([p["weights"] for p in parts]))
+    far = weighted(np.concatenate([p["far"] for p in parts]), np.concatenate([p["far_w"] for p in parts]))
+    disks = np.concatenate([p["disks"] for p in parts])
+    disks[:, :2] -= com
+    disk_nodes = [weighted(*dn) for p in parts for dn in p["disk_nodes"]]
+    reach = np.concatenate([np.hypot(edges[:, 0], edges[:, 1]), np.hypot(nodes[:, 0], nodes[:, 1]),
+                            np.hypot(disks[:, 0], disks[:, 1]) + disks[:, 2]])
     size = float(reach.max()) if len(reach) else 0.0
-    return np.ascontiguousarray(edges), 1.0 / area, nodes, far, size
+    return SupportPressure(np.ascontiguousarray(edges), 1.0 / area, nodes, far, np.ascontiguousarray(disks),
+                           disk_nodes, size)
+
+
+#: The unit disk's table (`disk_table`): centre-of-rotation distances 0, DISK_TABLE_STEP, ..., DISK_TABLE_MAX radii.
+DISK_TABLE_STEP = 1.0 / 256.0
+DISK_TABLE_MAX = 8.0
+
+
+@functools.lru_cache(maxsize=1)
+def disk_table():
+    """(T, 2): for the unit disk about the origin and a centre of rotation c at distance d = 0, DISK_TABLE_STEP, ...,
+    DISK_TABLE_MAX on the +x axis, Phi(d) = integral |r - c| dA and G_x(d) of G = integral (r - c) / |r - c| dA
+    (G_y = 0; dPhi / dd = -G_x). In polar coordinates about c, where the integrand is smooth: for d < 1 the ray in
+    direction theta leaves the disk at rho = -d cos(theta) + sqrt(1 - d^2 sin^2(theta)) and
+    Phi = integral rho^3 / 3 dtheta, G_x = integral cos(theta) rho^2 / 2 dtheta (the trapezoid rule: periodic and
+    analytic, 2048 points); for d >= 1, with sin(psi) = sin(phi) / d and X = sqrt(d^2 - sin^2 phi) over
+    phi in [-pi/2, pi/2] (Gauss-Legendre, 96 points): Phi = integral 2/3 cos^2(phi) (3 X^2 + cos^2 phi) / X dphi,
+    G_x = -2/d integral X cos^2(phi) dphi. tests/test_limit_surface.py checks it against the naive oracle."""
+    d = np.arange(0.0, DISK_TABLE_MAX + 0.5 * DISK_TABLE_STEP, DISK_TABLE_STEP)
+    out = np.empty((len(d), 2))
+    inside = d < 1.0
+    m = 2048
+    th = (np.arange(m) + 0.5) * 2.0 * np.pi / m
+    di = d[inside][:, None]
+    rho = -di * np.cos(th) + np.sqrt(1.0 - di * di * np.sin(th) ** 2)
+    out[inside, 0] = (rho ** 3).sum(axis=1) * (2.0 * np.pi / m) / 3.0
+    out[inside, 1] = 0.5 * (np.cos(th) * rho ** 2).sum(axis=1) * (2.0 * np.pi / m)
+    x, w = np.polynomial.legendre.leggauss(96)
+    phi, w = 0.5 * np.pi * x, 0.5 * np.pi * w
+    do = d[~inside][:, None]
+    X = np.sqrt(do * do - np.sin(phi) ** 2)
+    c2 = np.cos(phi) ** 2
+    out[~inside, 0] = (2.0 / 3.0 * c2 * (3.0 * X * X + c2) / X * w).sum(axis=1)
+    out[~inside, 1] = -2.0 / do[:, 0] * (X * c2 * w).sum(axis=1)
+    out.flags.writeable = False
+    return out
 
 
 def gyration_radius(body):
