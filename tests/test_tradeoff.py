@@ -1,6 +1,7 @@
 """planar-lcp tradeoff: the sweep's measurements and the Pareto front."""
 
 import csv
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -12,7 +13,13 @@ from hypothesis import strategies as st
 from planar_lcp.cli import main
 from planar_lcp.sim import simulate
 from planar_lcp.experiments.accuracy import grid_ratio, table1_errors
-from planar_lcp.experiments.tradeoff import COLUMNS, pareto_front
+from planar_lcp.experiments.tradeoff import (COLUMNS, QUICK_SUPPORT_SWEEP, REFERENCE_SUPPORT, _settings,
+                                             pareto_front, plot_pareto, support_series)
+
+#: the CSV columns as docs/tradeoff.md documents them (the contract: readers find the columns by these names)
+DOCUMENTED_COLUMNS = ["scene", "h", "solver", "pgs_iterations", "formulation", "support_model",
+                      "limit_surface_twists", "friction_directions", "velocity_error", "position_error",
+                      "max_penetration", "energy_drift", "cpu_s_per_sim_s", "failed_steps", "reference"]
 
 
 @settings(max_examples=100, deadline=None)
@@ -68,18 +75,104 @@ def test_the_reference_step_must_divide_h():
         grid_ratio(0.01, 0.003)
 
 
+def test_the_columns_are_the_documented_ones():
+    assert COLUMNS == DOCUMENTED_COLUMNS
+    docs = Path(__file__).resolve().parent.parent / "docs"
+    doc = " ".join((docs / "tradeoff.md").read_text().split())
+    assert "`" + "`, `".join(DOCUMENTED_COLUMNS) + "`." in doc
+    header = (docs / "figures" / "tradeoff" / "tradeoff.csv").read_text().splitlines()[0]
+    assert header.strip().split(",") == DOCUMENTED_COLUMNS  # the committed sweep is of this version
+
+
+def test_the_horizontal_plane_sweeps_both_support_models_against_the_limit_surface():
+    """box_push: the grid runs the scene's own table friction (the default limit surface, K = 6); the support sweep
+    adds both models at every h with lemke/position; the reference is the limit surface with K = 62, and a vertical
+    scene has no table (every support key None)."""
+    for quick in (True, False):
+        sc, settings, ref = _settings("box_push", quick)
+        assert sc.world.support_model == "limit_surface" and sc.sim.limit_surface_twists == 6
+        grid = [s for s in settings if (s["solver"], s["formulation"]) != ("lemke", "position")]
+        assert grid and all((s["support_model"], s["limit_surface_twists"], s["friction_directions"])
+                            == ("limit_surface", 6, None) for s in grid)
+        hs = sorted({s["h"] for s in settings})
+        for h in hs:
+            at_h = [s for s in settings if s["h"] == h and (s["solver"], s["formulation"]) == ("lemke", "position")]
+            knobs = sorted((s["support_model"], s["limit_surface_twists"] or s["friction_directions"]) for s in at_h)
+            expect = QUICK_SUPPORT_SWEEP if quick else [("limit_surface", K) for K in (6, 14, 26)] + [
+                ("points", k) for k in (4, 8, 16, 32)]
+            assert knobs == sorted(expect), (h, knobs)
+        assert (ref["solver"], ref["formulation"], ref["h"]) == ("lemke", "fixed_point", hs[0] / 2)
+        assert (ref["support_model"], ref["limit_surface_twists"], ref["friction_directions"]) == (
+            "limit_surface", 62, None) == (*REFERENCE_SUPPORT, None)
+    _, settings, ref = _settings("falling_rod", False)
+    assert all(s[k] is None for s in [*settings, ref] for k in ("support_model", "limit_surface_twists",
+                                                                 "friction_directions"))
+    assert len(settings) == 5 * 5 * 3
+
+
+@pytest.mark.needs_jit  # 4 runs of 1600 steps
+def test_the_limit_surface_reference_is_converged_in_K_and_the_points_model_is_not_it():
+    """The reference of box_push (lemke, fixed_point, h_ref = 0.00125, limit surface K = 62): at h_ref, K = 6 gives
+    the same run to round-off (the re-centred twist carries the motion), K = 254 moves it by less than half the
+    error of the finest swept default (h = 0.0025, K = 6), and the points model at h_ref, even with k = 32, stays
+    more than 20 times farther from it than K = 254: the points rows of the sweep measure a modelling error."""
+    kw = dict(h=0.00125, formulation="fixed_point", record_contacts=False)
+    ref = simulate("box_push", support_model="limit_surface", limit_surface_twists=62, **kw)
+    k6 = simulate("box_push", support_model="limit_surface", limit_surface_twists=6, **kw)
+    k254 = simulate("box_push", support_model="limit_surface", limit_surface_twists=254, **kw)
+    points = simulate("box_push", support_model="points", friction_directions=32, **kw)
+    finest = simulate("box_push", h=0.0025, record_contacts=False)
+    assert max(table1_errors(k6, ref, 2.0)) < 1e-12
+    shift = table1_errors(k254, ref, 2.0)[0]
+    assert 0 < shift < 0.5 * table1_errors(finest, ref, 2.0)[0]
+    assert table1_errors(points, ref, 2.0)[0] > 20 * shift
+
+
+def test_support_series_and_the_plot_read_the_csv_rows(tmp_path):
+    """support_series groups the lemke/position rows by model and knob, limit surface first; the plot takes rows
+    as csv.DictReader gives them back (strings, "" for a key that does not apply)."""
+    def row(h, solver, form, model, K, k, err):
+        return dict(scene="box_push", h=str(h), solver=solver, pgs_iterations="20" if solver == "pgs" else "",
+                    formulation=form, support_model=model, limit_surface_twists=K, friction_directions=k,
+                    velocity_error=str(err), cpu_s_per_sim_s=str(err / 10))
+    rows = [row(0.01, "lemke", "position", "points", "", "8", 0.1), row(0.02, "lemke", "position", "points", "", "8",
+            0.2), row(0.01, "lemke", "position", "limit_surface", "14", "", 0.01), row(0.01, "pgs", "position",
+            "limit_surface", "6", "", 0.03), row(0.01, "lemke", "velocity", "limit_surface", "6", "", 0.02)]
+    series = support_series(rows)
+    assert list(series) == [("limit_surface", 14), ("points", 8)]
+    assert [r["h"] for r in series[("points", 8)]] == ["0.01", "0.02"]
+    assert support_series([dict(r, support_model="") for r in rows]) == {}
+    plot_pareto(rows, tmp_path / "p.png", "box_push")
+    assert (tmp_path / "p.png").stat().st_size > 10000
+
+
 @pytest.mark.slow  # minutes without the JIT (NUMBA_DISABLE_JIT=1)
 def test_quick_sweep_writes_csv_and_plots(tmp_path, capsys):
     assert main(["tradeoff", "--quick", "--no-progress", "--scenes", "falling_rod", "box_push",
                  "--out", str(tmp_path)]) == 0
     rows = list(csv.DictReader(open(tmp_path / "tradeoff.csv")))
-    assert list(rows[0].keys()) == COLUMNS
+    assert list(rows[0].keys()) == COLUMNS == DOCUMENTED_COLUMNS
     assert {r["scene"] for r in rows} == {"falling_rod", "box_push"}
     assert all(float(r["cpu_s_per_sim_s"]) > 0 and int(r["failed_steps"]) == 0 for r in rows)
     lem = [r for r in rows if r["scene"] == "falling_rod" and r["solver"] == "lemke"]
     assert all(float(r["energy_drift"]) < 1e-3 for r in lem)
+    rod = [r for r in rows if r["scene"] == "falling_rod"]
+    assert all(r["support_model"] == r["limit_surface_twists"] == r["friction_directions"] == "" for r in rod)
+    assert {r["reference"] for r in rod} == {"lemke/fixed_point h=0.00125"}
+    box = [r for r in rows if r["scene"] == "box_push"]
+    assert {r["reference"] for r in box} == {"lemke/fixed_point h=0.005 K=62"}
+    # both support models in the horizontal plane, each with its own knob only
+    assert {(r["support_model"], r["limit_surface_twists"], r["friction_directions"]) for r in box} == {
+        ("limit_surface", "6", ""), ("limit_surface", "14", ""), ("points", "", "8")}
+    by = {(r["support_model"], r["limit_surface_twists"] or r["friction_directions"], r["h"]): r for r in box
+          if r["solver"] == "lemke"}
+    for h in ("0.01", "0.02"):
+        # the points model's modelling error against the limit-surface reference dwarfs the step's error
+        assert float(by["points", "8", h]["velocity_error"]) > 3 * float(by["limit_surface", "6", h]["velocity_error"])
     assert (tmp_path / "pareto_falling_rod.png").stat().st_size > 10000
-    assert "Pareto front" in capsys.readouterr().out
+    assert (tmp_path / "pareto_box_push.png").stat().st_size > 10000
+    out = capsys.readouterr().out
+    assert "Pareto front" in out and "K=6" in out
 
 
 def test_unknown_scene_is_an_error(capsys):

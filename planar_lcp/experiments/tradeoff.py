@@ -1,12 +1,28 @@
 """`planar-lcp tradeoff`: measure the speed/accuracy trade of the knobs users turn.
 
-For each scene, every setting (step size h, solver and its iteration count, formulation, and in the horizontal plane
-the number of support-friction directions) is run and compared with a reference solution: the finest run of Lemke
-with the fixed-point formulation (h_ref = the smallest swept h / 2, 16 friction directions in the horizontal plane).
-Per setting: the velocity error integral over [0, t_end] of ||v_h - v_ref|| dt and the sup-norm position error (the
-seed paper's Table 1 measures, `accuracy.table1_errors`), the deepest penetration, the energy drift (largest rise of
-the energy above its starting value, J; 0 when the energy only decreases, as it must without external work), and
-the CPU cost per simulated second (wall time of a warm run / t_end).
+For each scene, every setting of the step size h, the solver (and its iteration count) and the formulation is run with
+the scene's own table friction, and compared with a reference solution. In the horizontal plane the table friction's
+support model and its knob are swept too, with the default solver and formulation (lemke, position) at every h: the
+limit surface (`support_model = "limit_surface"`) with K = 6, 14, 26 fixed twists, and the per-point model
+(`"points"`) with k = 4, 8, 16, 32 friction directions (`limit_surface_resolution` stays at its default).
+
+The reference is the finest run of Lemke with the fixed-point formulation (h_ref = the smallest swept h / 2). In the
+horizontal plane it uses the limit surface with K = 62. Why that model: the table presses a uniform pressure on the
+footprint, and the exact friction wrench of that pressure is the limit surface. `"limit_surface"` converges to it as
+h -> 0 and K grows. `"points"` has a different limit: its 4 support points (for a box) carry the load as point loads,
+not as a uniform pressure, so as k -> infinity it tends to the Coulomb law of 4 point loads. A points reference
+would score the limit surface against a modelling artefact. With the limit-surface reference, the points rows measure
+the points model's modelling error, and the limit-surface rows measure the discretization error of h and K. Why
+K = 62: every step re-centres one twist on the current slip twist, so the fixed twists matter only when the slip
+twist changes within a step, which is rare at h_ref.
+tests/test_tradeoff.py checks both: K = 6 gives the K = 62 reference to round-off, and K = 254 moves it by less than
+half the error of the finest swept default setting.
+
+Per setting: the velocity error, the integral over [0, t_end] of ||v_h - v_ref|| dt, and the sup-norm position error
+(the seed paper's Table 1 measures, `accuracy.table1_errors`); the deepest penetration; the energy drift (the largest
+rise of the energy above its starting value, J; 0 when the energy only decreases, as it must without external work);
+and the CPU cost per simulated second. The cost is the least thread CPU time (`time.thread_time`, as in `bench`) of
+REPEATS warm runs (1 with --quick), divided by t_end. The clock counts no time the core spends on other processes.
 """
 
 import csv
@@ -16,18 +32,37 @@ import time
 from pathlib import Path
 
 from planar_lcp.experiments.accuracy import table1_errors
-from planar_lcp.spec.scene import FORMULATIONS, SOLVERS
+from planar_lcp.spec.scene import FORMULATIONS, SOLVERS, SimSpec
 
 DEFAULT_SCENES = ("falling_rod", "four_disks", "box_push")
 SOLVER_SETTINGS = (("lemke", None), ("pgs", 5), ("pgs", 20), ("pgs", 100), ("osqp", None))
-FRICTION_DIRECTIONS = (4, 8, 16, 32)
 H_FACTORS = (4.0, 2.0, 1.0, 0.5, 0.25)
+#: the horizontal plane's support-model sweep: (support_model, knob) with the knob K (limit_surface_twists) of the
+#: limit surface or k (friction_directions) of the points model
+LIMIT_SURFACE_TWISTS = (6, 14, 26)
+FRICTION_DIRECTIONS = (4, 8, 16, 32)
+SUPPORT_SWEEP = tuple(("limit_surface", K) for K in LIMIT_SURFACE_TWISTS) + tuple(
+    ("points", k) for k in FRICTION_DIRECTIONS)
+QUICK_SUPPORT_SWEEP = (("limit_surface", 6), ("limit_surface", 14), ("points", 8))
+#: the reference's support model in the horizontal plane (see the module docstring)
+REFERENCE_SUPPORT = ("limit_surface", 62)
+#: timed warm runs per setting (the least counts); --quick times one
+REPEATS = 3
 
-COLUMNS = ["scene", "h", "solver", "pgs_iterations", "formulation", "friction_directions", "velocity_error",
-           "position_error", "max_penetration", "energy_drift", "cpu_s_per_sim_s", "failed_steps", "reference"]
+COLUMNS = ["scene", "h", "solver", "pgs_iterations", "formulation", "support_model", "limit_surface_twists",
+           "friction_directions", "velocity_error", "position_error", "max_penetration", "energy_drift",
+           "cpu_s_per_sim_s", "failed_steps", "reference"]
+
+
+def _support(model, knob):
+    """The setting keys of a table-friction model (None, None: the vertical plane, no table)."""
+    return dict(support_model=model, limit_surface_twists=knob if model == "limit_surface" else None,
+                friction_directions=knob if model == "points" else None)
 
 
 def _settings(scene, quick):
+    """(scene, the swept settings, the reference setting). A setting is a dict of h, solver, pgs_iterations,
+    formulation, support_model, limit_surface_twists, friction_directions (None: not set)."""
     from planar_lcp.spec.scene import load_scene
     sc = load_scene(scene)
     h0 = sc.sim.h
@@ -36,39 +71,55 @@ def _settings(scene, quick):
         hs = (2.0 * h0, h0)
         solvers = (("lemke", None), ("pgs", 20))
         forms = ("position",)
-        ks = (8,) if horizontal else (None,)
+        sweep = QUICK_SUPPORT_SWEEP
     else:
         hs = tuple(h0 * f for f in H_FACTORS)
         solvers, forms = SOLVER_SETTINGS, FORMULATIONS
-        ks = FRICTION_DIRECTIONS if horizontal else (None,)
+        sweep = SUPPORT_SWEEP
+    if horizontal:
+        model = sc.world.support_model
+        own = (model, sc.sim.limit_surface_twists if model == "limit_surface" else sc.sim.friction_directions)
+    else:
+        own = (None, None)
     out = []
     for h, (solver, iters), form in itertools.product(hs, solvers, forms):
-        out.append(dict(h=h, solver=solver, pgs_iterations=iters, formulation=form,
-                        friction_directions=8 if horizontal else None))
+        out.append(dict(h=h, solver=solver, pgs_iterations=iters, formulation=form, **_support(*own)))
     if horizontal:
-        # the friction polygon: swept with the default solver and formulation at every h
-        for h, k in itertools.product(hs, ks):
-            if k != 8:
-                out.append(dict(h=h, solver="lemke", pgs_iterations=None, formulation="position",
-                                friction_directions=k))
-    h_ref = min(hs) / 2.0
-    ref = dict(h=h_ref, solver="lemke", pgs_iterations=None, formulation="fixed_point",
-               friction_directions=16 if horizontal else None)
+        # the support model and its knob, with the default solver and formulation at every h (the scene's own
+        # model is in the grid above already)
+        d = SimSpec()
+        for h, sup in itertools.product(hs, sweep):
+            if sup != own:
+                out.append(dict(h=h, solver=d.solver, pgs_iterations=None, formulation=d.formulation, **_support(*sup)))
+    ref = dict(h=min(hs) / 2.0, solver="lemke", pgs_iterations=None, formulation="fixed_point",
+               **_support(*(REFERENCE_SUPPORT if horizontal else (None, None))))
     return sc, out, ref
 
 
-def _run(sc, s, t_end):
+def _run(sc, s, t_end, repeats):
+    """The trajectory of setting s and the least thread CPU time (s) of `repeats` warm runs."""
     from planar_lcp.sim import simulate
     kw = dict(h=s["h"], t_end=t_end, solver=s["solver"], formulation=s["formulation"], on_failure="record",
               record_contacts=False)
-    if s["pgs_iterations"]:
-        kw["pgs_iterations"] = s["pgs_iterations"]
-    if s["friction_directions"]:
-        kw["friction_directions"] = s["friction_directions"]
+    for key in ("pgs_iterations", "support_model", "limit_surface_twists", "friction_directions"):
+        if s[key] is not None:
+            kw[key] = s[key]
     simulate(sc, **dict(kw, t_end=min(t_end, 5 * s["h"])))  # warm the JIT for this setting
-    t0 = time.perf_counter()
-    tr = simulate(sc, **kw)
-    return tr, time.perf_counter() - t0
+    best = math.inf
+    for _ in range(repeats):
+        t0 = time.thread_time()
+        tr = simulate(sc, **kw)
+        best = min(best, time.thread_time() - t0)
+    return tr, best
+
+
+def _support_label(s):
+    """'K=6' (the limit surface), 'points k=8', or '' (no table)."""
+    if s["support_model"] == "limit_surface":
+        return f"K={s['limit_surface_twists']}"
+    if s["support_model"] == "points":
+        return f"points k={s['friction_directions']}"
+    return ""
 
 
 def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progress=True):
@@ -76,26 +127,25 @@ def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progres
     from tqdm import tqdm
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    repeats = 1 if quick else REPEATS
     plans = [(name, *_settings(name, quick)) for name in scenes]
     total = sum(len(s) + 1 for _, _, s, _ in plans)
     rows = []
     with tqdm(total=total, disable=not progress, desc="tradeoff", unit="run") as bar:
         for name, sc, settings, ref_setting in plans:
             t_end = sc.sim.t_end
-            ref, _ = _run(sc, ref_setting, t_end)
+            ref, _ = _run(sc, ref_setting, t_end, 1)
             bar.update(1)
-            ref_label = (f"lemke/fixed_point h={ref_setting['h']:g}"
-                         + (f" k={ref_setting['friction_directions']}" if ref_setting["friction_directions"] else ""))
+            ref_label = f"lemke/fixed_point h={ref_setting['h']:g} {_support_label(ref_setting)}".rstrip()
             for s in settings:
-                bar.set_postfix_str(f"{name} {s['solver']} {s['formulation']} h={s['h']:g}")
-                tr, wall = _run(sc, s, t_end)
+                bar.set_postfix_str(f"{name} {s['solver']} {s['formulation']} h={s['h']:g} {_support_label(s)}")
+                tr, cpu = _run(sc, s, t_end, repeats)
                 verr, qerr = table1_errors(tr, ref, t_end)
                 e = tr.stats["energy"]
-                rows.append(dict(scene=name, h=s["h"], solver=s["solver"], pgs_iterations=s["pgs_iterations"] or "",
-                                 formulation=s["formulation"], friction_directions=s["friction_directions"] or "",
+                rows.append(dict(scene=name, **{k: "" if v is None else v for k, v in s.items()},
                                  velocity_error=verr, position_error=qerr,
                                  max_penetration=float(tr.stats["penetration"].max()),
-                                 energy_drift=float(max(0.0, (e - e[0]).max())), cpu_s_per_sim_s=wall / t_end,
+                                 energy_drift=float(max(0.0, (e - e[0]).max())), cpu_s_per_sim_s=cpu / t_end,
                                  failed_steps=len(tr.failures), reference=ref_label))
                 bar.update(1)
     with open(out / "tradeoff.csv", "w", newline="") as f:
@@ -120,22 +170,61 @@ def pareto_front(points):
 
 def _label(r):
     s = r["solver"] + (f"({r['pgs_iterations']})" if r["pgs_iterations"] else "")
-    k = f" k={r['friction_directions']}" if r["friction_directions"] not in ("", 8) else ""
-    return f"{s} {r['formulation']} h={r['h']:g}{k}"
+    sup = _support_label(r)
+    return f"{s} {r['formulation']} h={float(r['h']):g}" + (f" {sup}" if sup else "")
+
+
+def support_series(rows):
+    """The support-model series of a scene's rows: {(support_model, knob): its rows with the default solver and
+    formulation, by h}, limit surface first, then points, each by knob ({} in the vertical plane). Works on rows as
+    run_tradeoff returns them or as csv.DictReader reads them back."""
+    d = SimSpec()
+    series = {}
+    for r in rows:
+        if r["support_model"] and r["solver"] == d.solver and r["formulation"] == d.formulation:
+            knob = r["limit_surface_twists"] if r["support_model"] == "limit_surface" else r["friction_directions"]
+            series.setdefault((r["support_model"], int(knob)), []).append(r)
+    order = sorted(series, key=lambda key: (key[0] != "limit_surface", key[1]))
+    return {key: sorted(series[key], key=lambda r: float(r["h"])) for key in order}
 
 
 def plot_pareto(rows, path, title):
+    from matplotlib import colormaps
     from matplotlib.lines import Line2D
 
     from planar_lcp.viz import new_figure
-    fig = new_figure((9, 6))
+    fig = new_figure((11, 6.5))
     ax = fig.add_subplot(1, 1, 1)
     markers = dict(zip(SOLVERS, ("o", "s", "^")))
     colors = dict(zip(FORMULATIONS, ("C0", "C1", "C2")))
     floor = 1e-12
-    pts = [(r["cpu_s_per_sim_s"], max(r["velocity_error"], floor)) for r in rows]
+    pts = [(float(r["cpu_s_per_sim_s"]), max(float(r["velocity_error"]), floor)) for r in rows]
+    series = support_series(rows)
+    grid_alpha = 0.35 if series else 0.6
     for r, (c, e) in zip(rows, pts):
-        ax.scatter(c, e, marker=markers[r["solver"]], color=colors[r["formulation"]], alpha=0.6, s=30)
+        ax.scatter(c, e, marker=markers[r["solver"]], color=colors[r["formulation"]], alpha=grid_alpha, s=30)
+    handles = [Line2D([], [], marker=m, ls="", color="gray", label=k) for k, m in markers.items()]
+    handles += [Line2D([], [], marker="o", ls="", color=c, label=k) for k, c in colors.items()]
+    legend = ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                       title="solver, formulation", title_fontsize=8)
+    if series:
+        # one line per support model and knob across h: blues for the limit surface, reds for the points model,
+        # darker and another marker for a larger knob
+        d = SimSpec()
+        ax.add_artist(legend)
+        shandles = []
+        for model, cmap, marks in (("limit_surface", "Blues", "Dhp"), ("points", "Reds", "XvP*")):
+            keys = [key for key in series if key[0] == model]
+            for j, key in enumerate(keys):
+                color = colormaps[cmap](0.45 + 0.5 * j / max(1, len(keys) - 1))
+                marker = marks[j % len(marks)]
+                sr = series[key]
+                xs = [float(r["cpu_s_per_sim_s"]) for r in sr]
+                ys = [max(float(r["velocity_error"]), floor) for r in sr]
+                name = f"limit surface K={key[1]}" if model == "limit_surface" else f"points k={key[1]}"
+                shandles += ax.plot(xs, ys, ls="-", lw=1.2, marker=marker, ms=6, color=color, label=name)
+        ax.legend(handles=shandles, fontsize=8, loc="lower left", bbox_to_anchor=(1.01, 0.0),
+                  title=f"support model\n({d.solver}, {d.formulation};\nh grows to the left)", title_fontsize=8)
     front = pareto_front(pts)
     ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "k-", lw=1)
     for i in front:
@@ -144,10 +233,10 @@ def plot_pareto(rows, path, title):
     ax.set_yscale("log")
     ax.set_xlabel("CPU seconds per simulated second")
     ax.set_ylabel("velocity error  integral ||v_h - v_ref|| dt")
-    ax.set_title(f"{title}: speed/accuracy (marker = solver, colour = formulation; line = Pareto front)")
-    handles = [Line2D([], [], marker=m, ls="", color="gray", label=k) for k, m in markers.items()]
-    handles += [Line2D([], [], marker="o", ls="", color=c, label=k) for k, c in colors.items()]
-    ax.legend(handles=handles, fontsize=8, loc="upper right")
+    what = "marker = solver, colour = formulation; black line = Pareto front"
+    if series:
+        what += ";\nlines = the table-friction support model and its knob across h"
+    ax.set_title(f"{title}: speed/accuracy ({what})", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -176,17 +265,18 @@ def _cmd(args):
         print(f"{name}: Pareto front (cheapest first)")
         for i in front:
             r = sub[i]
-            print(f"  {_label(r):45s} cost {r['cpu_s_per_sim_s']:.3g} s/s  velocity error {r['velocity_error']:.3g}  "
+            print(f"  {_label(r):50s} cost {r['cpu_s_per_sim_s']:.3g} s/s  velocity error {r['velocity_error']:.3g}  "
                   f"penetration {r['max_penetration']:.2g} m")
     return 0
 
 
 def register(sub):
-    p = sub.add_parser("tradeoff", help="measure the speed/accuracy trade of h, solver, formulation, friction "
-                                        "directions")
+    p = sub.add_parser("tradeoff", help="measure the speed/accuracy trade of h, solver, formulation and, in the "
+                                        "horizontal plane, the support model and its knob")
     p.add_argument("--scenes", nargs="+", default=list(DEFAULT_SCENES), metavar="SCENE",
                    help=f"scenes to sweep (default: {' '.join(DEFAULT_SCENES)})")
-    p.add_argument("--quick", action="store_true", help="two step sizes, lemke and pgs(20), position form only")
+    p.add_argument("--quick", action="store_true", help="two step sizes, lemke and pgs(20), position form only, "
+                   "limit surface K=6 and 14 and points k=8, one timed run")
     p.add_argument("--out", default="tradeoff", metavar="DIR", help="output directory (default ./tradeoff)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd)
