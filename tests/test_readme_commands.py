@@ -204,10 +204,20 @@ def test_simulate_with_csv_plot_and_animation(tmp_path):
 def test_simulate_with_the_solver_and_formulation_options(tmp_path):
     f = tmp_path / "push.csv"
     r = run_cli("simulate", "box_push", "--h", "0.01", "--t-end", "0.3", "--solver", "lemke", "--formulation",
-             "fixed_point", "--fixed-point-iterations", "2", "--friction-directions", "6", "--on-failure", "record",
-             "--csv", f, cwd=tmp_path)
+             "fixed_point", "--fixed-point-iterations", "2", "--support-model", "points", "--friction-directions", "6",
+             "--on-failure", "record", "--csv", f, cwd=tmp_path)
     ok(r)
     assert re.search(r"^formulation\s+fixed_point$", r.stdout, re.M) and re.search(r"^steps\s+30 ", r.stdout, re.M)
+    check_csv(f, first="t", numeric=True, min_rows=30)
+
+
+@covers("simulate")
+def test_simulate_with_the_limit_surface_knobs(tmp_path):
+    f = tmp_path / "push.csv"
+    r = run_cli("simulate", "box_push", "--t-end", "0.3", "--support-model", "limit_surface",
+             "--limit-surface-twists", "14", "--limit-surface-resolution", "4", "--csv", f, cwd=tmp_path)
+    ok(r)
+    assert re.search(r"^steps\s+30 ", r.stdout, re.M)
     check_csv(f, first="t", numeric=True, min_rows=30)
 
 
