@@ -34,32 +34,30 @@ def _contacts(m, q, v, qk, vk, h, opt, w, qko, st, n):
 
 
 @njit
-def _solve(m, q, v, qk, vk, h, opt, w, qko, st, n):
+def _solve(m, q, v, qk, vk, h, opt, w, qko, st, n, assemble_only=False):
     S.begin_step(m, q, v, qk, vk, h, opt, w, qko, st)
     ncon, nisl = S.prepare_contacts(m, w, opt, qko, st)
     for _ in range(n):
         for isl in range(nisl):
             nci, nsi = island_members(m, w, isl, ncon)
-            if nci or nsi:
+            if not (nci or nsi):
+                continue
+            if assemble_only:
+                k, _, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
+                assemble_lcp(m, w, vk, nci, nsi, h, False, w.lcp_matrix[:k * k].reshape((k, k)), w.lcp_vector)
+            else:
                 solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, False, st)
+
+
+@njit
+def _assemble(m, q, v, qk, vk, h, opt, w, qko, st, n):
+    _solve(m, q, v, qk, vk, h, opt, w, qko, st, n, True)
 
 
 @njit
 def _recentre(m, q, v, qk, vk, h, opt, w, qko, st, n):
     for _ in range(n):
         recentre_limit_surfaces(m, w)
-
-
-@njit
-def _assemble(m, q, v, qk, vk, h, opt, w, qko, st, n):
-    S.begin_step(m, q, v, qk, vk, h, opt, w, qko, st)
-    ncon, nisl = S.prepare_contacts(m, w, opt, qko, st)
-    for _ in range(n):
-        for isl in range(nisl):
-            nci, nsi = island_members(m, w, isl, ncon)
-            if nci or nsi:
-                k, _, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
-                assemble_lcp(m, w, vk, nci, nsi, h, False, w.lcp_matrix[:k * k].reshape((k, k)), w.lcp_vector)
 
 
 @njit

@@ -42,18 +42,14 @@ def friction_wrench(nodes, weights, twist, mu, mass, g):
     return np.array([f[:, 0].sum(), f[:, 1].sum(), (r[:, 0] * f[:, 1] - r[:, 1] * f[:, 0]).sum()])
 
 
-def disk_slip_ratio_limit(n_radial=64, n_angular=256):
-    """The ratio v / (R omega) that a disk sliding and spinning on a table tends to as both motions stop (Farkas,
-    Bartels, Unger & Wolf, PRL 90, 248302, 2003: about 0.653): the fixed point of d(v / (R omega))/dt = 0, i.e.
-    a_v / v = alpha / omega, found by bisection. Scale-free (R, m, g, mu drop out); solid disk, J = m R^2 / 2."""
-    R, m = 1.0, 1.0
-    nodes, weights = disk_nodes(R, n_radial, n_angular)
-
+def slip_ratio_fixed_point(wrench, R, lo=0.3, hi=1.2):
+    """The ratio eps = v / (R omega) at which a solid disk (J = m R^2 / 2, m = 1) sliding along x and spinning keeps
+    its ratio, d(v / (R omega))/dt = 0, i.e. a_v / v = alpha / omega, by bisection on [lo, hi]. wrench(twist) returns
+    the opposing unit-load wrench (fx, fy, torque) for the twist (eps R, 0, 1)."""
     def drift(eps):
-        fx, _, tau = friction_wrench(nodes, weights, (eps * R, 0.0, 1.0), 1.0, m, 1.0)
-        return fx / (m * eps * R) - tau / (0.5 * m * R * R)
+        fx, _, tau = wrench((eps * R, 0.0, 1.0))
+        return fx / (eps * R) - tau / (0.5 * R * R)
 
-    lo, hi = 0.3, 1.2
     assert drift(lo) * drift(hi) < 0.0
     for _ in range(60):
         mid = 0.5 * (lo + hi)
@@ -62,3 +58,11 @@ def disk_slip_ratio_limit(n_radial=64, n_angular=256):
         else:
             lo = mid
     return 0.5 * (lo + hi)
+
+
+def disk_slip_ratio_limit(n_radial=64, n_angular=256):
+    """The ratio v / (R omega) that a disk sliding and spinning on a table tends to as both motions stop (Farkas,
+    Bartels, Unger & Wolf, PRL 90, 248302, 2003: about 0.653): `slip_ratio_fixed_point` of this quadrature.
+    Scale-free (R, m, g, mu drop out)."""
+    nodes, weights = disk_nodes(1.0, n_radial, n_angular)
+    return slip_ratio_fixed_point(lambda t: -friction_wrench(nodes, weights, t, 1.0, 1.0, 1.0), 1.0)

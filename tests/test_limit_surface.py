@@ -9,7 +9,7 @@ v0^2 / (2 mu g) without turning, a disk that slides and spins stops both motions
 import numpy as np
 import pytest
 
-from limit_surface_oracle import disk_nodes, disk_slip_ratio_limit, friction_wrench, rect_nodes
+from limit_surface_oracle import disk_nodes, disk_slip_ratio_limit, friction_wrench, rect_nodes, slip_ratio_fixed_point
 from planar_lcp.engine.layout import model_struct
 from planar_lcp.engine.limit_surface import FAR_RATIO, unit_load_wrench
 from planar_lcp.model import compile_scene
@@ -211,23 +211,15 @@ def test_sliding_without_spin_stops_after_v0_squared_over_2_mu_g(shape, directio
 
 
 def _model_slip_ratio(model, R, phi=0.0):
-    """The fixed point of v / (R w) for a solid disk under the model's own limit surface (bisection, as the oracle's
-    disk_slip_ratio_limit: F / (m v) = tau / (J w), J = m R^2 / 2), sliding in direction phi."""
+    """The disk's fixed point of v / (R w) under the model's own limit surface, sliding in direction phi."""
     m = model_struct(model.arrays)
-    out = np.zeros(3)
     c, s = np.cos(phi), np.sin(phi)
 
-    def drift(eps):
-        unit_load_wrench(m, 0, eps * R * c, eps * R * s, 1.0, out)
-        return (out[0] * c + out[1] * s) / eps - out[2] / (0.5 * R)
-    lo, hi = 0.3, 1.2
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        if drift(lo) * drift(mid) <= 0.0:
-            hi = mid
-        else:
-            lo = mid
-    return 0.5 * (lo + hi)
+    def wrench(t):
+        out = np.zeros(3)
+        unit_load_wrench(m, 0, t[0] * c, t[0] * s, t[2], out)    # the twist (t_x, 0, omega) turned by phi
+        return out[0] * c + out[1] * s, 0.0, out[2]
+    return slip_ratio_fixed_point(wrench, R)
 
 
 def _disk_slide_spin(ratio0, R=0.05, w0=10.0, h=2e-4):

@@ -42,9 +42,9 @@ def unit_load_wrench(m, s, vx, vy, om, out):
     (m/s, m/s, rad/s; COM frame): polygon pieces in closed form (or far nodes), disks by the unit disk's table (or
     their nodes), curved pieces and support points by their nodes. Returns False if L(t) = 0 (t = 0)."""
     size = m.sup_size[s]
-    fx = 0.0
-    fy = 0.0
-    tq = 0.0
+    out[0] = 0.0
+    out[1] = 0.0
+    out[2] = 0.0
     # Phi and G about the centre of rotation, summed over the pieces that take the closed form
     phi = 0.0
     gx = 0.0
@@ -64,9 +64,6 @@ def unit_load_wrench(m, s, vx, vy, om, out):
         else:
             f0 = m.sup_far_adr[s]
             _add_nodes(m.ls_node, f0, f0 + m.sup_far_num[s], vx, vy, om, out)
-            fx += out[0]
-            fy += out[1]
-            tq += out[2]
     tab_max = m.ls_disk_step * (m.ls_disk_table.shape[0] - 1)
     for k in range(m.sup_disk_adr[s], m.sup_disk_adr[s] + m.sup_disk_num[s]):
         ox = m.ls_disk[k, 0]
@@ -85,22 +82,16 @@ def unit_load_wrench(m, s, vx, vy, om, out):
         else:
             n0 = m.ls_disk_node_adr[k]
             _add_nodes(m.ls_node, n0, n0 + m.ls_disk_node_num[k], vx, vy, om, out)
-            fx += out[0]
-            fy += out[1]
-            tq += out[2]
     if closed:
         sg = m.sup_edge_scale[s] if om > 0.0 else -m.sup_edge_scale[s]
         # integral u dA = sign(om) perp(G), perp(x, y) = (-y, x); integral r x u dA = sign(om) (Phi + c x perp(G))
         ux = -gy * sg
         uy = gx * sg
-        fx += ux
-        fy += uy
-        tq += sg * phi + (cx * uy - cy * ux)
+        out[0] += ux
+        out[1] += uy
+        out[2] += sg * phi + (cx * uy - cy * ux)
     n0 = m.sup_node_adr[s]
     _add_nodes(m.ls_node, n0, n0 + m.sup_node_num[s], vx, vy, om, out)
-    out[0] += fx
-    out[1] += fy
-    out[2] += tq
     return out[0] != 0.0 or out[1] != 0.0 or out[2] != 0.0
 
 
@@ -167,7 +158,7 @@ def _disk_phi_g(table, step, d):
 
 @njit(cache=True, inline='always')
 def _add_nodes(nodes, lo, hi, vx, vy, om, out):
-    """out[:] = sum over nodes[lo:hi] of w (u, r x u), u the unit velocity of the node under (vx, vy, om)."""
+    """out[:] += sum over nodes[lo:hi] of w (u, r x u), u the unit velocity of the node under (vx, vy, om)."""
     fx = 0.0
     fy = 0.0
     tq = 0.0
@@ -182,6 +173,6 @@ def _add_nodes(nodes, lo, hi, vx, vy, om, out):
             fx += wi * ux
             fy += wi * uy
             tq += wi * (rx * uy - ry * ux)
-    out[0] = fx
-    out[1] = fy
-    out[2] = tq
+    out[0] += fx
+    out[1] += fy
+    out[2] += tq
