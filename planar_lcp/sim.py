@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planar_lcp.engine.constants import SUPPORT_POINTS
 from planar_lcp.engine.layout import NSTAT, STATS, Stat, StepOptions, make_step_work, model_struct, work_struct
 from planar_lcp.engine.rollout import Recording, rollout_lemke, rollout_lemke_full, rollout_pgs
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES
@@ -256,12 +257,13 @@ def check_run_size(model, nsteps, names=None, record_contacts=True, limit=None):
         limit = MEMORY_FRACTION * phys if phys else 4 * 1024 ** 3
     if traj + work <= limit:
         return
-    labels = {k: (names or {}).get(k, k) for k in ("h", "t_end", "friction_directions")}
+    labels = {k: (names or {}).get(k, k) for k in ("h", "t_end", "friction_directions", "limit_surface_twists")}
     where = (f"{MEMORY_FRACTION:g} of this machine's {_fmt_bytes(phys)} of memory" if phys else "a default of 4 GiB")
     if traj >= work:
         advice = f"reduce {labels['t_end']} or increase {labels['h']}"
     elif model.scene.world.plane == "horizontal":
-        advice = f"reduce {labels['friction_directions']} or the number of shapes in contact"
+        knob = "friction_directions" if model.arrays.support_model == SUPPORT_POINTS else "limit_surface_twists"
+        advice = f"reduce {labels[knob]} or the number of shapes in contact"
     else:
         advice = "reduce the number of shapes that can touch each other"
     raise SceneError(f"{model.scene.source}: the run must fit in {_fmt_bytes(limit)} ({where}), got an estimated "

@@ -363,3 +363,12 @@ def test_unknown_support_model_in_a_scene(tmp_path):
                     'type = "dynamic"\nmass = 1.0\nshapes = [ { type = "disk", radius = 0.1 } ]\n')
     with pytest.raises(SceneError, match=r"world.support_model must be one of 'limit_surface', 'points', got 'disk'"):
         load_scene(path)
+
+
+@pytest.mark.parametrize("support, knob", [("limit_surface", "limit_surface_twists"),
+                                           ("points", "friction_directions")])
+def test_run_size_advice_names_the_support_models_knob(support, knob):
+    """When the LCP buffers are what does not fit, the message names the knob of the table friction in use."""
+    model = compile_scene(load_scene("push_t"), support_model=support)
+    with pytest.raises(SceneError, match=rf"; reduce {knob} or the number of shapes in contact$"):
+        check_run_size(model, 1, limit=1000)
