@@ -156,7 +156,7 @@ def _disk_phi_g(table, step, d):
     return phi, g
 
 
-@njit(cache=True, inline='always')
+@njit(cache=True)
 def _add_nodes(nodes, lo, hi, vx, vy, om, out):
     """out[:] += sum over nodes[lo:hi] of w (u, r x u), u the unit velocity of the node under (vx, vy, om)."""
     fx = 0.0

@@ -107,8 +107,9 @@ class _OurKernel:
         self.max_pivots = default_max_pivots(n)
 
     def __call__(self):
+        # not equilibrated: the first try of the step's chain (LEMKE_CHAIN) and the public lemke()'s default
         return lemke_kernel(self.M, self.q, self.max_pivots, DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL,
-                            True, *self.args)
+                            False, *self.args)
 
 
 class _QuantEcon:
