@@ -29,7 +29,7 @@ def run_cold(tmp_path, *args):
 @pytest.mark.slow   # a cold compile of every kernel the planner uses: 40 s to 2 min on 2 cores
 def test_first_plan_on_a_cold_cache(tmp_path):
     out = tmp_path / "out"
-    r = run_cold(tmp_path, "plan", "push_box", "--seed", 5, "--iterations", 5000, "--out", out, "--no-gif")
+    r = run_cold(tmp_path, "plan", "push_box", "--seed", 5, "--iterations", 15000, "--out", out, "--no-gif")
     assert r.returncode == 0, r.stdout + r.stderr
     plan = json.loads((out / "plan.json").read_text())
     assert plan["exact"] and plan["goal"]["goal_holds"] and len(plan["controls"]) > 0
