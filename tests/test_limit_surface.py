@@ -326,3 +326,23 @@ def test_points_model_converges_to_the_limit_surface():
     angle_err = [r[4] for r in rows[1:]]
     assert angle_err[0] > angle_err[1] > angle_err[2]
     assert angle_err[2] < 0.05
+
+
+@pytest.mark.parametrize("solver", ["pgs", "osqp"])
+def test_other_solvers_take_the_limit_surface(solver):
+    """PGS takes an element as a wrench in the ellipsoid through the exact sliding force and spin torque, OSQP the
+    same columns as Lemke: both stop a sliding box and a spinning disk at the limit surface's times (one step), and
+    neither turns the sliding box."""
+    if solver == "osqp":
+        pytest.importorskip("osqp")
+    v0, w0, h, R = 0.8, 20.0, 2e-3, 0.05
+    kw = dict(solver=solver, pgs_iterations=50) if solver == "pgs" else dict(solver=solver)
+    tr = simulate(_table_scene({"shapes": [{"type": "box", "width": 0.2, "height": 0.1}], "velocity": [v0, 0.0]},
+                               h=h, t_end=0.3), **kw)
+    k = _stop_index(np.hypot(tr.v_com[:, 0, 0], tr.v_com[:, 0, 1]), tol=1e-6)
+    assert abs(k * h - v0 / (MU * G)) <= h + 1e-12
+    assert np.abs(tr.q[:, 0, 2]).max() < 1e-12
+    tr = simulate(_table_scene({"shapes": [{"type": "disk", "radius": R}], "angular_velocity": w0}, h=h, t_end=0.3),
+                  **kw)
+    k = _stop_index(np.abs(tr.v_com[:, 0, 2]), tol=1e-6)
+    assert abs(k * h - 3.0 * R * w0 / (4.0 * MU * G)) <= h + 1e-12
