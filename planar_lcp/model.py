@@ -20,7 +20,7 @@ from planar_lcp.spec.scene import SUPPORT_MODELS, Scene, SceneError
 from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC,  # noqa: F401
                                          PLANE_HORIZONTAL, PLANE_VERTICAL, SHAPE_CORE, SHAPE_HALFPLANE,
                                          SUPPORT_LIMIT_SURFACE, SUPPORT_POINTS)
-from planar_lcp.engine.layout import ModelArrays  # the arrays handed to the kernels: engine/layout.py MODEL_LAYOUT
+from planar_lcp.engine.layout import ModelArrays, model_struct  # the kernels' arrays: engine/layout.py MODEL_LAYOUT
 from planar_lcp.engine.limit_surface import unit_load_wrench
 
 
@@ -124,7 +124,6 @@ def _add_limit_surface(ls, body, resolution):
 def _fill_fixed_columns(arrays, bodies, nls):
     """ls_wrench[s, j] = L(t_j) for the fixed twists of each element, by the kernels' own `unit_load_wrench` (on the
     model struct, as the step calls it)."""
-    from planar_lcp.engine.layout import model_struct
     m = model_struct(arrays)
     for s, body in enumerate(bodies):
         for j, t in enumerate(twist_directions(nls, gyration_radius(body))):
@@ -233,6 +232,8 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
     nls = int(limit_surface_twists if limit_surface_twists is not None else scene.sim.limit_surface_twists)
     res = int(limit_surface_resolution if limit_surface_resolution is not None
               else scene.sim.limit_surface_resolution)
+    if res < 1:
+        raise ValueError(f"limit_surface_resolution must be >= 1, got {res}")
     sup_dyn, sup_local, sup_load, sup_mu = [], [], [], []
     ls = dict(edge_adr=[], edge_num=[], edge_scale=[], node_adr=[], node_num=[], far_adr=[], far_num=[], disk_adr=[],
               disk_num=[], disks=[], disk_node_adr=[], disk_node_num=[], size=[], edges=[], nodes=[])

@@ -12,11 +12,11 @@ the field path in the TOML structure and what was expected, e.g.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import numbers
 import os
 import tomllib
-import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
