@@ -10,7 +10,7 @@ import sys
 
 #: Optional packages -> the extra of pyproject.toml ([project.optional-dependencies]) that installs each.
 OPTIONAL_PACKAGES = {"matplotlib": "plot", "shapely": "plot", "osqp": "osqp", "scipy": "osqp", "pymunk": "compare",
-                     "ompl": "plan", "tqdm": "studies", "quantecon": "bench"}
+                     "ompl": "plan", "distributed": "plan", "tqdm": "studies", "quantecon": "bench"}
 
 
 class MissingPackage(Exception):

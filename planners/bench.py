@@ -1,5 +1,10 @@
-"""`planar-lcp plan-bench`: each planner N times (seeds 1..N) on a process pool, an OMPL benchmark log and its
-SQLite database, a summary table and box plots.
+"""`planar-lcp plan-bench`: each planner N times (seeds 1..N) as Dask tasks, an OMPL benchmark log and its SQLite
+database, a summary table and box plots.
+
+Where the runs go: with `--scheduler ADDRESS` to an existing Dask cluster (`dask scheduler` / `dask worker`, or any
+Dask deployment), else to a local cluster of `--jobs` worker processes (one thread each) bound to 127.0.0.1, started
+and stopped by the command. Each run records the worker that ran it ("worker" in summary.json). A worker lost
+mid-run: Dask runs its tasks again on another worker; the command says how many runs that hit.
 
 Why not `ompl.tools.Benchmark`: it runs every planner in the calling process, one after another, and `solve()`
 holds the GIL; custom columns (simulated steps per second) cannot be added from Python in 2.0.1. So each run is a
@@ -14,7 +19,6 @@ import socket
 import subprocess
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from datetime import datetime
 from pathlib import Path
 
@@ -37,18 +41,24 @@ RUN_FIELDS = [("time REAL", "solve_time"), ("memory REAL", None), ("status ENUM"
               ("simulated steps per second REAL", "steps_per_second")]
 
 
-def _run_one(task, planner, seed, time_limit):
-    """One planning run in a worker process; returns a flat record."""
+def _run_one(task, planner, seed, time_limit, iterations=None):
+    """One planning run in a worker process; returns a flat record with the worker's address (None outside Dask)."""
     import gc
     gc.disable()
     from .plan import plan_task
     t0 = time.perf_counter()
     try:
-        plan = plan_task(task, planner, seed=seed, time_limit=time_limit)
+        from distributed import get_worker
+        worker = get_worker().address
+    except (ImportError, ValueError):
+        worker = None
+    try:
+        plan = plan_task(task, planner, seed=seed, time_limit=time_limit, iterations=iterations)
     except Exception as e:  # noqa: BLE001 - a crashed run is a result (status Crash), not the end of the benchmark
         return dict(planner=planner, seed=seed, exact=False, approximate=False, solve_time=time.perf_counter() - t0,
                     status=STATUS.CRASH.value, error=repr(e), goal_distance=float("nan"), path_duration=float("nan"),
-                    segments=0, propagations=0, iterations=0, sim_steps=0, steps_per_second=float("nan"))
+                    segments=0, propagations=0, iterations=0, sim_steps=0, steps_per_second=float("nan"),
+                    worker=worker)
     exact, approx = plan["exact"], plan["approximate"]
     return dict(planner=planner, seed=seed, exact=exact, approximate=approx, solve_time=plan["solve_time"],
                 status=(STATUS.EXACT_SOLUTION if exact else STATUS.APPROXIMATE_SOLUTION if approx
@@ -56,7 +66,7 @@ def _run_one(task, planner, seed, time_limit):
                 goal_distance=plan.get("goal", {}).get("goal_distance", float("nan")),
                 path_duration=plan["path_duration"] if (exact or approx) else float("nan"),
                 segments=len(plan["controls"]), propagations=plan["propagations"], iterations=plan["iterations"],
-                sim_steps=plan["sim_steps"], steps_per_second=plan["steps_per_second"])
+                sim_steps=plan["sim_steps"], steps_per_second=plan["steps_per_second"], worker=worker)
 
 
 def _fmt(v):
@@ -129,9 +139,9 @@ def summarize(records, planners, time_limit):
     return rows
 
 
-def summary_markdown(task, rows, runs, time_limit, jobs):
-    out = [f"Task `{task}`: {runs} runs per planner (seeds 1..{runs}), {time_limit:g} s each, {jobs} worker "
-           "processes.", "",
+def summary_markdown(task, rows, runs, budget, where):
+    """budget: "60 s" or "5000 iterations" per run; where: "2 worker processes" or "the Dask cluster at ADDRESS"."""
+    out = [f"Task `{task}`: {runs} runs per planner (seeds 1..{runs}), {budget} each, {where}.", "",
            "| planner | exact | time to exact solution [s] median (q1-q3) | path duration [s] median (q1-q3) | "
            "sim steps/s (median) |", "|---|---|---|---|---|"]
     for r in rows:
@@ -148,9 +158,9 @@ def box_plots(records, planners, time_limit, path, task):
 
     fig = new_figure((10, 3.6), dpi=100)
     axs = fig.subplots(1, 3)
-    # time: unsolved runs count at the time limit (as OMPL's plots do)
-    data_t = [[r["solve_time"] if r["exact"] else time_limit for r in records if r["planner"] == p]
-              for p in planners]
+    # time: unsolved runs count at the time limit (as OMPL's plots do; with an iteration budget: at their own time)
+    data_t = [[r["solve_time"] if r["exact"] or time_limit is None else time_limit for r in records
+               if r["planner"] == p] for p in planners]
     data_d = [[r["path_duration"] for r in records if r["planner"] == p and r["exact"]] or [np.nan]
               for p in planners]
     data_s = [[r["steps_per_second"] for r in records if r["planner"] == p] for p in planners]
@@ -166,51 +176,92 @@ def box_plots(records, planners, time_limit, path, task):
     fig.savefig(path)
 
 
-def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out="."):
-    import multiprocessing as mp
+def open_cluster(scheduler=None, jobs=1):
+    """(client, local cluster or None): a client of the Dask scheduler at `scheduler`, or of a new local cluster of
+    `jobs` worker processes, one thread each, listening on 127.0.0.1 only (no dashboard)."""
+    import logging
 
+    from distributed import Client, LocalCluster
+    if scheduler:
+        return Client(scheduler, timeout=30), None
+    cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def _retried_runs(client, keys):
+    """How many of the tasks `keys` the scheduler ran again because a worker was lost while it held them."""
+    def count(dask_scheduler, keys=tuple(keys)):
+        return sum(1 for k in keys if k in dask_scheduler.tasks and dask_scheduler.tasks[k].suspicious > 0)
+    return int(client.run_on_scheduler(count))
+
+
+def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iterations=None, scheduler=None):
+    """Run the benchmark (a time limit or, with `iterations`, an iteration budget per run) on Dask; write the log,
+    database, summaries and box plots into `out`. Returns the summary rows."""
+    from distributed import as_completed
     from tqdm import tqdm
 
     out = Path(out)
     jobs = int(jobs or os.cpu_count() or 1)
     jobs = max(1, min(jobs, runs * len(planners)))
-    todo = [(task, p, s, float(time_limit)) for s in range(1, runs + 1) for p in planners]
+    limit = None if iterations else float(time_limit)
+    todo = [(task, p, s, limit, iterations) for s in range(1, runs + 1) for p in planners]
     t0 = time.perf_counter()
     records = []
-    ctx = mp.get_context("spawn")      # a fresh interpreter per worker: no fork of numba/ompl state
-    ex = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx)
+    client, cluster = open_cluster(scheduler, jobs)
+    workers_at_start = set(client.scheduler_info()["workers"])
+    print(f"cluster        {scheduler or 'local'}: {len(workers_at_start)} worker(s) "
+          f"({', '.join(sorted(workers_at_start))})", flush=True)
+    futs = []
     try:
-        futs = [ex.submit(_run_one, *a) for a in todo]
+        # pure=False: every run is its own task, even with equal arguments; retries: a run that crashed its worker
+        # process (not a lost machine: Dask reschedules those by itself) gets one more try elsewhere
+        futs = [client.submit(_run_one, *a, pure=False, retries=1) for a in todo]
         with tqdm(total=len(futs), desc=f"plan-bench {task}", unit="run") as bar:
             for f in as_completed(futs):
                 r = f.result()
                 records.append(r)
                 bar.set_postfix_str(f"{r['planner']} seed {r['seed']}: {'exact' if r['exact'] else 'no'}")
                 bar.update()
+        retried = _retried_runs(client, [f.key for f in futs])
+        lost = sorted(workers_at_start - set(client.scheduler_info()["workers"]))
     except KeyboardInterrupt:
-        # leaving the `with` would wait for the running plans (up to --time each): end the workers now
-        ex.shutdown(wait=False, cancel_futures=True)
-        for p in mp.active_children():
-            p.terminate()
+        # cancel what is queued or running, stop the local workers now (a run holds its worker up to --time)
+        client.cancel(futs, force=True)
+        client.close()
+        if cluster is not None:
+            cluster.close()
         raise
-    ex.shutdown()
+    client.close()
+    if cluster is not None:
+        cluster.close()
     total = time.perf_counter() - t0
     records.sort(key=lambda r: (planners.index(r["planner"]), r["seed"]))
     log = out / f"{task}.log"
-    write_log(log, task, planners, records, runs, time_limit, total)
+    # OMPL's log has a time limit per run; with an iteration budget, the longest run's time stands for it
+    write_log(log, task, planners, records, runs, limit if limit is not None else
+              max((r["solve_time"] for r in records), default=0.0), total)
     wrote = [log]
     try:
         wrote.append(make_database(log, out / f"{task}.db"))
     except (RuntimeError, OSError) as e:
         print(f"warning: no database: {e}", file=sys.stderr)
-    rows = summarize(records, planners, time_limit)
-    md = summary_markdown(task, rows, runs, time_limit, jobs)
+    rows = summarize(records, planners, limit)
+    budget = f"{iterations} iterations" if iterations else f"{limit:g} s"
+    where = f"the Dask cluster at {scheduler}" if scheduler else f"{jobs} worker processes"
+    md = summary_markdown(task, rows, runs, budget, where)
     (out / "summary.md").write_text(md)
-    (out / "summary.json").write_text(json.dumps(dict(task=task, runs=runs, time_limit=time_limit, jobs=jobs,
-                                                      total_time=total, summary=rows, records=records), indent=1))
-    box_plots(records, planners, time_limit, out / "boxplots.png", task)
+    (out / "summary.json").write_text(json.dumps(dict(
+        task=task, runs=runs, time_limit=limit, iterations=iterations, jobs=None if scheduler else jobs,
+        scheduler=scheduler or "local", workers=sorted({r["worker"] for r in records if r["worker"]}),
+        lost_workers=lost, retried_runs=retried, total_time=total, summary=rows, records=records), indent=1))
+    box_plots(records, planners, limit, out / "boxplots.png", task)
     wrote += [out / "summary.md", out / "summary.json", out / "boxplots.png"]
     print(md)
+    if lost or retried:
+        print(f"{len(lost)} worker(s) lost during the benchmark ({', '.join(lost) or 'none'}); {retried} run(s) "
+              "were run again on another worker; every run completed")
     for w in wrote:
         print(f"wrote {w}")
     return rows

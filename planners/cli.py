@@ -42,18 +42,24 @@ def register(sub):
     r.set_defaults(func=cmd_replay)
 
     b = one_line_errors(sub.add_parser(
-        "plan-bench", help="benchmark planners on a task (process pool, OMPL benchmark log and database)",
-        description="Run each planner --runs times with seeds 1..N on a process pool; write an OMPL benchmark "
-                    "log, its SQLite database, summary.md / summary.json and box plots into --out."))
+        "plan-bench", help="benchmark planners on a task (Dask, OMPL benchmark log and database)",
+        description="Run each planner --runs times with seeds 1..N as Dask tasks, on the cluster at --scheduler or "
+                    "on a local cluster of --jobs worker processes (127.0.0.1); write an OMPL benchmark log, its "
+                    "SQLite database, summary.md / summary.json and box plots into --out."))
     b.add_argument("task", metavar="TASK", help=f"one of: {tasks}")
     b.add_argument("--planners", nargs="+", default=list(PLANNERS), metavar="NAME",
                    help=f"planners to compare (default: all of {', '.join(PLANNERS)})")
     b.add_argument("--runs", type=finite_number(int, 0, True), default=10, metavar="N",
                    help="runs per planner, seeds 1..N")
-    b.add_argument("--time", type=finite_number(float, 0, True), default=60.0, metavar="T",
+    b.add_argument("--time", type=finite_number(float, 0, True), default=None, metavar="T",
                    help="seconds per run (default 60)")
+    b.add_argument("--iterations", type=finite_number(int, 0, True), default=None, metavar="N",
+                   help="an iteration budget per run instead of --time: the same results on any machine")
     b.add_argument("--jobs", type=finite_number(int, 0, True), default=None, metavar="J",
-                   help="worker processes (default: CPUs)")
+                   help="worker processes of the local cluster (default: CPUs)")
+    b.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on the Dask cluster at ADDRESS (e.g. tcp://127.0.0.1:8786) instead of a local one "
+                        "(docs/planning.md: a one-machine and a multi-machine recipe, and how to secure it)")
     b.add_argument("--out", default=None, metavar="DIR", help="output directory (default ./bench_TASK)")
     b.set_defaults(func=cmd_bench)
 
@@ -145,6 +151,9 @@ def cmd_replay(args):
 
 
 def cmd_bench(args):
+    from planar_lcp.cli import require
+
+    require("distributed")                 # the runs are Dask tasks: checked before any work
     from .bench import run_bench
     from .tasks import get_task
 
@@ -159,5 +168,15 @@ def cmd_bench(args):
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         return _err("plan-bench", f"--out {out}: cannot create the directory ({e.strerror or e})")
-    run_bench(task.name, args.planners, runs=args.runs, time_limit=args.time, jobs=args.jobs, out=out)
+    if args.time is not None and args.iterations is not None:
+        return _err("plan-bench", f"give --time or --iterations, not both: got --time {args.time:g} and "
+                                  f"--iterations {args.iterations}")
+    if args.scheduler is not None and args.jobs is not None:
+        return _err("plan-bench", f"--jobs sizes the local cluster: not with --scheduler {args.scheduler}")
+    try:
+        run_bench(task.name, args.planners, runs=args.runs, time_limit=60.0 if args.time is None else args.time,
+                  jobs=args.jobs, out=out, iterations=args.iterations, scheduler=args.scheduler)
+    except OSError as e:
+        # the scheduler cannot be reached (distributed raises OSError after its connect timeout)
+        return _err("plan-bench", f"--scheduler {args.scheduler}: {e}", 1)
     return 0

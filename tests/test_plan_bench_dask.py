@@ -1,0 +1,105 @@
+"""plan-bench on Dask (issue I, item 1): a cluster started by hand (`dask scheduler`, two `dask worker`s on
+127.0.0.1) gives the same runs as the local cluster, records the worker of each run, and a worker killed while it
+runs a plan does not lose the benchmark: its run is done again elsewhere and the command says so."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+pytest.importorskip("ompl")
+pytest.importorskip("distributed")
+
+from cli_helpers import run_cli  # noqa: E402
+
+DASK = [sys.executable, "-m", "dask"]
+
+
+@pytest.fixture
+def cluster(tmp_path):
+    """A scheduler and two single-thread workers (no nanny: killing one kills it) on 127.0.0.1. Yields (address,
+    {pid: worker address})."""
+    from distributed import Client
+    sched_file = tmp_path / "scheduler.json"
+    procs = [subprocess.Popen(DASK + ["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                                      "--scheduler-file", str(sched_file)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        t0 = time.monotonic()
+        while not sched_file.exists() and time.monotonic() - t0 < 60:
+            time.sleep(0.2)
+        for _ in range(2):
+            procs.append(subprocess.Popen(DASK + ["worker", "--scheduler-file", str(sched_file), "--no-nanny",
+                                                  "--nthreads", "1", "--host", "127.0.0.1", "--no-dashboard"],
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        address = json.loads(sched_file.read_text())["address"]
+        with Client(address, timeout=60) as c:
+            c.wait_for_workers(2, timeout=120)
+            workers = {pid: addr for addr, pid in c.run(os.getpid).items()}
+        yield address, workers, procs
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+            p.wait()
+
+
+def _runs(out):
+    d = json.loads((out / "summary.json").read_text())
+    return d, [(r["planner"], r["seed"], r["exact"], r["iterations"], r["propagations"]) for r in d["records"]]
+
+
+def test_plan_bench_on_a_cluster_matches_the_local_one(cluster, tmp_path):
+    address, workers, _ = cluster
+    args = ["plan-bench", "push_box", "--planners", "RRT", "--runs", "2", "--iterations", "300"]
+    r = run_cli(*args, "--scheduler", address, "--out", tmp_path / "remote")
+    assert r.returncode == 0, r.stderr
+    remote, runs = _runs(tmp_path / "remote")
+    assert remote["scheduler"] == address and set(remote["workers"]) <= set(workers.values())
+    assert all(rec["worker"] in workers.values() for rec in remote["records"])
+    r = run_cli(*args, "--jobs", "2", "--out", tmp_path / "local")
+    assert r.returncode == 0, r.stderr
+    local, local_runs = _runs(tmp_path / "local")
+    assert local["scheduler"] == "local" and all(rec["worker"].startswith("tcp://127.0.0.1:")
+                                                 for rec in local["records"])
+    assert runs == local_runs                # the same seeds and iteration budgets: the same plans
+
+
+def test_a_worker_lost_mid_benchmark_does_not_lose_its_run(cluster, tmp_path):
+    from distributed import Client
+    address, workers, procs = cluster
+    # seeds 2-4 need 12k to 27k iterations on push_box: each run holds its worker for seconds
+    cmd = ["plan-bench", "push_box", "--planners", "RRT", "--runs", "4", "--iterations", "20000", "--scheduler",
+           address, "--out", str(tmp_path / "out")]
+    bench = subprocess.Popen([sys.executable, "-c", "import sys; from planar_lcp.cli import main; sys.exit(main())",
+                              *cmd], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    victim_pid = procs[1].pid
+    victim = workers[victim_pid]
+    with Client(address, timeout=60) as c:
+        t0 = time.monotonic()
+        while not c.processing().get(victim) and time.monotonic() - t0 < 120:
+            time.sleep(0.2)
+        assert c.processing().get(victim), "the worker never got a run"
+    time.sleep(1.0)                          # inside the run
+    os.kill(victim_pid, signal.SIGKILL)
+    out, err = bench.communicate(timeout=600)
+    assert bench.returncode == 0, err
+    d, runs = _runs(tmp_path / "out")
+    assert sorted(s for _, s, *_ in runs) == [1, 2, 3, 4]
+    assert d["lost_workers"] == [victim] and d["retried_runs"] >= 1
+    assert "worker(s) lost during the benchmark" in out and "every run completed" in out
+
+
+def test_ctrl_c_cancels_plan_bench_cleanly(tmp_path):
+    """Ctrl-C while the local cluster's workers plan: the runs are cancelled, the workers stopped, one line, 130."""
+    from cli_helpers import interrupt_cli
+    rc, err, dt = interrupt_cli(["plan-bench", "push_t", "--planners", "RRT", "--runs", "2", "--time", "60",
+                                 "--jobs", "2", "--out", tmp_path / "out"], "cluster", tmp_path, wait=5.0)
+    assert rc == 130, err
+    assert err.strip().splitlines()[-1] == "planar-lcp plan-bench: error: interrupted (Ctrl-C); stopped", err
+    assert dt < 10.0, dt
+    assert not (tmp_path / "out" / "summary.json").exists()
