@@ -215,12 +215,20 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
           f"({', '.join(sorted(workers_at_start))})", flush=True)
     futs = []
     try:
-        # pure=False: every run is its own task, even with equal arguments; retries: a run that crashed its worker
-        # process (not a lost machine: Dask reschedules those by itself) gets one more try elsewhere
-        futs = [client.submit(_run_one, *a, pure=False, retries=1) for a in todo]
+        # pure=False: every run is its own task, even with equal arguments. A run whose worker is lost is run again
+        # on another by the scheduler itself (up to Dask's distributed.scheduler.allowed-failures times)
+        futs = [client.submit(_run_one, *a, pure=False) for a in todo]
+        args_of = {f.key: a for f, a in zip(futs, todo)}
         with tqdm(total=len(futs), desc=f"plan-bench {task}", unit="run") as bar:
             for f in as_completed(futs):
-                r = f.result()
+                try:
+                    r = f.result()
+                except Exception as e:  # noqa: BLE001 - e.g. KilledWorker: the run counts as crashed, not the bench
+                    _, p, seed, _, _ = args_of[f.key]
+                    r = dict(planner=p, seed=seed, exact=False, approximate=False, solve_time=float("nan"),
+                             status=STATUS.CRASH.value, error=repr(e), goal_distance=float("nan"),
+                             path_duration=float("nan"), segments=0, propagations=0, iterations=0, sim_steps=0,
+                             steps_per_second=float("nan"), worker=None)
                 records.append(r)
                 bar.set_postfix_str(f"{r['planner']} seed {r['seed']}: {'exact' if r['exact'] else 'no'}")
                 bar.update()
