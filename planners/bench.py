@@ -25,6 +25,8 @@ from pathlib import Path
 import numpy as np
 from ompl import base as ob
 
+from planar_lcp.experiments.cluster import close_cluster, open_cluster, retried_runs, worker_address
+
 #: OMPL's planner statuses; a run's `status ENUM` column holds the value of one of them
 STATUS = ob.PlannerStatus.PlannerStatusType
 #: the label of each status value in order, the log's enum line as OMPL's Benchmark writes it (spelled out: the
@@ -47,11 +49,7 @@ def _run_one(task, planner, seed, time_limit, iterations=None):
     gc.disable()
     from .plan import plan_task
     t0 = time.perf_counter()
-    try:
-        from distributed import get_worker
-        worker = get_worker().address
-    except (ImportError, ValueError):
-        worker = None
+    worker = worker_address()
     try:
         plan = plan_task(task, planner, seed=seed, time_limit=time_limit, iterations=iterations)
     except Exception as e:  # noqa: BLE001 - a crashed run is a result (status Crash), not the end of the benchmark
@@ -176,26 +174,6 @@ def box_plots(records, planners, time_limit, path, task):
     fig.savefig(path)
 
 
-def open_cluster(scheduler=None, jobs=1):
-    """(client, local cluster or None): a client of the Dask scheduler at `scheduler`, or of a new local cluster of
-    `jobs` worker processes, one thread each, listening on 127.0.0.1 only (no dashboard)."""
-    import logging
-
-    from distributed import Client, LocalCluster
-    if scheduler:
-        return Client(scheduler, timeout=30), None
-    cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None, silence_logs=logging.ERROR)
-    return Client(cluster), cluster
-
-
-def _retried_runs(client, keys):
-    """How many of the tasks `keys` the scheduler ran again because a worker was lost while it held them."""
-    def count(dask_scheduler, keys=tuple(keys)):
-        return sum(1 for k in keys if k in dask_scheduler.tasks and dask_scheduler.tasks[k].suspicious > 0)
-    return int(client.run_on_scheduler(count))
-
-
 def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iterations=None, scheduler=None):
     """Run the benchmark (a time limit or, with `iterations`, an iteration budget per run) on Dask; write the log,
     database, summaries and box plots into `out`. Returns the summary rows."""
@@ -232,18 +210,13 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
                 records.append(r)
                 bar.set_postfix_str(f"{r['planner']} seed {r['seed']}: {'exact' if r['exact'] else 'no'}")
                 bar.update()
-        retried = _retried_runs(client, [f.key for f in futs])
+        retried = retried_runs(client, [f.key for f in futs])
         lost = sorted(workers_at_start - set(client.scheduler_info()["workers"]))
     except KeyboardInterrupt:
         # cancel what is queued or running, stop the local workers now (a run holds its worker up to --time)
-        client.cancel(futs, force=True)
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        close_cluster(client, cluster, futs)
         raise
-    client.close()
-    if cluster is not None:
-        cluster.close()
+    close_cluster(client, cluster)
     total = time.perf_counter() - t0
     records.sort(key=lambda r: (planners.index(r["planner"]), r["seed"]))
     log = out / f"{task}.log"

@@ -1,4 +1,4 @@
-"""plan-bench on Dask (issue I, item 1): a cluster started by hand (`dask scheduler`, two `dask worker`s on
+"""plan-bench and tradeoff on Dask (issue I, item 1): a cluster started by hand (`dask scheduler`, two `dask worker`s on
 127.0.0.1) gives the same runs as the local cluster, records the worker of each run, and a worker killed while it
 runs a plan does not lose the benchmark: its run is done again elsewhere and the command says so."""
 
@@ -103,3 +103,19 @@ def test_ctrl_c_cancels_plan_bench_cleanly(tmp_path):
     assert err.strip().splitlines()[-1] == "planar-lcp plan-bench: error: interrupted (Ctrl-C); stopped", err
     assert dt < 10.0, dt
     assert not (tmp_path / "out" / "summary.json").exists()
+
+
+def test_tradeoff_on_a_cluster_matches_the_local_one(cluster, tmp_path):
+    """The trade-off sweep's settings are Dask tasks too: on the cluster the errors are the local cluster's."""
+    import csv
+    address, _, _ = cluster
+    keys = ("scene", "h", "solver", "pgs_iterations", "formulation", "velocity_error", "position_error",
+            "max_penetration", "energy_drift", "failed_steps")
+    rows = {}
+    for where, extra in (("remote", ["--scheduler", address]), ("local", ["--jobs", "2"])):
+        r = run_cli("tradeoff", "--quick", "--no-progress", "--scenes", "falling_rod", *extra,
+                    "--out", tmp_path / where)
+        assert r.returncode == 0, r.stderr
+        with open(tmp_path / where / "tradeoff.csv") as f:
+            rows[where] = [tuple(row[k] for k in keys) for row in csv.DictReader(f)]
+    assert rows["remote"] == rows["local"] and len(rows["local"]) >= 4

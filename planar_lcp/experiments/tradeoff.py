@@ -28,10 +28,12 @@ REPEATS warm runs (1 with --quick), divided by t_end. The clock counts no time t
 import csv
 import itertools
 import math
+import os
 import time
 from pathlib import Path
 
 from planar_lcp.experiments.accuracy import table1_errors
+from planar_lcp.experiments.cluster import close_cluster, open_cluster, worker_address
 from planar_lcp.spec.scene import FORMULATIONS, SOLVERS, SimSpec
 
 DEFAULT_SCENES = ("falling_rod", "four_disks", "box_push")
@@ -122,32 +124,57 @@ def _support_label(s):
     return ""
 
 
-def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progress=True):
-    """Run the sweep; write tradeoff.csv and one Pareto plot per scene into out_dir. Returns the rows."""
+def _measure(sc, s, t_end, repeats):
+    """One setting's run as a Dask task: (trajectory, least thread CPU time of `repeats` warm runs, worker)."""
+    tr, cpu = _run(sc, s, t_end, repeats)
+    return tr, cpu, worker_address()
+
+
+def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progress=True, jobs=None, scheduler=None):
+    """Run the sweep; write tradeoff.csv and one Pareto plot per scene into out_dir. Returns the rows.
+
+    Every setting (and each scene's reference) is a Dask task: on the cluster at `scheduler`, else on a local
+    cluster of `jobs` worker processes (default: the CPUs). A task's cost is its own worker's thread CPU time."""
+    from distributed import as_completed
     from tqdm import tqdm
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     repeats = 1 if quick else REPEATS
     plans = [(name, *_settings(name, quick)) for name in scenes]
     total = sum(len(s) + 1 for _, _, s, _ in plans)
-    rows = []
-    with tqdm(total=total, disable=not progress, desc="tradeoff", unit="run") as bar:
-        for name, sc, settings, ref_setting in plans:
-            t_end = sc.sim.t_end
-            ref, _ = _run(sc, ref_setting, t_end, 1)
-            bar.update(1)
-            ref_label = f"lemke/fixed_point h={ref_setting['h']:g} {_support_label(ref_setting)}".rstrip()
-            for s in settings:
-                bar.set_postfix_str(f"{name} {s['solver']} {s['formulation']} h={s['h']:g} {_support_label(s)}")
-                tr, cpu = _run(sc, s, t_end, repeats)
-                verr, qerr = table1_errors(tr, ref, t_end)
+    client, cluster = open_cluster(scheduler, max(1, int(jobs or os.cpu_count() or 1)))
+    futs, runs = [], {}
+    try:
+        refs = {name: client.submit(_measure, sc, ref, sc.sim.t_end, 1, pure=False) for name, sc, _, ref in plans}
+        futs += list(refs.values())
+        for name, sc, settings, ref in plans:
+            for i, st in enumerate(settings):
+                f = client.submit(_measure, sc, st, sc.sim.t_end, repeats, pure=False)
+                runs[f.key] = (name, sc, st, ref)
+                futs.append(f)
+        rows_by = {}
+        with tqdm(total=total, disable=not progress, desc="tradeoff", unit="run") as bar:
+            ref_tr = {name: f.result()[0] for name, f in refs.items()}
+            bar.update(len(refs))
+            for f in as_completed(futs[len(refs):]):
+                name, sc, s, ref_setting = runs[f.key]
+                tr, cpu, _ = f.result()
+                t_end = sc.sim.t_end
+                ref_label = f"lemke/fixed_point h={ref_setting['h']:g} {_support_label(ref_setting)}".rstrip()
+                verr, qerr = table1_errors(tr, ref_tr[name], t_end)
                 e = tr.stats["energy"]
-                rows.append(dict(scene=name, **{k: "" if v is None else v for k, v in s.items()},
-                                 velocity_error=verr, position_error=qerr,
-                                 max_penetration=float(tr.stats["penetration"].max()),
-                                 energy_drift=float(max(0.0, (e - e[0]).max())), cpu_s_per_sim_s=cpu / t_end,
-                                 failed_steps=len(tr.failures), reference=ref_label))
+                rows_by[f.key] = dict(scene=name, **{k: "" if v is None else v for k, v in s.items()},
+                                      velocity_error=verr, position_error=qerr,
+                                      max_penetration=float(tr.stats["penetration"].max()),
+                                      energy_drift=float(max(0.0, (e - e[0]).max())), cpu_s_per_sim_s=cpu / t_end,
+                                      failed_steps=len(tr.failures), reference=ref_label)
+                bar.set_postfix_str(f"{name} {s['solver']} {s['formulation']} h={s['h']:g} {_support_label(s)}")
                 bar.update(1)
+    except KeyboardInterrupt:
+        close_cluster(client, cluster, futs)
+        raise
+    close_cluster(client, cluster)
+    rows = [rows_by[f.key] for f in futs[len(refs):]]      # in the sweep's order, whatever order they finished in
     with open(out / "tradeoff.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=COLUMNS)
         w.writeheader()
@@ -245,8 +272,9 @@ def plot_pareto(rows, path, title):
 def _cmd(args):
     import sys
 
-    from planar_lcp.cli import InputError, prepare_output_dir
+    from planar_lcp.cli import InputError, prepare_output_dir, require
     from planar_lcp.spec.scene import list_scenes
+    require("distributed")                 # the runs are Dask tasks: checked before any work
     known = [n for n, _ in list_scenes()]
     bad = [n for n in args.scenes if n not in known]
     if bad:
@@ -257,7 +285,17 @@ def _cmd(args):
     except InputError as e:
         print(f"planar-lcp tradeoff: error: {e}", file=sys.stderr)
         return 2
-    rows = run_tradeoff(scenes=tuple(args.scenes), quick=args.quick, out_dir=args.out, progress=not args.no_progress)
+    if args.scheduler is not None and args.jobs is not None:
+        print(f"planar-lcp tradeoff: error: --jobs sizes the local cluster: not with --scheduler {args.scheduler}",
+              file=sys.stderr)
+        return 2
+    try:
+        rows = run_tradeoff(scenes=tuple(args.scenes), quick=args.quick, out_dir=args.out,
+                            progress=not args.no_progress, jobs=args.jobs, scheduler=args.scheduler)
+    except OSError as e:
+        # the scheduler cannot be reached (distributed raises OSError after its connect timeout)
+        print(f"planar-lcp tradeoff: error: --scheduler {args.scheduler}: {e}", file=sys.stderr)
+        return 1
     print(f"{len(rows)} settings; wrote {Path(args.out) / 'tradeoff.csv'} and the Pareto plots")
     for name in args.scenes:
         sub = [r for r in rows if r["scene"] == name]
@@ -279,4 +317,10 @@ def register(sub):
                    "limit surface K=6 and 14 and points k=8, one timed run")
     p.add_argument("--out", default="tradeoff", metavar="DIR", help="output directory (default ./tradeoff)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    from planar_lcp.cli import finite_number
+    p.add_argument("--jobs", type=finite_number(int, 0, True), default=None, metavar="J",
+                   help="worker processes of the local Dask cluster (default: CPUs)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on the Dask cluster at ADDRESS instead of a local one (docs/planning.md, "
+                        "\"Distributed benchmarks\")")
     p.set_defaults(func=_cmd)

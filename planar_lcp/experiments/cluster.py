@@ -1,0 +1,41 @@
+"""The Dask cluster that `plan-bench` and `tradeoff` submit their independent runs to (docs/planning.md,
+"Distributed benchmarks"): an existing one at a scheduler's address, or a local one started and stopped here,
+listening on 127.0.0.1 only and without a dashboard. `distributed` is imported inside the functions."""
+
+
+def open_cluster(scheduler=None, jobs=1):
+    """(client, local cluster or None): a client of the Dask scheduler at `scheduler`, or of a new local cluster of
+    `jobs` worker processes, one thread each (the numba kernels and OMPL's solve() hold the GIL)."""
+    import logging
+
+    from distributed import Client, LocalCluster
+    if scheduler:
+        return Client(scheduler, timeout=30), None
+    cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def close_cluster(client, cluster, futures=()):
+    """Cancel `futures` (if any still run), close the client and stop a local cluster."""
+    if futures:
+        client.cancel(list(futures), force=True)
+    client.close()
+    if cluster is not None:
+        cluster.close()
+
+
+def retried_runs(client, keys):
+    """How many of the tasks `keys` the scheduler ran again because a worker was lost while it held them."""
+    def count(dask_scheduler, keys=tuple(keys)):
+        return sum(1 for k in keys if k in dask_scheduler.tasks and dask_scheduler.tasks[k].suspicious > 0)
+    return int(client.run_on_scheduler(count))
+
+
+def worker_address():
+    """The address of the Dask worker running the calling task, None outside Dask."""
+    try:
+        from distributed import get_worker
+        return get_worker().address
+    except (ImportError, ValueError):
+        return None
