@@ -14,7 +14,7 @@ import numpy as np
 from planar_lcp.frames import com_to_frame, com_velocity, frame_to_com, rotation
 from planar_lcp.spec.limit_surface import (DISK_TABLE_STEP, disk_table, gyration_radius, support_pressure,
                                            twist_directions)
-from planar_lcp.spec.massprops import body_mass_properties, support_points
+from planar_lcp.spec.massprops import body_mass_properties, support_friction, support_points
 from planar_lcp.spec.scene import SUPPORT_MODELS, Scene, SceneError
 
 from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC,  # noqa: F401
@@ -253,11 +253,10 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
                     sup_mu.append(float(mu))
                 continue
             # limit surface: one element per body, its whole load m g
-            _, _, mu = support_points(b, scene.world)
             sup_dyn.append(slot)
             sup_local.append(np.zeros(2))
             sup_load.append(dyn_mass[slot] * g)
-            sup_mu.append(float(mu))
+            sup_mu.append(support_friction(b, scene.world))
             _add_limit_surface(ls, b, res)
             ls_bodies.append(b)
         gravity = np.zeros(2)

@@ -43,6 +43,13 @@ RUN_FIELDS = [("time REAL", "solve_time"), ("memory REAL", None), ("status ENUM"
               ("simulated steps per second REAL", "steps_per_second")]
 
 
+def _crash_record(planner, seed, error, solve_time, worker):
+    """The record of a run that ended without a plan by an error (OMPL's status Crash)."""
+    return dict(planner=planner, seed=seed, exact=False, approximate=False, solve_time=solve_time,
+                status=STATUS.CRASH.value, error=error, goal_distance=float("nan"), path_duration=float("nan"),
+                segments=0, propagations=0, iterations=0, sim_steps=0, steps_per_second=float("nan"), worker=worker)
+
+
 def _run_one(task, planner, seed, time_limit, iterations=None):
     """One planning run in a worker process; returns a flat record with the worker's address (None outside Dask)."""
     import gc
@@ -53,10 +60,7 @@ def _run_one(task, planner, seed, time_limit, iterations=None):
     try:
         plan = plan_task(task, planner, seed=seed, time_limit=time_limit, iterations=iterations)
     except Exception as e:  # noqa: BLE001 - a crashed run is a result (status Crash), not the end of the benchmark
-        return dict(planner=planner, seed=seed, exact=False, approximate=False, solve_time=time.perf_counter() - t0,
-                    status=STATUS.CRASH.value, error=repr(e), goal_distance=float("nan"), path_duration=float("nan"),
-                    segments=0, propagations=0, iterations=0, sim_steps=0, steps_per_second=float("nan"),
-                    worker=worker)
+        return _crash_record(planner, seed, repr(e), time.perf_counter() - t0, worker)
     exact, approx = plan["exact"], plan["approximate"]
     return dict(planner=planner, seed=seed, exact=exact, approximate=approx, solve_time=plan["solve_time"],
                 status=(STATUS.EXACT_SOLUTION if exact else STATUS.APPROXIMATE_SOLUTION if approx
@@ -203,10 +207,7 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
                     r = f.result()
                 except Exception as e:  # noqa: BLE001 - e.g. KilledWorker: the run counts as crashed, not the bench
                     _, p, seed, _, _ = args_of[f.key]
-                    r = dict(planner=p, seed=seed, exact=False, approximate=False, solve_time=float("nan"),
-                             status=STATUS.CRASH.value, error=repr(e), goal_distance=float("nan"),
-                             path_duration=float("nan"), segments=0, propagations=0, iterations=0, sim_steps=0,
-                             steps_per_second=float("nan"), worker=None)
+                    r = _crash_record(p, seed, repr(e), float("nan"), None)
                 records.append(r)
                 bar.set_postfix_str(f"{r['planner']} seed {r['seed']}: {'exact' if r['exact'] else 'no'}")
                 bar.update()

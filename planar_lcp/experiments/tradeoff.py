@@ -33,7 +33,7 @@ import time
 from pathlib import Path
 
 from planar_lcp.experiments.accuracy import table1_errors
-from planar_lcp.experiments.cluster import close_cluster, open_cluster, worker_address
+from planar_lcp.experiments.cluster import close_cluster, open_cluster
 from planar_lcp.spec.scene import FORMULATIONS, SOLVERS, SimSpec
 
 DEFAULT_SCENES = ("falling_rod", "four_disks", "box_push")
@@ -124,12 +124,6 @@ def _support_label(s):
     return ""
 
 
-def _measure(sc, s, t_end, repeats):
-    """One setting's run as a Dask task: (trajectory, least thread CPU time of `repeats` warm runs, worker)."""
-    tr, cpu = _run(sc, s, t_end, repeats)
-    return tr, cpu, worker_address()
-
-
 def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progress=True, jobs=None, scheduler=None):
     """Run the sweep; write tradeoff.csv and one Pareto plot per scene into out_dir. Returns the rows.
 
@@ -145,11 +139,11 @@ def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progres
     client, cluster = open_cluster(scheduler, max(1, int(jobs or os.cpu_count() or 1)))
     futs, runs = [], {}
     try:
-        refs = {name: client.submit(_measure, sc, ref, sc.sim.t_end, 1, pure=False) for name, sc, _, ref in plans}
+        refs = {name: client.submit(_run, sc, ref, sc.sim.t_end, 1, pure=False) for name, sc, _, ref in plans}
         futs += list(refs.values())
         for name, sc, settings, ref in plans:
             for i, st in enumerate(settings):
-                f = client.submit(_measure, sc, st, sc.sim.t_end, repeats, pure=False)
+                f = client.submit(_run, sc, st, sc.sim.t_end, repeats, pure=False)
                 runs[f.key] = (name, sc, st, ref)
                 futs.append(f)
         rows_by = {}
@@ -158,7 +152,7 @@ def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progres
             bar.update(len(refs))
             for f in as_completed(futs[len(refs):]):
                 name, sc, s, ref_setting = runs[f.key]
-                tr, cpu, _ = f.result()
+                tr, cpu = f.result()
                 t_end = sc.sim.t_end
                 ref_label = f"lemke/fixed_point h={ref_setting['h']:g} {_support_label(ref_setting)}".rstrip()
                 verr, qerr = table1_errors(tr, ref_tr[name], t_end)

@@ -9,9 +9,10 @@ twist t = (v_x, v_y, omega) about its centre of mass:
 
 The set of all such wrenches (with |u(r)| <= 1 anywhere) is the limit surface's interior W, convex and symmetric; the
 friction a sliding body feels is the point of W that dissipates most, -mu m g L(t) with L(t) the "unit-load wrench"
-of t below. Here: the quadrature of that integral (nodes and weights, computed once per body at compile time), L(t)
-in numpy (the engine has its own numba copy of the sum, engine/assemble.py `unit_load_wrench`), and the fixed twist
-directions whose wrenches span the polyhedral part of the model.
+of t, evaluated by engine/limit_surface.py `unit_load_wrench`. Here, once per body at compile time: the pressure's
+pieces (polygon edges for the closed form, full disks for the unit disk's table, Gauss nodes for the other curved
+pieces and for far twists), the unit disk's table, and the fixed twist directions whose wrenches span the polyhedral
+part of the model. The Gauss resolution n is the scene's `[sim] limit_surface_resolution`.
 
 All in the body's COM frame: lengths m, weights dimensionless (summing to 1), twists (m/s, m/s, rad/s).
 """
@@ -25,11 +26,6 @@ from collections import namedtuple
 import numpy as np
 
 from planar_lcp.spec.massprops import body_area_properties
-
-#: Gauss points per direction of each quadrature piece (a fan triangle, an edge strip, a corner sector; a disk gets
-#: 4x as many around). docs/method.md gives the accuracy this buys (tests/test_limit_surface.py measures it).
-DEFAULT_RESOLUTION = 6
-
 
 def _gauss01(n):
     x, w = np.polynomial.legendre.leggauss(n)
@@ -87,7 +83,7 @@ def _ccw_edges(poly):
     return np.hstack([poly, np.roll(poly, -1, axis=0)])
 
 
-def shape_pressure(shape, n=DEFAULT_RESOLUTION):
+def shape_pressure(shape, n):
     """One shape's area in the pieces of `massprops` (its convex core, a strip of width r outward of each core edge,
     a sector of radius r at each core vertex; a capsule: the rectangle around its segment and two half-disks; a
     disk: itself). Body frame, m; weights m^2. Returns a dict:
@@ -131,10 +127,11 @@ def shape_pressure(shape, n=DEFAULT_RESOLUTION):
                 while a1 <= a0:
                     a1 += 2.0 * math.pi
                 nodes.append(_sector_nodes(ring[i], r, a0, a1, n))
-    far = _cat([_fan_nodes(e[:, :2], FAR_RESOLUTION) for e in edges])
-    return dict(edges=np.concatenate(edges) if edges else np.zeros((0, 4)), far=far[0], far_w=far[1],
+    far, far_w = _cat([_fan_nodes(e[:, :2], FAR_RESOLUTION) for e in edges])
+    curved, curved_w = _cat(nodes)
+    return dict(edges=np.concatenate(edges) if edges else np.zeros((0, 4)), far=far, far_w=far_w,
                 disks=np.array(disks, dtype=np.float64).reshape(-1, 3), disk_nodes=disk_nodes,
-                nodes=_cat(nodes)[0], weights=_cat(nodes)[1])
+                nodes=curved, weights=curved_w)
 
 
 def _cat(parts):
@@ -148,7 +145,7 @@ def _cat(parts):
 SupportPressure = namedtuple("SupportPressure", ["edges", "edge_scale", "nodes", "far", "disks", "disk_nodes", "size"])
 
 
-def support_pressure(body, n=DEFAULT_RESOLUTION):
+def support_pressure(body, n):
     """A dynamic body's support pressure as a `SupportPressure`: uniform over the body's shapes (overlaps counted
     twice, as in `massprops`), or equal shares at `body.support_points` when the scene gives them (then nodes only).
     nodes: its curved pieces' (or the support points); far: its polygon pieces'; disk_nodes: one (Q, 3) array per

@@ -248,5 +248,9 @@ def support_points(body: BodySpec, world):
     mu : float
     """
     pts, w = default_support_points(body)
-    mu = body.support_friction if body.support_friction is not None else world.friction
-    return pts, w, float(mu)
+    return pts, w, support_friction(body, world)
+
+
+def support_friction(body: BodySpec, world) -> float:
+    """The body-table Coulomb coefficient: `body.support_friction`, else `world.friction`."""
+    return float(body.support_friction if body.support_friction is not None else world.friction)
