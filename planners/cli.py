@@ -163,16 +163,16 @@ def cmd_bench(args):
             check_planner(p)
     except TaskError as e:
         return _err("plan-bench", e)
-    out = Path(args.out or f"bench_{task.name}")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        return _err("plan-bench", f"--out {out}: cannot create the directory ({e.strerror or e})")
     if args.time is not None and args.iterations is not None:
         return _err("plan-bench", f"give --time or --iterations, not both: got --time {args.time:g} and "
                                   f"--iterations {args.iterations}")
     if args.scheduler is not None and args.jobs is not None:
         return _err("plan-bench", f"--jobs sizes the local cluster: not with --scheduler {args.scheduler}")
+    out = Path(args.out or f"bench_{task.name}")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        return _err("plan-bench", f"--out {out}: cannot create the directory ({e.strerror or e})")
     try:
         run_bench(task.name, args.planners, runs=args.runs, time_limit=60.0 if args.time is None else args.time,
                   jobs=args.jobs, out=out, iterations=args.iterations, scheduler=args.scheduler)

@@ -119,3 +119,21 @@ def test_tradeoff_on_a_cluster_matches_the_local_one(cluster, tmp_path):
         with open(tmp_path / where / "tradeoff.csv") as f:
             rows[where] = [tuple(row[k] for k in keys) for row in csv.DictReader(f)]
     assert rows["remote"] == rows["local"] and len(rows["local"]) >= 4
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--time", "5", "--iterations", "100"], "give --time or --iterations, not both: got --time 5 and --iterations 100"),
+    (["--jobs", "2", "--scheduler", "tcp://127.0.0.1:1"],
+     "--jobs sizes the local cluster: not with --scheduler tcp://127.0.0.1:1"),
+])
+def test_plan_bench_refuses_conflicting_flags_before_any_work(tmp_path, argv, message):
+    r = run_cli("plan-bench", "push_box", "--runs", "1", *argv, "--out", tmp_path / "out")
+    assert r.returncode == 2 and r.stderr == f"planar-lcp plan-bench: error: {message}\n", r.stderr
+    assert not (tmp_path / "out").exists()              # refused before anything was created
+
+
+def test_tradeoff_refuses_jobs_with_a_scheduler(tmp_path):
+    r = run_cli("tradeoff", "--quick", "--jobs", "2", "--scheduler", "tcp://127.0.0.1:1", "--out", tmp_path / "out")
+    assert r.returncode == 2 and r.stderr == ("planar-lcp tradeoff: error: --jobs sizes the local cluster: not with "
+                                              "--scheduler tcp://127.0.0.1:1\n"), r.stderr
+    assert not (tmp_path / "out").exists()

@@ -274,14 +274,14 @@ def _cmd(args):
     if bad:
         print(f"planar-lcp tradeoff: error: unknown scene {bad[0]!r} (shipped: {', '.join(known)})", file=sys.stderr)
         return 2
+    if args.scheduler is not None and args.jobs is not None:
+        print(f"planar-lcp tradeoff: error: --jobs sizes the local cluster: not with --scheduler {args.scheduler}",
+              file=sys.stderr)
+        return 2
     try:
         prepare_output_dir(args.out, "--out")
     except InputError as e:
         print(f"planar-lcp tradeoff: error: {e}", file=sys.stderr)
-        return 2
-    if args.scheduler is not None and args.jobs is not None:
-        print(f"planar-lcp tradeoff: error: --jobs sizes the local cluster: not with --scheduler {args.scheduler}",
-              file=sys.stderr)
         return 2
     try:
         rows = run_tradeoff(scenes=tuple(args.scenes), quick=args.quick, out_dir=args.out,
