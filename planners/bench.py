@@ -14,8 +14,6 @@ separate `plan_task` in a worker process, and the log is written here in OMPL's 
 
 import json
 import os
-import platform
-import socket
 import subprocess
 import sys
 import time
@@ -25,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from ompl import base as ob
 
-from planar_lcp.experiments.cluster import close_cluster, open_cluster, retried_runs, worker_address
+from planar_lcp.experiments.cluster import close_cluster, host_info, open_cluster, retried_runs, worker_address
 
 #: OMPL's planner statuses; a run's `status ENUM` column holds the value of one of them
 STATUS = ob.PlannerStatus.PlannerStatusType
@@ -43,11 +41,13 @@ RUN_FIELDS = [("time REAL", "solve_time"), ("memory REAL", None), ("status ENUM"
               ("simulated steps per second REAL", "steps_per_second")]
 
 
-def _crash_record(planner, seed, error, solve_time, worker):
-    """The record of a run that ended without a plan by an error (OMPL's status Crash)."""
+def _crash_record(planner, seed, error, solve_time, worker, host=None, cpuinfo=None):
+    """The record of a run that ended without a plan by an error (OMPL's status Crash); a run Dask gave up on has
+    no worker and no host."""
     return dict(planner=planner, seed=seed, exact=False, approximate=False, solve_time=solve_time,
                 status=STATUS.CRASH.value, error=error, goal_distance=float("nan"), path_duration=float("nan"),
-                segments=0, propagations=0, iterations=0, sim_steps=0, steps_per_second=float("nan"), worker=worker)
+                segments=0, propagations=0, iterations=0, sim_steps=0, steps_per_second=float("nan"), worker=worker,
+                host=host, cpuinfo=cpuinfo)
 
 
 def _run_one(task, planner, seed, time_limit, iterations=None):
@@ -57,10 +57,11 @@ def _run_one(task, planner, seed, time_limit, iterations=None):
     from .plan import plan_task
     t0 = time.perf_counter()
     worker = worker_address()
+    host, cpuinfo = host_info()
     try:
         plan = plan_task(task, planner, seed=seed, time_limit=time_limit, iterations=iterations)
     except Exception as e:  # noqa: BLE001 - a crashed run is a result (status Crash), not the end of the benchmark
-        return _crash_record(planner, seed, repr(e), time.perf_counter() - t0, worker)
+        return _crash_record(planner, seed, repr(e), time.perf_counter() - t0, worker, host, cpuinfo)
     exact, approx = plan["exact"], plan["approximate"]
     return dict(planner=planner, seed=seed, exact=exact, approximate=approx, solve_time=plan["solve_time"],
                 status=(STATUS.EXACT_SOLUTION if exact else STATUS.APPROXIMATE_SOLUTION if approx
@@ -68,7 +69,8 @@ def _run_one(task, planner, seed, time_limit, iterations=None):
                 goal_distance=plan.get("goal", {}).get("goal_distance", float("nan")),
                 path_duration=plan["path_duration"] if (exact or approx) else float("nan"),
                 segments=len(plan["controls"]), propagations=plan["propagations"], iterations=plan["iterations"],
-                sim_steps=plan["sim_steps"], steps_per_second=plan["steps_per_second"], worker=worker)
+                sim_steps=plan["sim_steps"], steps_per_second=plan["steps_per_second"], worker=worker, host=host,
+                cpuinfo=cpuinfo)
 
 
 def _fmt(v):
@@ -81,7 +83,33 @@ def _fmt(v):
     return f"{v}"
 
 
-def write_log(path, task, planners, records, runs, time_limit, total_time):
+#: the host of a run that no worker finished (Dask gave up on it): its log says so instead of naming a machine (one
+#: word: ompl_benchmark_statistics reads the host as the last word of "Running on ...")
+UNKNOWN_HOST = "unknown-host"
+
+
+def write_logs(out, task, planners, records, time_limit, total_time):
+    """OMPL benchmark logs of the runs, ONE PER HOST: OMPL's log format describes one experiment on one machine
+    ("Running on <host>" and its CPU), and `ompl_benchmark_statistics` merges several logs into one database, so a
+    benchmark spread over machines is one log per machine. With one host the log is `<task>.log`, otherwise
+    `<task>_<host>.log` for each. Returns the paths."""
+    hosts = {}
+    for r in records:
+        hosts.setdefault(r.get("host") or UNKNOWN_HOST, r.get("cpuinfo") or "unknown")
+    paths = []
+    for host, cpu in sorted(hosts.items()):
+        rs = [r for r in records if (r.get("host") or UNKNOWN_HOST) == host]
+        name = f"{task}.log" if len(hosts) == 1 else f"{task}_{_file_safe(host)}.log"
+        paths.append(write_log(Path(out) / name, task, planners, rs, host, cpu, time_limit, total_time))
+    return paths
+
+
+def _file_safe(s):
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in s.split(" ")[0])
+
+
+def write_log(path, task, planners, records, host, cpuinfo, time_limit, total_time):
+    """One OMPL benchmark log (doc/markdown/benchmark.md) of `records`, all run on `host`."""
     from .tasks import get_task
     t = get_task(task)
     try:
@@ -89,10 +117,11 @@ def write_log(path, task, planners, records, runs, time_limit, total_time):
         ver = version("ompl")
     except Exception:  # noqa: BLE001
         ver = "unknown"
+    runs = max([sum(1 for r in records if r["planner"] == p) for p in planners], default=0)
     lines = [f"OMPL version {ver}", f"Experiment {task}", "0 experiment properties",
-             f"Running on {socket.gethostname()}", f"Starting at {datetime.now().strftime('%Y-%m-%d %H:%M:%S')}",
+             f"Running on {host}", f"Starting at {datetime.now().strftime('%Y-%m-%d %H:%M:%S')}",
              "<<<|", f"task {task}: {t.description}; scene {t.scene}; planar_lcp LCP simulator as forward model",
-             "|>>>", "<<<|", f"{platform.processor() or platform.machine()} x {os.cpu_count()}", "|>>>",
+             "|>>>", "<<<|", cpuinfo, "|>>>",
              "0 is the random seed", f"{time_limit} seconds per run", "0 MB per run", f"{runs} runs per planner",
              f"{total_time} seconds spent to collect the data", "1 enum types", STATUS_ENUM,
              f"{len(planners)} planners"]
@@ -106,16 +135,18 @@ def write_log(path, task, planners, records, runs, time_limit, total_time):
             lines.append("; ".join(vals) + "; ")
         lines.append(".")
     Path(path).write_text("\n".join(lines) + "\n")
+    return Path(path)
 
 
-def make_database(log, db):
-    """The SQLite database of the log, with the wheel's ompl_benchmark_statistics (its Python module if the
-    console script is missing)."""
+def make_database(logs, db):
+    """The SQLite database of the logs (one experiment each), with the wheel's ompl_benchmark_statistics (its Python
+    module if the console script is missing)."""
     if Path(db).exists():
         Path(db).unlink()
+    logs = [str(p) for p in logs]
     exe = Path(sys.executable).parent / "ompl_benchmark_statistics"
-    cmd = [str(exe), str(log), "-d", str(db)] if exe.exists() else \
-        [sys.executable, "-m", "ompl.ompl_benchmark_statistics", str(log), "-d", str(db)]
+    cmd = [str(exe), *logs, "-d", str(db)] if exe.exists() else \
+        [sys.executable, "-m", "ompl.ompl_benchmark_statistics", *logs, "-d", str(db)]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"ompl_benchmark_statistics failed: {r.stderr.strip()}")
@@ -220,13 +251,12 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
     close_cluster(client, cluster)
     total = time.perf_counter() - t0
     records.sort(key=lambda r: (planners.index(r["planner"]), r["seed"]))
-    log = out / f"{task}.log"
     # OMPL's log has a time limit per run; with an iteration budget, the longest run's time stands for it
-    write_log(log, task, planners, records, runs, limit if limit is not None else
-              max((r["solve_time"] for r in records), default=0.0), total)
-    wrote = [log]
+    logs = write_logs(out, task, planners, records, limit if limit is not None else
+                      max((r["solve_time"] for r in records), default=0.0), total)
+    wrote = list(logs)
     try:
-        wrote.append(make_database(log, out / f"{task}.db"))
+        wrote.append(make_database(logs, out / f"{task}.db"))
     except (RuntimeError, OSError) as e:
         print(f"warning: no database: {e}", file=sys.stderr)
     rows = summarize(records, planners, limit)
@@ -234,10 +264,12 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
     where = f"the Dask cluster at {scheduler}" if scheduler else f"{jobs} worker processes"
     md = summary_markdown(task, rows, runs, budget, where)
     (out / "summary.md").write_text(md)
+    hosts = {r["host"]: r["cpuinfo"] for r in records if r.get("host")}
     (out / "summary.json").write_text(json.dumps(dict(
         task=task, runs=runs, time_limit=limit, iterations=iterations, jobs=None if scheduler else jobs,
         scheduler=scheduler or "local", workers=sorted({r["worker"] for r in records if r["worker"]}),
-        lost_workers=lost, retried_runs=retried, total_time=total, summary=rows, records=records), indent=1))
+        lost_workers=lost, retried_runs=retried, total_time=total, hosts=hosts, summary=rows,
+        records=[{k: v for k, v in r.items() if k != "cpuinfo"} for r in records]), indent=1))
     box_plots(records, planners, limit, out / "boxplots.png", task)
     wrote += [out / "summary.md", out / "summary.json", out / "boxplots.png"]
     print(md)

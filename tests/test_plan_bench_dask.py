@@ -61,6 +61,12 @@ def test_plan_bench_on_a_cluster_matches_the_local_one(cluster, tmp_path):
     remote, runs = _runs(tmp_path / "remote")
     assert remote["scheduler"] == address and set(remote["workers"]) <= set(workers.values())
     assert all(rec["worker"] in workers.values() for rec in remote["records"])
+    # the OMPL log names the machine and CPU the workers ran on, as OMPL's Benchmark writes them
+    from planar_lcp.experiments.cluster import host_info
+    host, cpu = host_info()
+    log = (tmp_path / "remote" / "push_box.log").read_text()
+    assert f"Running on {host}\n" in log and cpu in log
+    assert remote["hosts"] == {host: cpu} and all(rec["host"] == host for rec in remote["records"])
     r = run_cli(*args, "--jobs", "2", "--out", tmp_path / "local")
     assert r.returncode == 0, r.stderr
     local, local_runs = _runs(tmp_path / "local")

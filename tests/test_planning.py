@@ -166,3 +166,29 @@ def test_import_planar_lcp_does_not_import_ompl():
                         "planar_lcp.cli.build_parser(); print('ompl' in sys.modules)"],
                        capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert r.stdout.strip() == "False", r.stderr
+
+
+def test_benchmark_runs_on_two_machines_give_one_log_each_and_one_database(tmp_path):
+    """OMPL's log describes one machine ("Running on", its CPU); runs from two hosts (and one Dask gave up on) go to
+    one log per host, and ompl_benchmark_statistics merges them into one database with each run under its host."""
+    import sqlite3
+
+    from planners.bench import UNKNOWN_HOST, _crash_record, make_database, write_logs
+    recs = []
+    for seed, host in ((1, "alpha"), (2, "beta"), (3, "alpha")):
+        r = _crash_record("RRT", seed, "x", 1.0, f"tcp://{host}:1", host, f"{host} cpu model\nCPU(s): 4")
+        r.update(exact=True, status=6, solve_time=float(seed))
+        recs.append(r)
+    recs.append(_crash_record("RRT", 4, "KilledWorker", float("nan"), None))
+    logs = write_logs(tmp_path, "push_box", ["RRT"], recs, 60.0, 10.0)
+    assert sorted(p.name for p in logs) == ["push_box_alpha.log", "push_box_beta.log", "push_box_unknown-host.log"]
+    alpha = (tmp_path / "push_box_alpha.log").read_text()
+    assert "Running on alpha\n" in alpha and "<<<|\nalpha cpu model\nCPU(s): 4\n|>>>" in alpha
+    assert "2 runs per planner" in alpha
+    assert f"Running on {UNKNOWN_HOST}\n" in (tmp_path / "push_box_unknown-host.log").read_text()
+    db = make_database(logs, tmp_path / "push_box.db")
+    with sqlite3.connect(db) as con:
+        rows = con.execute("select experiments.hostname, experiments.cpuinfo, runs.time from runs join experiments "
+                           "on runs.experimentid = experiments.id order by runs.time is null, runs.time").fetchall()
+    assert [(h, t) for h, _, t in rows[:3]] == [("alpha", 1.0), ("beta", 2.0), ("alpha", 3.0)]
+    assert rows[0][1].startswith("alpha cpu model") and rows[3][0] == UNKNOWN_HOST

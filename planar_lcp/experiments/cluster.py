@@ -39,3 +39,29 @@ def worker_address():
         return get_worker().address
     except (ImportError, ValueError):
         return None
+
+
+def host_info():
+    """(host name, CPU description) of the calling process's machine, as OMPL's Benchmark puts them in its log
+    ("Running on <host>" and the second <<<| ... |>>> block: `lscpu`'s output on Linux, as OMPL's
+    machine::getCPUInfo gives it; the processor name and count where lscpu is missing)."""
+    global _HOST_INFO
+    if _HOST_INFO is None:
+        import os
+        import platform
+        import shutil
+        import socket
+        import subprocess
+        cpu = ""
+        if shutil.which("lscpu"):
+            try:
+                cpu = subprocess.run(["lscpu"], capture_output=True, text=True, timeout=10).stdout.strip()
+            except (OSError, subprocess.SubprocessError):
+                cpu = ""
+        if not cpu:
+            cpu = f"{platform.processor() or platform.machine()} x {os.cpu_count()}"
+        _HOST_INFO = (socket.gethostname(), cpu)
+    return _HOST_INFO
+
+
+_HOST_INFO = None
