@@ -4,6 +4,7 @@ The OMPL state is the full physics state, so propagation is a pure function of (
 
     CompoundStateSpace = SE2 (object centre of mass x, y, theta)
                        + R^3 (object vx, vy, omega)
+                       [+ SE2 + R^3 for each obstacle, in Task.obstacles order (push_clutter)]
                        + R^2 (pusher x, y)
 
 with the task's distance weights `Task.weights = (w_pos, w_ang, w_vel, w_pus)` (the shipped tasks' values are in
@@ -11,7 +12,8 @@ planners/tasks.py, the reasons in docs/planning.md), so that OMPL's distance bet
 
     w_pos |dxy| + w_ang |dtheta| + w_vel |(dvx, dvy, domega)| + w_pus |dpusher|
 
-(|.| Euclidean, dtheta the shorter way round). SE2 is itself compound (R^2 weight 1, SO2 weight 0.5): it enters with
+(|.| Euclidean, dtheta the shorter way round), plus for each obstacle w_obs |dxy| + w_obs w_ang / w_pos |dtheta| +
+w_vel |dv| (w_obs = Task.obstacle_weight). SE2 is itself compound (R^2 weight 1, SO2 weight 0.5): it enters with
 weight w_pos and its SO2 part with w_ang / w_pos. tests/test_planning.py checks this formula against OMPL.
 
 Controls: R^2, the pusher velocity (m/s). Each propagate() call is ONE jitted rollout of
@@ -46,20 +48,31 @@ INVALID_X = 1.0e9        # object x written for a state whose propagation failed
 SYCLOP_GRID = 10         # Syclop's decomposition: SYCLOP_GRID x SYCLOP_GRID cells over the object's workspace
 
 
-def read_state(s):
-    """The flat state (8,) of an OMPL state; one slice per vector part, as each element read costs a binding call."""
-    o, v, p = s[0], s[1], s[2]
-    vv = v[0:3]
-    pp = p[0:2]
-    return np.array([o.getX(), o.getY(), o.getYaw(), vv[0], vv[1], vv[2], pp[0], pp[1]])
+def read_state(s, nobj=1):
+    """The flat state (6 nobj + 2,) of an OMPL state (planners.tasks); one slice per vector part, as each element
+    read costs a binding call."""
+    if nobj == 1:
+        o, v, p = s[0], s[1], s[2]
+        vv = v[0:3]
+        pp = p[0:2]
+        return np.array([o.getX(), o.getY(), o.getYaw(), vv[0], vv[1], vv[2], pp[0], pp[1]])
+    x = []
+    for i in range(nobj):
+        o = s[2 * i]
+        x += [o.getX(), o.getY(), o.getYaw(), *s[2 * i + 1][0:3]]
+    x += s[2 * nobj][0:2]
+    return np.array(x)
 
 
-def write_state(s, x):
-    """Write EVERY component of the flat state x (8,) into the OMPL state s (OMPL does not clear `result`)."""
-    s[0].setXY(float(x[0]), float(x[1]))
-    s[0].setYaw(float(x[2]))
-    s[1][0:3] = [float(x[3]), float(x[4]), float(x[5])]
-    s[2][0:2] = [float(x[6]), float(x[7])]
+def write_state(s, x, nobj=1):
+    """Write EVERY component of the flat state x (6 nobj + 2,) into the OMPL state s (OMPL does not clear
+    `result`)."""
+    for i in range(nobj):
+        o = s[2 * i]
+        o.setXY(float(x[6 * i]), float(x[6 * i + 1]))
+        o.setYaw(float(x[6 * i + 2]))
+        s[2 * i + 1][0:3] = [float(x[6 * i + 3]), float(x[6 * i + 4]), float(x[6 * i + 5])]
+    s[2 * nobj][0:2] = [float(x[6 * nobj]), float(x[6 * nobj + 1])]
 
 
 def bounds(low, high):
@@ -78,7 +91,7 @@ class Propagator:
         self.calls = 0
 
     def __call__(self, start, control, duration, result):
-        x = read_state(start)                    # read all of start before writing result (they may alias)
+        x = read_state(start, self.tm.nobj)      # read all of start before writing result (they may alias)
         u = (control[0], control[1])
         del start, control                       # no wrapper may outlive this call (module docstring)
         n = int(round(duration / self.tm.h))
@@ -87,7 +100,7 @@ class Propagator:
             y = x.copy()
             y[0] = INVALID_X
         self.calls += 1
-        write_state(result, y)
+        write_state(result, y, self.tm.nobj)
         del result
 
 
@@ -102,12 +115,12 @@ class TaskGoal(ob.GoalSampleableRegion):
         self.rng = ou.RNG()                      # seeded by ou.RNG.setSeed like the planner's: plans reproduce
 
     def distanceGoal(self, state):
-        x = read_state(state)
+        x = read_state(state, self.tm.nobj)
         del state                                # no wrapper may outlive this call (module docstring)
         return float(self.tm.goal_distance(x))
 
     def sampleGoal(self, state):
-        write_state(state, self.tm.sample_goal(self.rng.uniformReal))
+        write_state(state, self.tm.sample_goal(self.rng.uniformReal), self.tm.nobj)
         del state
 
     def maxSampleCount(self):
@@ -156,20 +169,21 @@ class ObjectGrid(oc.GridDecomposition):
 
 
 def state_space(t):
-    """The weighted CompoundStateSpace of task t (module docstring: SE2 + R^3 + R^2 and the distance formula)."""
-    (ox0, ox1), (oy0, oy1) = t.object_bounds
+    """The weighted CompoundStateSpace of task t (module docstring: SE2 + R^3 per body, R^2, the distance formula)."""
     (px0, px1), (py0, py1) = t.pusher_bounds
-    se2 = ob.SE2StateSpace()
-    se2.setBounds(bounds([ox0, oy0], [ox1, oy1]))
-    vel = ob.RealVectorStateSpace(3)
-    vel.setBounds(bounds([-t.speed_max, -t.speed_max, -t.omega_max], [t.speed_max, t.speed_max, t.omega_max]))
+    w_pos, w_ang, w_vel, w_pus = t.weights
+    space = ob.CompoundStateSpace()
+    region = t.obstacle_bounds if t.obstacle_bounds is not None else t.object_bounds
+    for i, ((x0, x1), (y0, y1)) in enumerate([t.object_bounds] + [region] * len(t.obstacles)):
+        se2 = ob.SE2StateSpace()
+        se2.setBounds(bounds([x0, y0], [x1, y1]))
+        se2.setSubspaceWeight(1, w_ang / w_pos)  # SE2 is scaled by w_pos (w_obs) below: its angle then weighs w_ang
+        vel = ob.RealVectorStateSpace(3)
+        vel.setBounds(bounds([-t.speed_max, -t.speed_max, -t.omega_max], [t.speed_max, t.speed_max, t.omega_max]))
+        space.addSubspace(se2, w_pos if i == 0 else t.obstacle_weight)
+        space.addSubspace(vel, w_vel)
     pusher = ob.RealVectorStateSpace(2)
     pusher.setBounds(bounds([px0, py0], [px1, py1]))
-    w_pos, w_ang, w_vel, w_pus = t.weights
-    se2.setSubspaceWeight(1, w_ang / w_pos)      # SE2 is scaled by w_pos below: its angle then weighs w_ang
-    space = ob.CompoundStateSpace()
-    space.addSubspace(se2, w_pos)
-    space.addSubspace(vel, w_vel)
     space.addSubspace(pusher, w_pus)
     return space
 
@@ -198,7 +212,7 @@ class Problem:
         def is_valid(state):
             if not space.satisfiesBounds(state):
                 return False
-            x = read_state(state)
+            x = read_state(state, tm.nobj)
             del state                            # no wrapper may outlive this call (module docstring)
             return tm.valid(x)
 
@@ -207,7 +221,7 @@ class Problem:
         si.setPropagationStepSize(t.step_duration)
         si.setMinMaxControlDuration(t.min_steps, t.max_steps)
         start = space.allocState()
-        write_state(start, tm.initial_state())
+        write_state(start, tm.initial_state(), tm.nobj)
         ss.setStartState(start)
         self.goal = TaskGoal(si, tm)
         ss.setGoal(self.goal)
@@ -282,9 +296,9 @@ class Problem:
                     propagations=self.propagator.calls - calls0, sim_steps=self.tm.nsteps_total - steps0)
 
     def solution(self):
-        """(states (n+1, 8), controls (n, 2), steps (n,) propagation steps per control) of the found path."""
+        """(states (n+1, d), controls (n, 2), steps (n,) propagation steps per control) of the found path."""
         path = self.ss.getSolutionPath()
-        states = np.array([read_state(s) for s in path.getStates()])
+        states = np.array([read_state(s, self.tm.nobj) for s in path.getStates()])
         controls = np.array([[c[0], c[1]] for c in path.getControls()]).reshape(-1, 2)
         durs = np.array(path.getControlDurations(), float)
         steps = np.rint(durs / self.task.step_duration).astype(int)

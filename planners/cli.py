@@ -64,7 +64,7 @@ def register(sub):
     b.set_defaults(func=cmd_bench)
 
 
-DEFAULT_PLANNER = {"push_box": "RRT", "push_t": "RRT", "tip_box": "RRT"}   # measured best (docs/planning.md)
+DEFAULT_PLANNER = {"push_box": "RRT", "push_t": "RRT", "tip_box": "RRT", "push_clutter": "RRT"}   # measured best (docs/planning.md)
 
 
 def _err(cmd, msg, code=2):

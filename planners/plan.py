@@ -51,7 +51,7 @@ def plan_task(task, planner="KPIECE1", seed=1, time_limit=None, iterations=None,
                 propagations=res["propagations"], sim_steps=res["sim_steps"],
                 steps_per_second=res["sim_steps"] / max(res["solve_time"], 1e-9),
                 h=prob.tm.h, step_duration=t.step_duration,
-                state_names=["x", "y", "theta", "vx", "vy", "omega", "pusher_x", "pusher_y"],
+                state_names=t.state_names(),
                 start=prob.tm.initial_state().tolist(), controls=[], steps=[], durations=[], states=[],
                 path_duration=0.0)
     if res["exact"] or res["approximate"]:
@@ -94,10 +94,11 @@ def load_plan(path):
         k = np.asarray(plan["steps"], float)
         x0 = np.asarray(plan["start"], float)
     except (TypeError, ValueError):
-        raise TaskError(f"{path}: controls must be [[vx, vy], ...], steps a list of integers, start 8 numbers")
-    if len(u) != len(k) or k.ndim != 1 or x0.shape != (8,):
-        raise TaskError(f"{path}: need one positive integer step count per control and an 8-number start, got "
-                        f"{len(u)} controls, {len(k)} step counts, start of shape {x0.shape}")
+        raise TaskError(f"{path}: controls must be [[vx, vy], ...], steps a list of integers, start "
+                        f"{task.state_dim} numbers")
+    if len(u) != len(k) or k.ndim != 1 or x0.shape != (task.state_dim,):
+        raise TaskError(f"{path}: need one positive integer step count per control and a {task.state_dim}-number "
+                        f"start, got {len(u)} controls, {len(k)} step counts, start of shape {x0.shape}")
     # a control is held for min_steps..max_steps propagation steps (the task's control durations, the only ones
     # the planner samples): more would be a plan no planner wrote, and 1e9 steps a replay of days
     for i, ki in enumerate(plan["steps"]):
@@ -110,7 +111,7 @@ def load_plan(path):
         raise TaskError(f"{path}: controls[{i}][{j}] must be a number in [-{cm:g}, {cm:g}] m/s (the task's control "
                         f"bounds), got {plan['controls'][i][j]!r}")
     if not np.all(np.isfinite(x0)):
-        raise TaskError(f"{path}: start must be 8 finite numbers, got {plan['start']!r}")
+        raise TaskError(f"{path}: start must be {task.state_dim} finite numbers, got {plan['start']!r}")
     if "step_duration" in plan:
         sd = plan["step_duration"]
         if isinstance(sd, bool) or not isinstance(sd, (int, float)) or abs(sd - task.step_duration) > 1e-12:
@@ -136,11 +137,14 @@ def replay_lcp(plan, tm=None):
 
 
 def _frame_poses(tm, X):
-    """Body-frame object poses (n, 1, 3) and kinematic poses (n, nkin, 3) of flat states X (n, 8)."""
+    """Body-frame poses of the dynamic bodies (n, ndyn, 3), in the scene's order, and kinematic poses (n, nkin, 3)
+    of flat states X (n, d)."""
     X = np.asarray(X, float)
-    qf = tm.model.com_to_frame(X[:, None, 0:3])
+    qc = np.empty((len(X), tm.nobj, 3))
+    qc[:, tm.dyn_order] = X[:, :tm.ip].reshape(len(X), tm.nobj, 6)[:, :, 0:3]
+    qf = tm.model.com_to_frame(qc)
     qk = np.repeat(tm.qk0[None], len(X), axis=0)
-    qk[:, tm.ipusher, 0:2] = X[:, 6:8]
+    qk[:, tm.ipusher, 0:2] = X[:, tm.ip:tm.ip + 2]
     return qf, qk
 
 
@@ -167,7 +171,10 @@ def plot_plan(tm, X, path, title="", goal_state=None):
         a = 0.15 + 0.85 * (j + 1) / len(idx)
         draw_scene(ax, tm.scene, qf[i], qk[i], alpha=a)
     ax.plot(X[:, 0], X[:, 1], "-", color="tab:blue", lw=1, label="object COM")
-    ax.plot(X[:, 6], X[:, 7], "-", color="tab:red", lw=1, label="pusher")
+    for i in range(1, tm.nobj):
+        ax.plot(X[:, 6 * i], X[:, 6 * i + 1], ":", color="tab:gray", lw=1,
+                label="obstacles' COM" if i == 1 else None)
+    ax.plot(X[:, tm.ip], X[:, tm.ip + 1], "-", color="tab:red", lw=1, label="pusher")
     g = tm.task.goal
     if g["kind"] in ("pose", "cover"):
         xs, ys = tm.goal_poly.exterior.xy
@@ -224,11 +231,13 @@ def replay_pymunk(plan, tm=None):
 
     def flat():
         q, _, qk, vc = read_state(hd)        # vc: the centre-of-mass velocities, as the flat state holds them
-        qc = tm.model.frame_to_com(q)[0]
-        x = np.array([qc[0], qc[1], qc[2], vc[0, 0], vc[0, 1], vc[0, 2],
-                      qk[hd.kinematic_names.index(tm.task.pusher), 0],
-                      qk[hd.kinematic_names.index(tm.task.pusher), 1]])
-        x[2] = math.atan2(math.sin(x[2]), math.cos(x[2]))
+        qc = tm.model.frame_to_com(q)
+        x = np.empty(tm.ip + 2)
+        for i, d in enumerate(tm.dyn_order):
+            x[6 * i:6 * i + 3] = qc[d]
+            x[6 * i + 2] = math.atan2(math.sin(qc[d, 2]), math.cos(qc[d, 2]))
+            x[6 * i + 3:6 * i + 6] = vc[d]
+        x[tm.ip:tm.ip + 2] = qk[hd.kinematic_names.index(tm.task.pusher), 0:2]
         return x
 
     dense = [flat()]

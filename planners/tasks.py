@@ -3,10 +3,13 @@
 Nothing here imports ompl: `planners.adapter` turns a `Task` into an OMPL problem. The goal tests are plain
 functions of the flat physics state
 
-    x = (qx, qy, qtheta, vx, vy, omega, px, py)      (8,)
+    x = (qx, qy, qtheta, vx, vy, omega,              the object
+         [qx, qy, qtheta, vx, vy, omega] per obstacle, in Task.obstacles order (push_clutter)
+         px, py)                                     the pusher        (6 (1 + n_obstacles) + 2,)
 
-with the object's CENTRE-OF-MASS pose and velocity (m, rad, m/s, rad/s) and the pusher's body-frame position (m),
-so that `replay` and the tests use exactly the checks the planner used.
+with each body's CENTRE-OF-MASS pose and velocity (m, rad, m/s, rad/s) and the pusher's body-frame position (m),
+so that `replay` and the tests use exactly the checks the planner used. A task with one object has the 8 numbers
+(qx, qy, qtheta, vx, vy, omega, px, py).
 """
 
 import math
@@ -42,7 +45,8 @@ def wrap_angle(a):
 
 @dataclass(frozen=True)
 class Task:
-    """A planning problem over a scene with ONE dynamic body (the object) and one kinematic body (the pusher).
+    """A planning problem over a scene with one kinematic body (the pusher), the object to bring to the goal, and
+    optionally movable obstacles (the scene's other dynamic bodies).
 
     Attributes
     ----------
@@ -51,6 +55,14 @@ class Task:
         A shipped scene name or a path.
     object, pusher : str
         Body names in the scene.
+    obstacles : tuple of str
+        The scene's other dynamic bodies, movable obstacles: every dynamic body of the scene is the object or one of
+        these (the OMPL state holds them all, so propagation stays a pure function of the state).
+    obstacle_bounds : ((xlo, xhi), (ylo, yhi)) or None
+        The table region: an obstacle's centre of mass outside it makes a state invalid (default: object_bounds).
+    obstacle_weight : float
+        OMPL distance weight of an obstacle's position (per m); its angle weighs obstacle_weight * w_ang / w_pos and
+        its velocity w_vel, as the object's.
     control_max : float
         Pusher speed bound per axis, m/s: controls are (vx, vy) in [-control_max, control_max]^2.
     step_duration : float
@@ -64,7 +76,8 @@ class Task:
     speed_max, omega_max : float
         Velocity bounds of the object (state bounds; faster states are invalid), m/s and rad/s.
     goal : dict
-        kind "pose" (x, y, theta_deg of the object's body frame, pos_tol m, ang_tol_deg),
+        kind "pose" (x, y, theta_deg of the object's body frame, pos_tol m, ang_tol_deg; with speed_tol m/s and
+        omega_tol rad/s the object must also be at rest: its speed and spin within them),
         kind "cover" (pose of the goal, min_cover fraction of the goal's area covered),
         kind "tip" (angle_deg, ang_tol_deg, rest_height m of the COM, height_tol, speed_tol, omega_tol; with
         signed=True the angle's sign, i.e. the tipping direction, is required, otherwise +-angle_deg both count).
@@ -98,6 +111,25 @@ class Task:
     goal_bias: float = 0.1
     kpiece_cell: float = 0.02
     description: str = ""
+    obstacles: tuple = ()
+    obstacle_bounds: tuple = None
+    obstacle_weight: float = 0.1
+
+    @property
+    def nobj(self):
+        """Dynamic bodies in the state: the object and the obstacles."""
+        return 1 + len(self.obstacles)
+
+    @property
+    def state_dim(self):
+        return 6 * self.nobj + 2
+
+    def state_names(self):
+        """Names of the flat state's entries (module docstring)."""
+        names = ["x", "y", "theta", "vx", "vy", "omega"]
+        for b in self.obstacles:
+            names += [f"{b}_{n}" for n in ("x", "y", "theta", "vx", "vy", "omega")]
+        return names + ["pusher_x", "pusher_y"]
 
     def load_scene(self):
         from planar_lcp.spec.scene import load_scene
@@ -132,6 +164,17 @@ TASKS = {
         ledge_x=0.27,
         description="tip the standing box onto its right side, towards the ledge (-90 +- 10 deg, at rest), "
                     "without any part of it passing the ledge"),
+    "push_clutter": Task(
+        name="push_clutter", scene="push_clutter_task", object="box", pusher="pusher",
+        obstacles=("disk", "crate", "rod", "wedge"),
+        control_max=0.15, step_duration=0.1, min_steps=1, max_steps=10,
+        object_bounds=((-0.33, 0.33), (-0.18, 0.18)), pusher_bounds=((-0.40, 0.40), (-0.25, 0.25)),
+        obstacle_bounds=((-0.35, 0.35), (-0.20, 0.20)),
+        speed_max=1.0, omega_max=10.0, weights=(1.0, 0.06, 0.002, 0.1), obstacle_weight=0.05,
+        goal=dict(kind="pose", x=0.22, y=0.0, theta_deg=0.0, pos_tol=0.01, ang_tol_deg=10.0,
+                  speed_tol=0.005, omega_tol=0.05),
+        description="push the box through four movable obstacles (disk, crate, rod, wedge) to (0.22, 0, 0 deg) "
+                    "within 1 cm and 10 deg, at rest, every obstacle's centre of mass staying on the table"),
 }
 
 
@@ -159,9 +202,14 @@ class TaskModel:
         self.scene = scene = task.load_scene()
         self.model = model = compile_scene(scene)
         src = scene.source
-        if model.ndyn != 1 or task.object not in model.dyn_names:
-            raise TaskError(f"task {task.name}: scene {src} must have exactly one dynamic body, the object "
-                            f"{task.object!r}; it has {list(model.dyn_names)}")
+        want = [task.object, *task.obstacles]
+        if sorted(model.dyn_names) != sorted(want) or len(set(want)) != len(want):
+            raise TaskError(f"task {task.name}: the dynamic bodies of scene {src} must be the object and the "
+                            f"obstacles {want}; it has {list(model.dyn_names)}")
+        # the scene's index of each body in the flat state's order (object first, then the obstacles)
+        self.dyn_order = np.array([model.dyn_names.index(b) for b in want])
+        self.nobj = len(want)
+        self.ip = 6 * self.nobj                  # the pusher's position is x[ip:ip + 2]
         if task.pusher not in model.kin_names:
             raise TaskError(f"task {task.name}: scene {src} has no kinematic body {task.pusher!r} "
                             f"(kinematic bodies: {list(model.kin_names)})")
@@ -173,7 +221,9 @@ class TaskModel:
         if not (1 <= task.min_steps <= task.max_steps):
             raise TaskError(f"task {task.name}: need 1 <= min_steps <= max_steps, got {task.min_steps}, "
                             f"{task.max_steps}")
-        for lab, b in (("object_bounds", task.object_bounds), ("pusher_bounds", task.pusher_bounds)):
+        self.obstacle_bounds = task.obstacle_bounds if task.obstacle_bounds is not None else task.object_bounds
+        for lab, b in (("object_bounds", task.object_bounds), ("pusher_bounds", task.pusher_bounds),
+                       ("obstacle_bounds", self.obstacle_bounds)):
             for lo, hi in b:
                 if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
                     raise TaskError(f"task {task.name}: {lab} must be finite with low < high, got {b}")
@@ -198,6 +248,7 @@ class TaskModel:
         from shapely.geometry import Polygon
         from shapely.ops import unary_union
 
+        from planar_lcp.frames import frame_to_com
         from planar_lcp.geometry import shape_geometry
 
         sc = self.scene
@@ -225,13 +276,15 @@ class TaskModel:
         self.forbidden = unary_union(statics).buffer(max(self.pusher_radius - 1e-3, 0.0)) if statics else None
         if self.forbidden is not None:
             shapely.prepare(self.forbidden)
-        self.com_local = self.model.com_local[0].copy()
+        # the object's centre of mass in its body frame, (1, 2) as planar_lcp.frames takes it
+        self.com_local1 = self.model.com_local[self.dyn_order[:1]].copy()
+        self.com_local = self.com_local1[0]
         hull = np.asarray(self.object_poly_body.convex_hull.exterior.coords)
         self.object_radius = float(np.max(np.hypot(hull[:, 0] - self.com_local[0], hull[:, 1] - self.com_local[1])))
         g = self.task.goal
         if g.get("kind") in ("pose", "cover"):
             qf = np.array([[g["x"], g["y"], math.radians(g["theta_deg"])]])
-            self.goal_com = self.model.frame_to_com(qf)[0]
+            self.goal_com = frame_to_com(qf, self.com_local1)[0]
             self.goal_poly = _place(self.object_poly_body, (g["x"], g["y"]), math.radians(g["theta_deg"]))
         if self.task.ledge_x is not None:
             self.object_hull = np.asarray(self.object_poly_body.convex_hull.exterior.coords)[:-1]
@@ -239,23 +292,28 @@ class TaskModel:
     # ---- state ---------------------------------------------------------------------------------------------
     def initial_state(self):
         m = self.model
-        x = np.zeros(8)
-        x[0:3] = m.q0[0]
-        x[2] = wrap_angle(x[2])
-        x[3:6] = m.v0[0]
-        x[6:8] = m.qk0[self.ipusher, :2]
+        x = np.zeros(self.ip + 2)
+        for i, d in enumerate(self.dyn_order):
+            x[6 * i:6 * i + 3] = m.q0[d]
+            x[6 * i + 2] = wrap_angle(x[6 * i + 2])
+            x[6 * i + 3:6 * i + 6] = m.v0[d]
+        x[self.ip:self.ip + 2] = m.qk0[self.ipusher, :2]
         return x
 
     def advance(self, x, u, nsteps):
         """Roll the physics out for `nsteps` steps with pusher velocity u = (vx, vy): ONE rollout call.
 
-        Returns (x_new, ok); the object angle of x_new is wrapped to [-pi, pi)."""
+        Returns (x_new, ok); the bodies' angles in x_new are wrapped to [-pi, pi)."""
         m = self.model
-        q = np.array([[x[0], x[1], x[2]]])
-        v = np.array([[x[3], x[4], x[5]]])
+        n, ip = self.nobj, self.ip
+        blocks = np.asarray(x[:ip], float).reshape(n, 6)
+        q = np.empty((n, 3))
+        v = np.empty((n, 3))
+        q[self.dyn_order] = blocks[:, 0:3]
+        v[self.dyn_order] = blocks[:, 3:6]
         qk = self.qk0.copy()
-        qk[self.ipusher, 0] = x[6]
-        qk[self.ipusher, 1] = x[7]
+        qk[self.ipusher, 0] = x[ip]
+        qk[self.ipusher, 1] = x[ip + 1]
         vk = np.zeros((1, m.nkin, 3))
         vk[0, self.ipusher, 0] = u[0]
         vk[0, self.ipusher, 1] = u[1]
@@ -263,18 +321,19 @@ class TaskModel:
         done = out["steps_done"]
         self.nsteps_total += done
         ok = bool(done == nsteps and not np.any(out["status"][:done]))
-        y = np.empty(8)
-        y[0:3] = out["q"][done, 0]
-        y[2] = wrap_angle(y[2])
-        y[3:6] = out["v"][done, 0]
-        y[6:8] = out["qk"][done, self.ipusher, :2]
+        y = np.empty(ip + 2)
+        yb = y[:ip].reshape(n, 6)
+        yb[:, 0:3] = out["q"][done][self.dyn_order]
+        yb[:, 2] = (yb[:, 2] + math.pi) % (2.0 * math.pi) - math.pi       # wrap_angle, elementwise
+        yb[:, 3:6] = out["v"][done][self.dyn_order]
+        y[ip:ip + 2] = out["qk"][done, self.ipusher, :2]
         return y, ok and bool(np.all(np.isfinite(y)))
 
     def execute(self, x0, controls, steps):
         """Replay controls open loop exactly as the planner propagated them.
 
-        controls (n, 2) m/s; steps (n,) propagation steps each. Returns (states at control boundaries (n+1, 8),
-        dense states (1 + total sim steps / steps_per_prop, 8) at every propagation step, ok)."""
+        controls (n, 2) m/s; steps (n,) propagation steps each. Returns (states at control boundaries (n+1, d),
+        dense states (1 + total sim steps / steps_per_prop, d) at every propagation step, ok); d = Task.state_dim."""
         x = np.asarray(x0, float).copy()
         bound, dense, ok = [x.copy()], [x.copy()], True
         for u, k in zip(np.asarray(controls, float), np.asarray(steps, int)):
@@ -287,17 +346,27 @@ class TaskModel:
 
     # ---- validity ------------------------------------------------------------------------------------------
     def in_bounds(self, x):
+        """The state bounds (OMPL's too): positions in their regions (the obstacles' centres of mass on the table
+        region), speeds and spins within speed_max and omega_max."""
         t = self.task
         (ox0, ox1), (oy0, oy1) = t.object_bounds
         (px0, px1), (py0, py1) = t.pusher_bounds
-        return (ox0 <= x[0] <= ox1 and oy0 <= x[1] <= oy1 and px0 <= x[6] <= px1 and py0 <= x[7] <= py1
-                and math.hypot(x[3], x[4]) <= t.speed_max and abs(x[5]) <= t.omega_max)
+        ip = self.ip
+        if not (ox0 <= x[0] <= ox1 and oy0 <= x[1] <= oy1 and px0 <= x[ip] <= px1 and py0 <= x[ip + 1] <= py1):
+            return False
+        (bx0, bx1), (by0, by1) = self.obstacle_bounds
+        for i in range(self.nobj):
+            if i and not (bx0 <= x[6 * i] <= bx1 and by0 <= x[6 * i + 1] <= by1):
+                return False
+            if not (math.hypot(x[6 * i + 3], x[6 * i + 4]) <= t.speed_max and abs(x[6 * i + 5]) <= t.omega_max):
+                return False
+        return True
 
     def valid(self, x):
         """Task rules beyond the state bounds: the pusher is not inside a static body; the object stays on the
         ledge (vertical tasks)."""
         import shapely
-        if self.forbidden is not None and shapely.contains_xy(self.forbidden, x[6], x[7]):
+        if self.forbidden is not None and shapely.contains_xy(self.forbidden, x[self.ip], x[self.ip + 1]):
             return False
         if self.task.ledge_x is not None:
             c, s = math.cos(x[2]), math.sin(x[2])
@@ -310,7 +379,8 @@ class TaskModel:
 
     # ---- goal ----------------------------------------------------------------------------------------------
     def object_frame_pose(self, x):
-        return self.model.com_to_frame(np.asarray(x[0:3], float)[None])[0]
+        from planar_lcp.frames import com_to_frame
+        return com_to_frame(np.asarray(x[0:3], float)[None], self.com_local1)[0]
 
     def goal_distance(self, x):
         """A goal distance with threshold 1.0: the goal holds iff goal_distance(x) <= 1."""
@@ -319,7 +389,10 @@ class TaskModel:
         if kind == "pose":
             pe = math.hypot(x[0] - self.goal_com[0], x[1] - self.goal_com[1])
             ae = abs(wrap_angle(x[2] - self.goal_com[2]))
-            return max(pe / g["pos_tol"], ae / math.radians(g["ang_tol_deg"]))
+            d = max(pe / g["pos_tol"], ae / math.radians(g["ang_tol_deg"]))
+            if "speed_tol" in g:                 # at rest
+                d = max(d, math.hypot(x[3], x[4]) / g["speed_tol"], abs(x[5]) / g["omega_tol"])
+            return d
         if kind == "cover":
             # cheap pose bound first: 95% cover needs the COM within a few mm and the angle within a few degrees
             pe = math.hypot(x[0] - self.goal_com[0], x[1] - self.goal_com[1])
@@ -355,20 +428,27 @@ class TaskModel:
             r["angle_error_deg"] = float(math.degrees(abs(wrap_angle(x[2] - self.goal_com[2]))))
         if g["kind"] == "cover":
             r["cover"] = float(self.cover(x))
+        if g["kind"] == "tip" or "speed_tol" in g:
+            r["speed_m_s"] = float(math.hypot(x[3], x[4]))
+            r["omega_rad_s"] = float(x[5])
         if g["kind"] == "tip":
             r["angle_deg"] = float(math.degrees(x[2]))
             r["com_height_m"] = float(x[1])
-            r["speed_m_s"] = float(math.hypot(x[3], x[4]))
-            r["omega_rad_s"] = float(x[5])
         return r
 
     def sample_goal(self, rng):
-        """A state in the goal region: object at the goal (within tolerance), at rest; pusher anywhere valid.
+        """A state in the goal region: object at the goal (within tolerance), at rest; pusher anywhere valid;
+        obstacles at rest anywhere on the table region.
 
         rng(lo, hi) -> uniform float (OMPL's RNG in the planner, so sampling is seeded)."""
         g = self.task.goal
         kind = g["kind"]
-        x = np.zeros(8)
+        x = np.zeros(self.ip + 2)
+        (bx0, bx1), (by0, by1) = self.obstacle_bounds
+        for i in range(1, self.nobj):
+            x[6 * i] = rng(bx0, bx1)
+            x[6 * i + 1] = rng(by0, by1)
+            x[6 * i + 2] = rng(-math.pi, math.pi)
         if kind in ("pose", "cover"):
             x[0:3] = self.goal_com
             if kind == "pose":
@@ -389,10 +469,10 @@ class TaskModel:
             # goal sample mostly a matter of the pusher's position
             a = rng(-math.pi, math.pi)
             r = rng(0.8, 1.0) * self.object_radius + self.pusher_radius
-            x[6] = min(max(x[0] + r * math.cos(a), px0), px1)
-            x[7] = min(max(x[1] + r * math.sin(a), py0), py1)
+            x[self.ip] = min(max(x[0] + r * math.cos(a), px0), px1)
+            x[self.ip + 1] = min(max(x[1] + r * math.sin(a), py0), py1)
         else:
-            x[6], x[7] = rng(px0, px1), rng(py0, py1)
+            x[self.ip], x[self.ip + 1] = rng(px0, px1), rng(py0, py1)
         return x
 
 
