@@ -163,27 +163,38 @@ class Simulator:
 
         Returns a dict of arrays: q, v (nsteps+1, ndyn, 3), qk (nsteps+1, nkin, 3), stats (nsteps, NSTAT),
         status (nsteps,), steps_done, and contact arrays when record_contacts (engine/rollout.py `Recording`)."""
-        m = self.model
-        nd, nk = m.ndyn, m.nkin
+        nk = self.model.nkin
         vk_seq = np.asarray(vk_seq, dtype=float)
         if nk == 0 or vk_seq.size == 0:
             vk_seq = np.zeros((1, nk, 3))  # nothing to prescribe (reshape(-1, 0, 3) would be ambiguous)
         else:
             vk_seq = vk_seq.reshape(-1, nk, 3)
-        vk_seq = np.ascontiguousarray(vk_seq)
-        self._last_step_out = None  # the rollout starts cold and leaves no state for `step` to continue
-        C = m.max_contacts() if record_contacts else 0
-        rec = Recording(q=np.zeros((nsteps + 1, nd, 3)), v=np.zeros((nsteps + 1, nd, 3)),
-                        qk=np.zeros((nsteps + 1, nk, 3)), stats=np.zeros((nsteps, NSTAT)),
-                        status=np.zeros(nsteps, np.int64), con_count=np.zeros(nsteps if C else 0, np.int64),
-                        con_pair=np.zeros((nsteps, C), np.int64), con_phi=np.zeros((nsteps, C)),
-                        con_n=np.zeros((nsteps, C, 2)), con_p=np.zeros((nsteps, C, 2)),
-                        con_cn=np.zeros((nsteps, C)), con_ft=np.zeros((nsteps, C)), con_vt=np.zeros((nsteps, C)),
-                        con_mode=np.zeros((nsteps, C), np.int64))
-        rec.q[0], rec.v[0], rec.qk[0] = q, v, qk
+        rec = self.recording(int(nsteps), record_contacts)
         out = rec._asdict()
-        out["steps_done"] = self._run_chunks(rec, vk_seq, int(nsteps), bool(stop_on_failure))
+        out["steps_done"] = self.rollout_into(rec, q, v, qk, np.ascontiguousarray(vk_seq), stop_on_failure)
         return out
+
+    def recording(self, nsteps, record_contacts=False):
+        """The arrays a rollout of nsteps steps writes (engine/rollout.py `Recording`), for `rollout_into`."""
+        m = self.model
+        nd, nk = m.ndyn, m.nkin
+        C = m.max_contacts() if record_contacts else 0
+        return Recording(q=np.zeros((nsteps + 1, nd, 3)), v=np.zeros((nsteps + 1, nd, 3)),
+                         qk=np.zeros((nsteps + 1, nk, 3)), stats=np.zeros((nsteps, NSTAT)),
+                         status=np.zeros(nsteps, np.int64), con_count=np.zeros(nsteps if C else 0, np.int64),
+                         con_pair=np.zeros((nsteps, C), np.int64), con_phi=np.zeros((nsteps, C)),
+                         con_n=np.zeros((nsteps, C, 2)), con_p=np.zeros((nsteps, C, 2)),
+                         con_cn=np.zeros((nsteps, C)), con_ft=np.zeros((nsteps, C)), con_vt=np.zeros((nsteps, C)),
+                         con_mode=np.zeros((nsteps, C), np.int64))
+
+    def rollout_into(self, rec, q, v, qk, vk_seq, stop_on_failure=True):
+        """`rollout` into the arrays `rec` (from `recording(nsteps)`, reusable: every row a rollout reads it writes
+        first), len(rec.status) steps from (q, v, qk). vk_seq: a C-contiguous float (nvk, nkin, 3). For callers
+        that make many short rollouts (a planner's propagations): the same kernels, the same results bit for bit,
+        without allocating per call. Returns the steps done."""
+        self._last_step_out = None  # the rollout starts cold and leaves no state for `step` to continue
+        rec.q[0], rec.v[0], rec.qk[0] = q, v, qk
+        return self._run_chunks(rec, vk_seq, len(rec.status), bool(stop_on_failure))
 
     #: Wall-clock length a rollout's kernel calls aim at: between two calls Python handles signals, so Ctrl-C stops a
     #: long simulation within about this long. Short rollouts (a planner's propagation) are one call.

@@ -236,6 +236,10 @@ class TaskModel:
                                                else "lemke", formulation=scene.sim.formulation, warm_start=True))
         self.ipusher = model.kin_names.index(task.pusher)
         self.qk0 = model.qk0.copy()
+        # advance()'s inputs and its recordings (one per rollout length), reused from call to call
+        self._q, self._v = np.empty((model.ndyn, 3)), np.empty((model.ndyn, 3))
+        self._qk, self._vk = self.qk0.copy(), np.zeros((1, model.nkin, 3))
+        self._recordings = {}
         self.nsteps_total = 0          # simulated steps (throughput)
         self._geometry()
         x0 = self.initial_state()
@@ -303,31 +307,41 @@ class TaskModel:
     def advance(self, x, u, nsteps):
         """Roll the physics out for `nsteps` steps with pusher velocity u = (vx, vy): ONE rollout call.
 
-        Returns (x_new, ok); the bodies' angles in x_new are wrapped to [-pi, pi)."""
-        m = self.model
-        n, ip = self.nobj, self.ip
-        blocks = np.asarray(x[:ip], float).reshape(n, 6)
-        q = np.empty((n, 3))
-        v = np.empty((n, 3))
-        q[self.dyn_order] = blocks[:, 0:3]
-        v[self.dyn_order] = blocks[:, 3:6]
-        qk = self.qk0.copy()
+        Returns (x_new, ok); the bodies' angles in x_new are wrapped to [-pi, pi). The planner calls this for every
+        propagation, so it reuses its arrays (Simulator.rollout_into): about 20 us less per call than `rollout`."""
+        n, ip, nsteps = self.nobj, self.ip, int(nsteps)
+        rec = self._recordings.get(nsteps)
+        if rec is None:
+            rec = self._recordings[nsteps] = self.sim.recording(nsteps)
+        q, v = self._q, self._v
+        if n == 1:
+            q[0] = x[0:3]
+            v[0] = x[3:6]
+        else:
+            blocks = np.asarray(x[:ip], float).reshape(n, 6)
+            q[self.dyn_order] = blocks[:, 0:3]
+            v[self.dyn_order] = blocks[:, 3:6]
+        qk, vk = self._qk, self._vk
         qk[self.ipusher, 0] = x[ip]
         qk[self.ipusher, 1] = x[ip + 1]
-        vk = np.zeros((1, m.nkin, 3))
         vk[0, self.ipusher, 0] = u[0]
         vk[0, self.ipusher, 1] = u[1]
-        out = self.sim.rollout(q, v, qk, vk, int(nsteps), stop_on_failure=True)
-        done = out["steps_done"]
+        done = self.sim.rollout_into(rec, q, v, qk, vk, stop_on_failure=True)
         self.nsteps_total += done
-        ok = bool(done == nsteps and not np.any(out["status"][:done]))
+        ok = done == nsteps and not rec.status[:done].any()
         y = np.empty(ip + 2)
-        yb = y[:ip].reshape(n, 6)
-        yb[:, 0:3] = out["q"][done][self.dyn_order]
-        yb[:, 2] = (yb[:, 2] + math.pi) % (2.0 * math.pi) - math.pi       # wrap_angle, elementwise
-        yb[:, 3:6] = out["v"][done][self.dyn_order]
-        y[ip:ip + 2] = out["qk"][done, self.ipusher, :2]
-        return y, ok and bool(np.all(np.isfinite(y)))
+        if n == 1:
+            y[0:3] = rec.q[done, 0]
+            y[3:6] = rec.v[done, 0]
+            y[2] = wrap_angle(y[2])
+        else:
+            yb = y[:ip].reshape(n, 6)
+            yb[:, 0:3] = rec.q[done][self.dyn_order]
+            yb[:, 2] = (yb[:, 2] + math.pi) % (2.0 * math.pi) - math.pi       # wrap_angle, elementwise
+            yb[:, 3:6] = rec.v[done][self.dyn_order]
+        y[ip] = rec.qk[done, self.ipusher, 0]
+        y[ip + 1] = rec.qk[done, self.ipusher, 1]
+        return y, ok and bool(np.isfinite(y).all())
 
     def execute(self, x0, controls, steps):
         """Replay controls open loop exactly as the planner propagated them.
