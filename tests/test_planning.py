@@ -194,3 +194,15 @@ def test_benchmark_runs_on_two_machines_give_one_log_each_and_one_database(tmp_p
                            "on runs.experimentid = experiments.id order by runs.time is null, runs.time").fetchall()
     assert [(h, t) for h, _, t in rows[:3]] == [("alpha", 1.0), ("beta", 2.0), ("alpha", 3.0)]
     assert rows[0][1].startswith("alpha cpu model") and rows[3][0] == UNKNOWN_HOST
+
+
+@pytest.mark.parametrize("plan_dir", sorted(p.name for p in (ROOT / "docs" / "figures" / "planning").iterdir()
+                                             if (p / "plan.json").is_file()))
+def test_the_plans_in_the_docs_replay_bit_for_bit(plan_dir):
+    """The plans behind docs/planning.md's figures are what the code makes now: replayed, they reach their states
+    exactly and the goal."""
+    from planners.plan import load_plan, replay_lcp
+    plan = load_plan(ROOT / "docs" / "figures" / "planning" / plan_dir / "plan.json")
+    res = replay_lcp(plan)
+    np.testing.assert_array_equal(res["bound"], np.array(plan["states"]))
+    assert res["report"]["goal_holds"]
