@@ -152,6 +152,9 @@ TASKS = {
         control_max=0.15, step_duration=0.1, min_steps=1, max_steps=10,
         object_bounds=((-0.20, 0.25), (-0.20, 0.25)), pusher_bounds=((-0.30, 0.35), (-0.30, 0.35)),
         speed_max=1.0, omega_max=10.0, weights=(1.0, 0.06, 0.002, 0.1),
+        # the 95% cover goal needs the pose within a few mm and degrees, which goal samples reach best: RRT with
+        # bias 0.3 solved seeds 1..20 within 24k iterations; with 0.1, 2 of seeds 1..10 took more than 140k
+        goal_bias=0.3,
         goal=dict(kind="cover", x=0.06, y=0.08, theta_deg=30.0, min_cover=0.95),
         description="push the T block until it covers >= 95% of the goal T at (0.06, 0.08, 30 deg)"),
     "tip_box": Task(
