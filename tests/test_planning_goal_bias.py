@@ -1,4 +1,4 @@
-"""push_t's planning settings: RRT's goal bias, which makes the 95%-cover goal reachable in a few thousand
+"""push_t's RRT goal bias (issue I), which makes the 95%-cover goal reachable in a few thousand
 iterations (the cover goal needs the T's pose within a few millimetres and degrees; goal samples get there best).
 
 The OMPL work runs in subprocesses, as in tests/test_planning.py (the cyclic GC must stay off while planning)."""
@@ -36,13 +36,13 @@ def test_rrt_gets_the_tasks_goal_bias():
 
 
 def test_push_t_rrt_solves_quickly_and_replays_exactly(tmp_path):
-    # seed 3 needs about 2.4k iterations with bias 0.3 (with 0.1: about 5.9k); the budget leaves room for round-off
-    # differences between machines
-    r = run_cli("plan", "push_t", "--planner", "RRT", "--iterations", "6000", "--seed", "3", "--no-gif",
+    # seed 3 needs 2356 iterations with bias 0.3 and 5890 with the old 0.1 (iteration counts are the same on every
+    # machine): a budget of 4000 holds only with the new bias
+    r = run_cli("plan", "push_t", "--planner", "RRT", "--iterations", "4000", "--seed", "3", "--no-gif",
                 "--out", tmp_path)
     assert r.returncode == 0, r.stdout + r.stderr
     plan = json.loads((tmp_path / "plan.json").read_text())
-    assert plan["exact"] and plan["iterations"] <= 6000
+    assert plan["exact"]
     from planners.plan import load_plan, replay_lcp
     res = replay_lcp(load_plan(tmp_path / "plan.json"))
     np.testing.assert_array_equal(res["bound"], np.array(plan["states"]))
