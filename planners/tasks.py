@@ -74,7 +74,7 @@ class Task:
     pusher_bounds : ((xlo, xhi), (ylo, yhi))
         Workspace of the pusher, m.
     speed_max, omega_max : float
-        Velocity bounds of the object (state bounds; faster states are invalid), m/s and rad/s.
+        Velocity bounds of every dynamic body (state bounds; faster states are invalid), m/s and rad/s.
     goal : dict
         kind "pose" (x, y, theta_deg of the object's body frame, pos_tol m, ang_tol_deg; with speed_tol m/s and
         omega_tol rad/s the object must also be at rest: its speed and spin within them),
@@ -153,7 +153,8 @@ TASKS = {
         object_bounds=((-0.20, 0.25), (-0.20, 0.25)), pusher_bounds=((-0.30, 0.35), (-0.30, 0.35)),
         speed_max=1.0, omega_max=10.0, weights=(1.0, 0.06, 0.002, 0.1),
         # the 95% cover goal needs the pose within a few mm and degrees, which goal samples reach best: RRT with
-        # bias 0.3 solved seeds 1..20 within 24k iterations; with 0.1, 2 of seeds 1..10 took more than 140k
+        # bias 0.3 solves seeds 1..10 within 10.6k iterations; with 0.1, 2 of them took more than 140k
+        # (docs/planning.md, "Faster planning")
         goal_bias=0.3,
         goal=dict(kind="cover", x=0.06, y=0.08, theta_deg=30.0, min_cover=0.95),
         description="push the T block until it covers >= 95% of the goal T at (0.06, 0.08, 30 deg)"),
