@@ -51,11 +51,6 @@ SYCLOP_GRID = 10         # Syclop's decomposition: SYCLOP_GRID x SYCLOP_GRID cel
 def read_state(s, nobj=1):
     """The flat state (6 nobj + 2,) of an OMPL state (planners.tasks); one slice per vector part, as each element
     read costs a binding call."""
-    if nobj == 1:
-        o, v, p = s[0], s[1], s[2]
-        vv = v[0:3]
-        pp = p[0:2]
-        return np.array([o.getX(), o.getY(), o.getYaw(), vv[0], vv[1], vv[2], pp[0], pp[1]])
     x = []
     for i in range(nobj):
         o = s[2 * i]
@@ -173,8 +168,7 @@ def state_space(t):
     (px0, px1), (py0, py1) = t.pusher_bounds
     w_pos, w_ang, w_vel, w_pus = t.weights
     space = ob.CompoundStateSpace()
-    region = t.obstacle_bounds if t.obstacle_bounds is not None else t.object_bounds
-    for i, ((x0, x1), (y0, y1)) in enumerate([t.object_bounds] + [region] * len(t.obstacles)):
+    for i, ((x0, x1), (y0, y1)) in enumerate([t.object_bounds] + [t.table_region] * len(t.obstacles)):
         se2 = ob.SE2StateSpace()
         se2.setBounds(bounds([x0, y0], [x1, y1]))
         se2.setSubspaceWeight(1, w_ang / w_pos)  # SE2 is scaled by w_pos (w_obs) below: its angle then weighs w_ang

@@ -13,7 +13,6 @@ separate `plan_task` in a worker process, and the log is written here in OMPL's 
 """
 
 import json
-import os
 import subprocess
 import sys
 import time
@@ -23,7 +22,8 @@ from pathlib import Path
 import numpy as np
 from ompl import base as ob
 
-from planar_lcp.experiments.cluster import close_cluster, host_info, open_cluster, retried_runs, worker_address
+from planar_lcp.experiments.cluster import (close_cluster, host_info, local_jobs, open_cluster, retried_runs,
+                                            worker_address)
 
 #: OMPL's planner statuses; a run's `status ENUM` column holds the value of one of them
 STATUS = ob.PlannerStatus.PlannerStatusType
@@ -216,8 +216,7 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
     from tqdm import tqdm
 
     out = Path(out)
-    jobs = int(jobs or os.cpu_count() or 1)
-    jobs = max(1, min(jobs, runs * len(planners)))
+    jobs = local_jobs(jobs, runs * len(planners))
     limit = None if iterations else float(time_limit)
     todo = [(task, p, s, limit, iterations) for s in range(1, runs + 1) for p in planners]
     t0 = time.perf_counter()

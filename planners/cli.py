@@ -152,6 +152,7 @@ def cmd_replay(args):
 
 def cmd_bench(args):
     from planar_lcp.cli import require
+    from planar_lcp.experiments.cluster import SchedulerUnreachable
 
     require("distributed")                 # the runs are Dask tasks: checked before any work
     from .bench import run_bench
@@ -176,7 +177,6 @@ def cmd_bench(args):
     try:
         run_bench(task.name, args.planners, runs=args.runs, time_limit=60.0 if args.time is None else args.time,
                   jobs=args.jobs, out=out, iterations=args.iterations, scheduler=args.scheduler)
-    except OSError as e:
-        # the scheduler cannot be reached (distributed raises OSError after its connect timeout)
-        return _err("plan-bench", f"--scheduler {args.scheduler}: {e}", 1)
+    except SchedulerUnreachable as e:
+        return _err("plan-bench", str(e), 1)
     return 0

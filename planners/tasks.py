@@ -116,6 +116,11 @@ class Task:
     obstacle_weight: float = 0.1
 
     @property
+    def table_region(self):
+        """Where the obstacles' centres of mass must stay: obstacle_bounds, or object_bounds when it is None."""
+        return self.obstacle_bounds if self.obstacle_bounds is not None else self.object_bounds
+
+    @property
     def nobj(self):
         """Dynamic bodies in the state: the object and the obstacles."""
         return 1 + len(self.obstacles)
@@ -225,9 +230,8 @@ class TaskModel:
         if not (1 <= task.min_steps <= task.max_steps):
             raise TaskError(f"task {task.name}: need 1 <= min_steps <= max_steps, got {task.min_steps}, "
                             f"{task.max_steps}")
-        self.obstacle_bounds = task.obstacle_bounds if task.obstacle_bounds is not None else task.object_bounds
         for lab, b in (("object_bounds", task.object_bounds), ("pusher_bounds", task.pusher_bounds),
-                       ("obstacle_bounds", self.obstacle_bounds)):
+                       ("obstacle_bounds", task.table_region)):
             for lo, hi in b:
                 if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
                     raise TaskError(f"task {task.name}: {lab} must be finite with low < high, got {b}")
@@ -373,7 +377,7 @@ class TaskModel:
         ip = self.ip
         if not (ox0 <= x[0] <= ox1 and oy0 <= x[1] <= oy1 and px0 <= x[ip] <= px1 and py0 <= x[ip + 1] <= py1):
             return False
-        (bx0, bx1), (by0, by1) = self.obstacle_bounds
+        (bx0, bx1), (by0, by1) = self.task.table_region
         for i in range(self.nobj):
             if i and not (bx0 <= x[6 * i] <= bx1 and by0 <= x[6 * i + 1] <= by1):
                 return False
@@ -463,7 +467,7 @@ class TaskModel:
         g = self.task.goal
         kind = g["kind"]
         x = np.zeros(self.ip + 2)
-        (bx0, bx1), (by0, by1) = self.obstacle_bounds
+        (bx0, bx1), (by0, by1) = self.task.table_region
         for i in range(1, self.nobj):
             x[6 * i] = rng(bx0, bx1)
             x[6 * i + 1] = rng(by0, by1)

@@ -143,3 +143,12 @@ def test_tradeoff_refuses_jobs_with_a_scheduler(tmp_path):
     assert r.returncode == 2 and r.stderr == ("planar-lcp tradeoff: error: --jobs sizes the local cluster: not with "
                                               "--scheduler tcp://127.0.0.1:1\n"), r.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_an_unreachable_scheduler_is_named_and_nothing_else_is_blamed_on_it():
+    """open_cluster turns distributed's connect failure into SchedulerUnreachable, naming the address; the commands
+    report only that as a --scheduler error (any other OSError is not theirs to relabel)."""
+    from planar_lcp.experiments.cluster import SchedulerUnreachable, local_jobs, open_cluster
+    with pytest.raises(SchedulerUnreachable, match=r"^--scheduler tcp://127\.0\.0\.1:1: "):
+        open_cluster("tcp://127.0.0.1:1", timeout=2)
+    assert local_jobs(None, 3) == min(os.cpu_count(), 3) and local_jobs(5, 2) == 2 and local_jobs(0) >= 1

@@ -2,15 +2,32 @@
 "Distributed benchmarks"): an existing one at a scheduler's address, or a local one started and stopped here,
 listening on 127.0.0.1 only and without a dashboard. `distributed` is imported inside the functions."""
 
+import os
 
-def open_cluster(scheduler=None, jobs=1):
+
+class SchedulerUnreachable(OSError):
+    """No Dask scheduler answered at the address given (--scheduler)."""
+
+
+def local_jobs(jobs, ntasks=None):
+    """Worker processes of a local cluster: `jobs` (default: the CPUs), at least one, and at most one per task when
+    the number of tasks `ntasks` is given."""
+    n = max(1, int(jobs or os.cpu_count() or 1))
+    return n if ntasks is None else max(1, min(n, ntasks))
+
+
+def open_cluster(scheduler=None, jobs=1, timeout=30):
     """(client, local cluster or None): a client of the Dask scheduler at `scheduler`, or of a new local cluster of
-    `jobs` worker processes, one thread each (the numba kernels and OMPL's solve() hold the GIL)."""
+    `jobs` worker processes, one thread each (the numba kernels and OMPL's solve() hold the GIL). A scheduler that
+    does not answer within `timeout` s raises SchedulerUnreachable (distributed's own OSError, named)."""
     import logging
 
     from distributed import Client, LocalCluster
     if scheduler:
-        return Client(scheduler, timeout=30), None
+        try:
+            return Client(scheduler, timeout=timeout), None
+        except OSError as e:
+            raise SchedulerUnreachable(f"--scheduler {scheduler}: {e}") from None
     cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, host="127.0.0.1",
                            dashboard_address=None, silence_logs=logging.ERROR)
     return Client(cluster), cluster
@@ -47,7 +64,6 @@ def host_info():
     machine::getCPUInfo gives it; the processor name and count where lscpu is missing)."""
     global _HOST_INFO
     if _HOST_INFO is None:
-        import os
         import platform
         import shutil
         import socket

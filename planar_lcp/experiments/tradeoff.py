@@ -28,12 +28,11 @@ REPEATS warm runs (1 with --quick), divided by t_end. The clock counts no time t
 import csv
 import itertools
 import math
-import os
 import time
 from pathlib import Path
 
 from planar_lcp.experiments.accuracy import table1_errors
-from planar_lcp.experiments.cluster import close_cluster, open_cluster
+from planar_lcp.experiments.cluster import SchedulerUnreachable, close_cluster, local_jobs, open_cluster
 from planar_lcp.spec.scene import FORMULATIONS, SOLVERS, SimSpec
 
 DEFAULT_SCENES = ("falling_rod", "four_disks", "box_push")
@@ -136,13 +135,13 @@ def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progres
     repeats = 1 if quick else REPEATS
     plans = [(name, *_settings(name, quick)) for name in scenes]
     total = sum(len(s) + 1 for _, _, s, _ in plans)
-    client, cluster = open_cluster(scheduler, max(1, int(jobs or os.cpu_count() or 1)))
+    client, cluster = open_cluster(scheduler, local_jobs(jobs))
     futs, runs = [], {}
     try:
         refs = {name: client.submit(_run, sc, ref, sc.sim.t_end, 1, pure=False) for name, sc, _, ref in plans}
         futs += list(refs.values())
         for name, sc, settings, ref in plans:
-            for i, st in enumerate(settings):
+            for st in settings:
                 f = client.submit(_run, sc, st, sc.sim.t_end, repeats, pure=False)
                 runs[f.key] = (name, sc, st, ref)
                 futs.append(f)
@@ -286,9 +285,8 @@ def _cmd(args):
     try:
         rows = run_tradeoff(scenes=tuple(args.scenes), quick=args.quick, out_dir=args.out,
                             progress=not args.no_progress, jobs=args.jobs, scheduler=args.scheduler)
-    except OSError as e:
-        # the scheduler cannot be reached (distributed raises OSError after its connect timeout)
-        print(f"planar-lcp tradeoff: error: --scheduler {args.scheduler}: {e}", file=sys.stderr)
+    except SchedulerUnreachable as e:
+        print(f"planar-lcp tradeoff: error: {e}", file=sys.stderr)
         return 1
     print(f"{len(rows)} settings; wrote {Path(args.out) / 'tradeoff.csv'} and the Pareto plots")
     for name in args.scenes:
