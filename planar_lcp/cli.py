@@ -215,7 +215,7 @@ def prepare_output_dir(path, option):
 SIMULATE_FLAGS = {"h": "--h", "t_end": "--t-end", "solver": "--solver", "formulation": "--formulation",
                   "fixed_point_iterations": "--fixed-point-iterations", "friction_directions": "--friction-directions",
                   "support_model": "--support-model", "limit_surface_twists": "--limit-surface-twists",
-                  "limit_surface_resolution": "--limit-surface-resolution",
+                  "limit_surface_resolution": "--limit-surface-resolution", "restitution": "--restitution",
                   "on_failure": "--on-failure record"}
 
 
@@ -250,7 +250,7 @@ def _simulate(args):
 
     import numpy as np
 
-    from planar_lcp.spec.scene import SceneError, load_scene, sim_settings, support_model_setting
+    from planar_lcp.spec.scene import SceneError, load_scene, restitution_setting, sim_settings, support_model_setting
     from planar_lcp.sim import SimulationError, simulate
 
     for path, option in ((args.csv, "--csv"), (args.plot, "--plot"), (args.animate, "--animate")):
@@ -269,9 +269,11 @@ def _simulate(args):
     try:
         sim_settings(scene, settings, SIMULATE_FLAGS)             # checked again by simulate(); here so that
         support_model_setting(scene, args.support_model, "--support-model")   # nothing is printed before a bad
-    except SceneError as e:                                                   # setting
+        restitution_setting(scene, args.restitution, "--restitution")         # setting
+    except SceneError as e:
         raise InputError(str(e)) from None
     settings["support_model"] = args.support_model
+    settings["restitution"] = args.restitution
     print(f"scene          {scene.name} ({scene.source})", flush=True)
     t0 = time.perf_counter()
     try:
@@ -385,6 +387,9 @@ def build_parser():
                         "accuracy knob; each body's table friction has K + 2 LCP unknowns)")
     s.add_argument("--limit-surface-resolution", type=finite_number(int, 1, False), metavar="N",
                    help=f"Gauss points per direction on curved support pieces (1 to {MAX_LIMIT_SURFACE_RESOLUTION})")
+    s.add_argument("--restitution", type=finite_number(float, 0, False), metavar="E",
+                   help="coefficient of restitution in [0, 1] of every contact pair without a world.restitution_pairs "
+                        "entry (default: the scene's world.restitution; docs/method.md, Restitution)")
     s.add_argument("--on-failure", choices=["raise", "record"], default="raise",
                    help="raise (default): stop with exit status 1 at the first failed step; record: continue and "
                         "count the failures")

@@ -197,7 +197,7 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
                 hp_n.append([0.0, 0.0])
 
     # candidate shape pairs: different bodies, at least one dynamic; A is never a half-plane
-    pa, pb, pmu = [], [], []
+    pa, pb, pmu, pe = [], [], [], []
     nshape = len(shape_body)
     for s1 in range(nshape):
         for s2 in range(s1 + 1, nshape):
@@ -217,6 +217,7 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
             pa.append(a)
             pb.append(b_)
             pmu.append(scene.friction_between(bodies[shape_body[a]].name, bodies[shape_body[b_]].name))
+            pe.append(scene.restitution_between(bodies[shape_body[a]].name, bodies[shape_body[b_]].name))
 
     # horizontal plane: support points with known normal loads
     plane = PLANE_HORIZONTAL if scene.world.plane == "horizontal" else PLANE_VERTICAL
@@ -276,7 +277,7 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
         shape_body=arr(shape_body, np.int64), shape_kind=arr(shape_kind, np.int64),
         shape_vert_adr=arr(vadr, np.int64), shape_vert_num=arr(vnum, np.int64), shape_radius=arr(radius),
         hp_point_w=arr(hp_p, shape=(0, 2)), hp_normal_w=arr(hp_n, shape=(0, 2)), vert_local=arr(verts, shape=(0, 2)),
-        pair_a=arr(pa, np.int64), pair_b=arr(pb, np.int64), pair_mu=arr(pmu),
+        pair_a=arr(pa, np.int64), pair_b=arr(pb, np.int64), pair_mu=arr(pmu), pair_e=arr(pe),
         sup_dyn=arr(sup_dyn, np.int64), sup_local=arr(sup_local, shape=(0, 2)), sup_load=arr(sup_load),
         sup_mu=arr(sup_mu), fric_dirs=arr(fric_dirs), seed_friction_arm=int(bool(seed_friction_arm)),
         support_model=support_code, sup_edge_adr=arr(ls["edge_adr"], np.int64),

@@ -19,7 +19,8 @@ from planar_lcp.engine.step import (FORM_VELOCITY, STEP_LCP_FAILED, STEP_NEEDS_F
                                     step_lemke, step_lemke_full, step_pgs)
 from planar_lcp.model import Model, compile_scene
 from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
-from planar_lcp.spec.scene import SOLVERS, Scene, SceneError, load_scene, sim_settings, support_model_setting
+from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, restitution_setting, sim_settings,
+                                   support_model_setting)
 from planar_lcp.frames import frame_velocity
 from planar_lcp.trajectory import Trajectory, energy
 
@@ -289,11 +290,13 @@ _KEYWORD_NAMES = {"on_failure": "on_failure='record'"}
 
 def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_point_iterations=None,
              friction_directions=None, pgs_iterations=None, support_model=None, limit_surface_twists=None,
-             limit_surface_resolution=None, on_failure="raise", record_contacts=True, seed_friction_arm=False,
-             option_names=None, **options) -> Trajectory:
+             limit_surface_resolution=None, restitution=None, on_failure="raise", record_contacts=True,
+             seed_friction_arm=False, option_names=None, **options) -> Trajectory:
     """Simulate a scene (a Scene, a shipped scene name, or a .toml path). Keywords override the scene's [sim], and
     support_model ("limit_surface" or "points") its world.support_model: the horizontal plane's table friction
-    (docs/method.md, "Table friction"; limit_surface_twists and limit_surface_resolution are that model's knobs).
+    (docs/method.md, "Table friction"; limit_surface_twists and limit_surface_resolution are that model's knobs), and
+    restitution (in [0, 1]) its world.restitution: the coefficient of every contact pair without a
+    world.restitution_pairs entry (docs/method.md, "Restitution").
 
     on_failure: "raise" (default) raises SimulationError at the first failed step (one where no method gave a
     certified answer); "record" continues (the failed island takes PGS's uncertified answer) and lists every failure
@@ -316,6 +319,7 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
         friction_directions=friction_directions, pgs_iterations=pgs_iterations,
         limit_surface_twists=limit_surface_twists, limit_surface_resolution=limit_surface_resolution), names)
     support = support_model_setting(scene, support_model, names.get("support_model", "support_model"))
+    scene = restitution_setting(scene, restitution, names.get("restitution", "restitution"))
     h = sim.h
     opts = SimOptions(h=h, solver=sim.solver, formulation=sim.formulation,
                       fixed_point_iterations=sim.fixed_point_iterations, pgs_iterations=sim.pgs_iterations, **options)

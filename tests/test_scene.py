@@ -255,7 +255,8 @@ def test_every_schema_key_is_accepted():
     data = {
         "name": "all", "description": "every key",
         "world": {"plane": "horizontal", "gravity": [0.0, 0.0], "support_gravity": 9.0, "friction": 0.6,
-                  "friction_pairs": [{"a": "rod", "b": "wall", "mu": 0.25}]},
+                  "friction_pairs": [{"a": "rod", "b": "wall", "mu": 0.25}], "restitution": 0.3,
+                  "restitution_pairs": [{"a": "wall", "b": "rod", "e": 0.8}]},
         "sim": {"h": 0.0025, "t_end": 1.0, "solver": "pgs", "formulation": "fixed_point",
                 "fixed_point_iterations": 12, "friction_directions": 6, "pgs_iterations": 30},
         "bodies": [
@@ -273,7 +274,8 @@ def test_every_schema_key_is_accepted():
     }
     s = parse_scene(data, "all.toml")
     assert s.world == WorldSpec(plane="horizontal", gravity=(0.0, 0.0), support_gravity=9.0, friction=0.6,
-                                friction_pairs=(("rod", "wall", 0.25),))
+                                friction_pairs=(("rod", "wall", 0.25),), restitution=0.3,
+                                restitution_pairs=(("wall", "rod", 0.8),))
     assert s.sim == SimSpec(h=0.0025, t_end=1.0, solver="pgs", formulation="fixed_point", fixed_point_iterations=12,
                             friction_directions=6, pgs_iterations=30)
     rod = s.body("rod")
@@ -283,6 +285,7 @@ def test_every_schema_key_is_accepted():
     assert rod.shapes[2].vertices == ((0.0, 0.0), (1.0, 0.0), (0.0, 1.0))
     assert s.body("wall").angle == math.radians(10.0)
     assert s.friction_between("wall", "rod") == 0.25
+    assert s.restitution_between("rod", "wall") == 0.8
 
 
 def test_halfplane_normal_is_normalised():
@@ -403,7 +406,7 @@ CASES = [
      "unknown key 'foo' (allowed: name, description, world, sim, bodies)"),
     ("world-unknown", base, [put(("world", "gravty"), [0, 0])],
      "world: unknown key 'gravty' (allowed: plane, gravity, support_gravity, friction, friction_pairs, "
-     "support_model)"),
+     "support_model, restitution, restitution_pairs)"),
     ("sim-unknown", base, [put(("sim", "dt"), 0.1)],
      "sim: unknown key 'dt' (allowed: h, t_end, solver, formulation, fixed_point_iterations, friction_directions, "
      "pgs_iterations, limit_surface_twists, limit_surface_resolution)"),
@@ -510,6 +513,30 @@ CASES = [
     ("world-friction", base, [put(("world", "friction"), -0.1)], "world.friction must be >= 0, got -0.1"),
     ("pair-mu", base, [put(("world", "friction_pairs"), [{"a": "rod", "b": "table", "mu": -0.5}])],
      "world.friction_pairs[0].mu must be >= 0, got -0.5"),
+    ("world-restitution-negative", base, [put(("world", "restitution"), -0.1)],
+     "world.restitution must be in [0, 1], got -0.1"),
+    ("world-restitution-above-one", base, [put(("world", "restitution"), 1.5)],
+     "world.restitution must be in [0, 1], got 1.5"),
+    ("world-restitution-not-number", base, [put(("world", "restitution"), "high")],
+     "world.restitution must be a number, got 'high'"),
+    ("restitution-pair-e", base, [put(("world", "restitution_pairs"), [{"a": "rod", "b": "table", "e": 1.2}])],
+     "world.restitution_pairs[0].e must be in [0, 1], got 1.2"),
+    ("restitution-pair-e-negative", base,
+     [put(("world", "restitution_pairs"), [{"a": "rod", "b": "table", "e": -0.5}])],
+     "world.restitution_pairs[0].e must be in [0, 1], got -0.5"),
+    ("restitution-pair-unknown-body", base,
+     [put(("world", "restitution_pairs"), [{"a": "rod", "b": "floor", "e": 0.5}])],
+     "world.restitution_pairs[0].b must name a body (one of 'rod', 'table', 'pusher'), got 'floor'"),
+    ("restitution-pair-e-missing", base, [put(("world", "restitution_pairs"), [{"a": "rod", "b": "table"}])],
+     "world.restitution_pairs[0].e is required"),
+    ("restitution-pair-mu-key", base,
+     [put(("world", "restitution_pairs"), [{"a": "rod", "b": "table", "mu": 0.5}])],
+     "world.restitution_pairs[0]: unknown key 'mu' (allowed: a, b, e)"),
+    ("restitution-pair-repeated", base,
+     [put(("world", "restitution_pairs"), [{"a": "rod", "b": "table", "e": 0.5}, {"a": "table", "b": "rod", "e": 0.2}])],
+     "world.restitution_pairs[1] must not repeat the pair of world.restitution_pairs[0], got ('table', 'rod')"),
+    ("restitution-pairs-not-array", base, [put(("world", "restitution_pairs"), {"a": "rod"})],
+     "world.restitution_pairs must be an array of tables {a, b, e}, got {'a': 'rod'}"),
     ("support-friction", hbase, [put(B0 + ("support_friction",), -0.2)],
      "bodies[0].support_friction must be >= 0, got -0.2"),
     ("support-gravity", hbase, [put(("world", "support_gravity"), -9.81)],

@@ -64,6 +64,7 @@ vert_local        | f8    | nvert x 2  | m      | compile | core vertices, dynam
 pair_a            | i8    | npair      | -      | compile | shape A of each pair (dynamic, never a half-plane)
 pair_b            | i8    | npair      | -      | compile | shape B of each candidate pair
 pair_mu           | f8    | npair      | -      | compile | Coulomb coefficient
+pair_e            | f8    | npair      | -      | compile | Newton's coefficient of restitution (0: inelastic)
 support_model     | int   | -          | -      | compile | SUPPORT_LIMIT_SURFACE | SUPPORT_POINTS (table friction)
 sup_dyn           | i8    | nsup       | -      | compile | dynamic slot of a support element's body (points: a point)
 sup_local         | f8    | nsup x 2   | m      | compile | points: the support point, COM frame (limit surface: 0)
@@ -131,6 +132,7 @@ lemke_z_refined    | f8    | unknown           | N s        | lemke     | z reco
 lemke_w_refined    | f8    | unknown           | m/s        | lemke     | its w
 lemke_pivot_row    | f8    | tableau_row       | -          | lemke     | the normalized pivot row
 lemke_scaling      | f8    | unknown           | -          | lemke     | equilibration (powers of two)
+v_start            | f8    | dyn x 3           | m/s, rad/s | begin     | v, the velocity at the start of the step
 v_tilde            | f8    | dyn x 3           | m/s, rad/s | begin     | free-motion velocity v + h M^-1 f_ext
 v_hat              | f8    | dyn x 3           | m/s, rad/s | begin     | the linearization pose is q_hat = q + h v_hat
 q_hat              | f8    | dyn x 3           | m, rad     | begin     | the linearization pose

@@ -110,11 +110,14 @@ def project_out_of_penetration(m, w, opt, qk_new, stats):
 
 @njit(cache=True, inline='always')
 def begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats):
-    """Free-motion velocity v_tilde = v + h M^-1 f_ext, the first linearization pose, the kinematic end poses."""
+    """Free-motion velocity v_tilde = v + h M^-1 f_ext, the first linearization pose, the kinematic end poses; v
+    itself (w.v_start: the approach velocity of restitution's impact law)."""
     for i in range(stats.shape[0]):
         stats[i] = 0.0
     velocity_form = opt.formulation == FORM_VELOCITY
     for d in range(q.shape[0]):
+        for c in range(3):
+            w.v_start[d, c] = v[d, c]
         w.v_tilde[d, 0] = v[d, 0] + h * m.gravity[0]
         w.v_tilde[d, 1] = v[d, 1] + h * m.gravity[1]
         w.v_tilde[d, 2] = v[d, 2]

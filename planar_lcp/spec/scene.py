@@ -139,6 +139,8 @@ class WorldSpec:
     friction: float = 0.5
     friction_pairs: tuple = ()
     support_model: str = "limit_surface"
+    restitution: float = 0.0
+    restitution_pairs: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -185,6 +187,17 @@ class Scene:
             if {a, b} == {name_a, name_b}:
                 return mu
         return self.world.friction
+
+    def restitution_between(self, name_a: str, name_b: str) -> float:
+        """Newton's coefficient of restitution between two bodies: the `world.restitution_pairs` override if any,
+        else `world.restitution` (0: the seed's perfectly inelastic contact). Order-insensitive; KeyError if either
+        name is not a body of the scene."""
+        self.body(name_a)
+        self.body(name_b)
+        for a, b, e in self.world.restitution_pairs:
+            if {a, b} == {name_a, name_b}:
+                return e
+        return self.world.restitution
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -294,14 +307,15 @@ def _decode_utf8(raw: bytes, path) -> str:
 
 
 _TOP_KEYS = ("name", "description", "world", "sim", "bodies")
-_WORLD_KEYS = ("plane", "gravity", "support_gravity", "friction", "friction_pairs", "support_model")
+_WORLD_KEYS = ("plane", "gravity", "support_gravity", "friction", "friction_pairs", "support_model", "restitution",
+               "restitution_pairs")
 _SIM_KEYS = ("h", "t_end", "solver", "formulation", "fixed_point_iterations", "friction_directions", "pgs_iterations",
              "limit_surface_twists", "limit_surface_resolution")
 #: [sim] keys that shape the horizontal plane's table friction only
 _TABLE_KEYS = ("friction_directions", "limit_surface_twists", "limit_surface_resolution")
 _BODY_KEYS = ("name", "type", "shapes", "mass", "inertia", "position", "angle", "angle_deg", "velocity",
               "angular_velocity", "support_friction", "support_points")
-_PAIR_KEYS = ("a", "b", "mu")
+_PAIR_KEYS = {"friction_pairs": ("a", "b", "mu"), "restitution_pairs": ("a", "b", "e")}
 _PLACEMENT_KEYS = ("offset", "angle", "angle_deg")
 # Per shape type: (required keys, optional keys with their defaults). Placement keys are added for all but halfplane.
 _SHAPE_KEYS = {
@@ -390,6 +404,13 @@ class _Validator:
         x = self.number(path, value)
         if not x >= 0.0:
             self.fail(f"{path} must be >= 0, got {_fmt_num(x)}")
+        return x
+
+    def restitution(self, path: str, value) -> float:
+        """A coefficient of restitution: a number in [0, 1]."""
+        x = self.number(path, value)
+        if not 0.0 <= x <= 1.0:
+            self.fail(f"{path} must be in [0, 1], got {_fmt_num(x)}")
         return x
 
     def integer(self, path: str, value, minimum: int, maximum: int | None = None) -> int:
@@ -489,8 +510,10 @@ def parse_scene(data: dict, source: str = "<dict>") -> Scene:
         seen[body.name] = i
         bodies.append(body)
 
-    pairs = _parse_friction_pairs(v, world_tbl.get("friction_pairs", []), [b.name for b in bodies])
-    world = dataclasses.replace(world, friction_pairs=pairs)
+    names = [b.name for b in bodies]
+    world = dataclasses.replace(
+        world, friction_pairs=_parse_pairs(v, "friction_pairs", world_tbl.get("friction_pairs", []), names),
+        restitution_pairs=_parse_pairs(v, "restitution_pairs", world_tbl.get("restitution_pairs", []), names))
     return Scene(name=name, description=description, world=world, sim=sim, bodies=tuple(bodies), source=source)
 
 
@@ -585,6 +608,15 @@ def sim_settings(scene: Scene, overrides: dict, names: dict | None = None) -> tu
     return SimSpec(**kw), nsteps, labels
 
 
+def restitution_setting(scene: Scene, value, label: str = "restitution") -> Scene:
+    """The scene with `value` (in [0, 1]) as its world.restitution when given, the default of every pair without a
+    world.restitution_pairs entry; the scene itself when `value` is None. Raises SceneError naming `label`."""
+    if value is None:
+        return scene
+    e = _Validator(scene.source).restitution(label, value)
+    return dataclasses.replace(scene, world=dataclasses.replace(scene.world, restitution=e))
+
+
 def support_model_setting(scene: Scene, value, label: str = "support_model") -> str:
     """The support model of a run: `scene.world.support_model`, or `value` (one of SUPPORT_MODELS) when given, which
     only the horizontal plane takes. Raises SceneError naming `label`."""
@@ -599,7 +631,7 @@ def support_model_setting(scene: Scene, value, label: str = "support_model") -> 
 
 
 def _parse_world(v: _Validator, t: dict) -> WorldSpec:
-    """Everything but friction_pairs, which need the body names."""
+    """Everything but friction_pairs and restitution_pairs, which need the body names."""
     v.keys("world", t, _WORLD_KEYS)
     d = WorldSpec()
     plane = v.choice("world.plane", t["plane"], PLANES) if "plane" in t else d.plane
@@ -617,34 +649,39 @@ def _parse_world(v: _Validator, t: dict) -> WorldSpec:
     friction = v.nonneg("world.friction", t["friction"]) if "friction" in t else d.friction
     support_model = v.choice("world.support_model", t["support_model"], SUPPORT_MODELS) if "support_model" in t \
         else d.support_model
+    restitution = v.restitution("world.restitution", t["restitution"]) if "restitution" in t else d.restitution
     return WorldSpec(plane=plane, gravity=gravity, support_gravity=support_gravity, friction=friction,
-                     support_model=support_model)
+                     support_model=support_model, restitution=restitution)
 
 
-def _parse_friction_pairs(v: _Validator, raw, names: list) -> tuple:
+def _parse_pairs(v: _Validator, key: str, raw, names: list) -> tuple:
+    """world.friction_pairs ({a, b, mu >= 0}) or world.restitution_pairs ({a, b, e in [0, 1]}) as (a, b, value)
+    triples: two different bodies of the scene, each pair at most once."""
+    a_key, b_key, value_key = _PAIR_KEYS[key]
     if not isinstance(raw, (list, tuple)):
-        v.fail(f"world.friction_pairs must be an array of tables {{a, b, mu}}, got {raw!r}")
+        v.fail(f"world.{key} must be an array of tables {{{a_key}, {b_key}, {value_key}}}, got {raw!r}")
     out = []
     seen = {}
     for i, p in enumerate(raw):
-        path = f"world.friction_pairs[{i}]"
+        path = f"world.{key}[{i}]"
         p = v.table(path, p)
-        v.keys(path, p, _PAIR_KEYS)
+        v.keys(path, p, _PAIR_KEYS[key])
         ends = []
-        for key in ("a", "b"):
-            n = v.string(f"{path}.{key}", v.require(path, p, key))
+        for end in (a_key, b_key):
+            n = v.string(f"{path}.{end}", v.require(path, p, end))
             if n not in names:
-                v.fail(f"{path}.{key} must name a body (one of {', '.join(repr(x) for x in names)}), got {n!r}")
+                v.fail(f"{path}.{end} must name a body (one of {', '.join(repr(x) for x in names)}), got {n!r}")
             ends.append(n)
         a, b = ends
         if a == b:
             v.fail(f"{path}.b must differ from {path}.a, got {b!r}")
-        mu = v.nonneg(f"{path}.mu", v.require(path, p, "mu"))
-        key = frozenset((a, b))
-        if key in seen:
-            v.fail(f"{path} must not repeat the pair of world.friction_pairs[{seen[key]}], got ({a!r}, {b!r})")
-        seen[key] = i
-        out.append((a, b, mu))
+        raw_value = v.require(path, p, value_key)
+        value = v.nonneg(f"{path}.mu", raw_value) if key == "friction_pairs" else v.restitution(f"{path}.e", raw_value)
+        pair = frozenset((a, b))
+        if pair in seen:
+            v.fail(f"{path} must not repeat the pair of world.{key}[{seen[pair]}], got ({a!r}, {b!r})")
+        seen[pair] = i
+        out.append((a, b, value))
     return tuple(out)
 
 
