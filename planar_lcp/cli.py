@@ -387,7 +387,8 @@ def build_parser():
                         "accuracy knob; each body's table friction has K + 2 LCP unknowns)")
     s.add_argument("--limit-surface-resolution", type=finite_number(int, 1, False), metavar="N",
                    help=f"Gauss points per direction on curved support pieces (1 to {MAX_LIMIT_SURFACE_RESOLUTION})")
-    s.add_argument("--restitution", type=finite_number(float, 0, False), metavar="E",
+    # any finite number here: restitution_setting checks [0, 1] with the scene file's message
+    s.add_argument("--restitution", type=finite_number(float, -math.inf, False), metavar="E",
                    help="coefficient of restitution in [0, 1] of every contact pair without a world.restitution_pairs "
                         "entry (default: the scene's world.restitution; docs/method.md, Restitution)")
     s.add_argument("--on-failure", choices=["raise", "record"], default="raise",

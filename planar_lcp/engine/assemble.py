@@ -208,8 +208,9 @@ def kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, dx, dy):
 def normal_column(m, w, vk, h, velocity_form, a, u, b):
     """Contact j = w.island_con[a]'s unit normal impulse as generalized column u, and the constant of its normal
     row, b[u]: position forms (linearized at q_hat = q + h v_hat) phi/h + n.(v_tilde - v_hat); velocity form
-    n.v_tilde + max(phi, 0)/h + the kinematic bodies' normal velocity; with restitution e > 0, for an impact, at most
-    n.v_tilde + (kinematic normal velocity) + e v_n- (docs/method.md, "Restitution"). Returns (j, n_x, n_y)."""
+    n.v_tilde + max(phi, 0)/h + the kinematic bodies' normal velocity. With restitution e > 0 (docs/method.md,
+    "Restitution"): an impact's row is at most n.v_tilde + (kinematic normal velocity) + e v_n-, any other row at least
+    that with e = 1. Returns (j, n_x, n_y)."""
     j = w.island_con[a]
     nx = w.con_n[j, 0]
     ny = w.con_n[j, 1]
@@ -221,15 +222,20 @@ def normal_column(m, w, vk, h, velocity_form, a, u, b):
         b[u] = w.con_phi[j] / h + column_dot(w.column_slot, w.column_g, u, w.v_tilde) - \
             column_dot(w.column_slot, w.column_g, u, w.v_hat)
     e = m.pair_e[w.con_pair[j]]
-    if e > 0.0 and b[u] < 0.0:
-        # Newton's impact law at the velocity level (Moreau): a contact that free motion would close within the step
-        # (b < 0) and that was approaching at the start of the step (v_n- < 0) leaves at n.v+ >= -e v_n-. The stronger
-        # of that and the gap's row wins, so the gap's row still holds. v_n- is the start-of-step velocity, not v_tilde:
-        # gravity's h g of the step would otherwise make a resting contact bounce.
+    if e > 0.0:
+        # Newton's impact law at the velocity level (Moreau). v_n- is the start-of-step normal velocity, not v_tilde's:
+        # gravity's h g within the step would otherwise make a resting contact bounce.
         kin = kinematic_velocity_along(m, w.body_pose, vk, w.con_pair, w.con_p, j, nx, ny)
         vn_start = column_dot(w.column_slot, w.column_g, u, w.v_start) + kin
-        if vn_start < 0.0:
-            b[u] = min(b[u], column_dot(w.column_slot, w.column_g, u, w.v_tilde) + kin + e * vn_start)
+        free = column_dot(w.column_slot, w.column_g, u, w.v_tilde) + kin
+        if b[u] < 0.0 and vn_start < 0.0:
+            # an impact: free motion closes the contact within the step and it was approaching. It leaves at
+            # n.v+ >= -e v_n-; the stronger of that and the gap's row, so the gap's row still holds.
+            b[u] = min(b[u], free + e * vn_start)
+        else:
+            # any other contact of the pair: the weaker of the gap's row and n.v+ >= -v_n-, so that an impulse here
+            # (one the step's impacts drive it into, like a struck rod's far end) never does positive work
+            b[u] = max(b[u], free + vn_start)
     return j, nx, ny
 
 
