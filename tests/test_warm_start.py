@@ -116,13 +116,20 @@ def test_a_singular_guess_is_rejected_not_raised():
     assert not ok and res == np.inf
 
 
+#: shipped scenes run to their end here rather than for 1 s: bouncing_disk's first second has LCPs only at its two
+#: impacts (the step after each has the impact's basis to try, which does not fit the separating contact), so the
+#: warm start is first used once the disk rests on the table, after 1.37 s
+WHOLE_RUN = {"bouncing_disk"}
+
+
 @pytest.mark.parametrize("name", [n for n, _ in list_scenes()])
 def test_warm_and_cold_runs_agree_on_the_shipped_scenes(name):
     """Where every LCP of a run has one solution, the warm start changes only how it is solved: on every shipped
     scene at its own h the two runs agree to 1e-8 (m, rad; push_t, whose contact sequence amplifies round-off most,
     differs by 6e-10). Not a theorem: see the non-unique LCP above."""
-    warm = simulate(name, t_end=min(load_scene(name).sim.t_end, 1.0), warm_start=True)
-    cold = simulate(name, t_end=min(load_scene(name).sim.t_end, 1.0))
+    t_end = load_scene(name).sim.t_end if name in WHOLE_RUN else min(load_scene(name).sim.t_end, 1.0)
+    warm = simulate(name, t_end=t_end, warm_start=True)
+    cold = simulate(name, t_end=t_end)
     assert np.abs(warm.q - cold.q).max() <= 1e-8
     assert warm.stats["warm_starts"].sum() > 0 or warm.stats["lcp_size"].sum() == 0
     assert cold.stats["warm_starts"].sum() == 0

@@ -150,9 +150,15 @@ def report_markdown(scene, ours, pm, rows, files, *, repeats, command=None):
         lines += [f"Command: `{command}`", ""]
     lines += [f"Scene `{scene.name}` ({display_source(scene)}): {scene.description}", "",
               f"- time step h = {o.h:g} s, {nsteps} steps, t = 0 to {ours.t[-1]:.6g} s (same for both)",
+              f"- restitution (both simulators): e = {scene.world.restitution:g}"
+              + "".join(f", {a}-{b} {e:g}" for a, b, e in scene.world.restitution_pairs)
+              + " (Newton's coefficient; 0 is perfectly inelastic)",
               f"- planar_lcp: solver {o.solver}, formulation {o.formulation}, contact margin {o.contact_margin:g} m",
               f"- pymunk: iterations {po.iterations}, collision_slop {po.collision_slop:g} m, collision_bias "
-              f"{po.collision_bias:.3g}, elasticity 0, friction by the {po.friction_mode} rule"
+              f"{po.collision_bias:.3g}, "
+              + ("elasticity 0" if po.restitution_mode == "zero" else "each arbiter's restitution the scene's e "
+                 "for its pair (pre_solve)")
+              + f", friction by the {po.friction_mode} rule"
               + (", table friction by one PivotJoint per support point (max_bias 0)"
                  if scene.world.plane == "horizontal" else ""),
               f"- first contact: the first recorded step with any two shapes closer than {CONTACT_DISTANCE:g} m "

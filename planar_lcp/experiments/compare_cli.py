@@ -1,11 +1,12 @@
 """`planar-lcp compare SCENE --out DIR`: the command over `experiments.compare` (see that module for the files)."""
 
+import math
 import sys
 from pathlib import Path
 
 PROG = "planar-lcp compare"
 #: Flags that override a setting, in the order the report's command line lists them: (flag, argparse dest).
-OVERRIDES = (("--h", "h"), ("--t-end", "t_end"), ("--iterations", "iterations"),
+OVERRIDES = (("--h", "h"), ("--t-end", "t_end"), ("--restitution", "restitution"), ("--iterations", "iterations"),
              ("--collision-slop", "collision_slop"))
 
 
@@ -27,7 +28,7 @@ def _cmd_compare(args):
     from planar_lcp.cli import SIMULATE_FLAGS, InputError, prepare_output_dir
     from planar_lcp.experiments.compare import fmt, run_compare
     from planar_lcp.sim import SimulationError
-    from planar_lcp.spec.scene import SceneError, load_scene, sim_settings
+    from planar_lcp.spec.scene import SceneError, load_scene, restitution_setting, sim_settings
 
     try:
         import pymunk  # noqa: F401
@@ -36,6 +37,7 @@ def _cmd_compare(args):
     try:
         scene = load_scene(args.scene)
         sim_settings(scene, {"h": args.h, "t_end": args.t_end}, SIMULATE_FLAGS)  # before any work, named by flag
+        scene = restitution_setting(scene, args.restitution, "--restitution")    # the scene of BOTH simulators
         prepare_output_dir(args.out, "--out")
     except (InputError, SceneError) as e:
         return _error(e)
@@ -72,6 +74,10 @@ def register(subparsers):
     c.add_argument("--out", required=True, metavar="DIR", help="directory for the files (created if missing)")
     helps = {"--h": ("H", float, 0, True, "time step [s] (default: the scene's)"),
              "--t-end": ("T", float, 0, True, "duration [s] (default: the scene's)"),
+             # any finite number here: restitution_setting checks [0, 1] and names the flag
+             "--restitution": ("E", float, -math.inf, True, "coefficient of restitution in [0, 1] of every contact "
+                               "pair without a world.restitution_pairs entry, in both simulators (default: the "
+                               "scene's world.restitution)"),
              "--iterations": ("N", int, 1, False, "pymunk solver iterations per step (default 10, pymunk's)"),
              "--collision-slop": ("M", float, 0, False, "pymunk allowed overlap [m] (default 1e-4)")}
     for flag, _dest in OVERRIDES:

@@ -18,7 +18,12 @@ Mapping (docs/pymunk-comparison.md says more):
   assignment exists (e.g. an even cycle a-b-c-d with mu_ab mu_cd != mu_bc mu_da, or mu = 0 between two bodies that
   have positive mu elsewhere), a wildcard pre_solve callback sets each arbiter's friction to the scene's mu for its
   pair (slower: one Python call per touching pair per step).
-- Elasticity 0 everywhere (our model is perfectly inelastic).
+- Restitution: shapes carry elasticity 0 (pymunk's product rule then gives 0 for every pair, the scene default);
+  when any pair that can touch has a coefficient e > 0 (`Scene.restitution_between`: world.restitution and
+  world.restitution_pairs), a wildcard pre_solve callback sets each arbiter's restitution to the scene's e for its
+  pair, so pymunk's elasticity is the scene's per pair, not a product. Chipmunk applies it as a target normal
+  velocity -e v_n with v_n the contact's normal velocity at the start of the step (before gravity), solved by its
+  iterations together with the position bias; our model is Newton's law in the step's LCP (docs/method.md).
 - Kinematic bodies -> KINEMATIC pymunk bodies with the scene's constant velocity.
 - Horizontal plane: pymunk has no table. Each dynamic body gets one PivotJoint to the static body per support
   point p_s of `massprops.support_points` (the points and load shares w_s of our support-point model), at p_s, with
@@ -56,15 +61,21 @@ def _mu_key(a, b):
     return (a, b) if a <= b else (b, a)
 
 
-def contact_pairs(scene: Scene):
-    """{(name_a, name_b) sorted: mu} for every pair of bodies that can touch (different, at least one dynamic)."""
+#: The per-pair coefficients `contact_pairs` can give: the Scene method that defines each.
+PAIR_COEFFICIENTS = {"friction": "friction_between", "restitution": "restitution_between"}
+
+
+def contact_pairs(scene: Scene, coefficient="friction"):
+    """{(name_a, name_b) sorted: value} for every pair of bodies that can touch (different, at least one dynamic):
+    the scene's Coulomb mu (coefficient "friction") or Newton's e ("restitution") of the pair."""
+    between = getattr(scene, PAIR_COEFFICIENTS[coefficient])
     out = {}
     bodies = scene.bodies
     for i, a in enumerate(bodies):
         for b in bodies[i + 1:]:
             if a.type != "dynamic" and b.type != "dynamic":
                 continue
-            out[_mu_key(a.name, b.name)] = float(scene.friction_between(a.name, b.name))
+            out[_mu_key(a.name, b.name)] = float(between(a.name, b.name))
     return out
 
 
@@ -117,6 +128,9 @@ class SpaceHandles:
     com_local : name -> (2,) centre of mass in the body frame (dynamic bodies)
     friction_mode : "product" (shape frictions reproduce every pair's mu) or "pre_solve" (a callback sets them)
     pair_mu : {(a, b) sorted: mu}
+    pair_e : {(a, b) sorted: e}, the same pairs
+    restitution_mode : "zero" (every pair e = 0: shape elasticities 0 give it) or "pre_solve" (a callback sets each
+        arbiter's restitution to its pair's e)
     support_joints : dynamic body name -> tuple of its table-friction PivotJoints to the static body, one
         per support point in `massprops.support_points` order (horizontal plane; an empty dict otherwise)
     h : the time step the space is meant to be stepped with (s)
@@ -131,6 +145,8 @@ class SpaceHandles:
     com_local: dict
     friction_mode: str
     pair_mu: dict
+    pair_e: dict
+    restitution_mode: str
     support_joints: dict
     h: float
     settings: dict = field(default_factory=dict)
@@ -198,6 +214,7 @@ def build_space(scene, *, iterations=DEFAULT_ITERATIONS, collision_slop=DEFAULT_
 
     fric, exact = friction_assignment(scene)
     pair_mu = contact_pairs(scene)
+    pair_e = contact_pairs(scene, "restitution")
     bodies, shapes, shape_body, com_local, joints = {}, {}, {}, {}, {}
     dyn, kin = [], []
     for b in scene.bodies:
@@ -215,7 +232,7 @@ def build_space(scene, *, iterations=DEFAULT_ITERATIONS, collision_slop=DEFAULT_
         for s in b.shapes:
             sh = _make_shapes(pymunk, body, s)
             sh.friction = fric[b.name]
-            sh.elasticity = 0.0
+            sh.elasticity = 0.0          # the scene's e > 0 goes on the arbiters (pre_solve below)
             made.append(sh)
             shape_body[sh] = b.name
         if b.type == "dynamic":
@@ -256,15 +273,24 @@ def build_space(scene, *, iterations=DEFAULT_ITERATIONS, collision_slop=DEFAULT_
             joints[b.name] = tuple(made)
 
     mode = "product" if exact else "pre_solve"
-    if not exact:
+    bouncy = any(e > 0.0 for e in pair_e.values())
+    if not exact or bouncy:
+        set_mu = pair_mu if not exact else None
+        set_e = pair_e if bouncy else None
+
         def pre_solve(arbiter, space_, data):
             s1, s2 = arbiter.shapes
-            arbiter.friction = pair_mu[_mu_key(shape_body[s1], shape_body[s2])]
+            key = _mu_key(shape_body[s1], shape_body[s2])
+            if set_mu is not None:
+                arbiter.friction = set_mu[key]
+            if set_e is not None:
+                arbiter.restitution = set_e[key]
         space.on_collision(None, None, pre_solve=pre_solve)
 
     handles = SpaceHandles(bodies=bodies, shapes=shapes, shape_body=shape_body, dynamic_names=tuple(dyn),
                            kinematic_names=tuple(kin), com_local=com_local, friction_mode=mode, pair_mu=pair_mu,
-                           support_joints=joints, h=h,
+                           pair_e=pair_e, restitution_mode="pre_solve" if bouncy else "zero", support_joints=joints,
+                           h=h,
                            settings=dict(iterations=int(iterations), collision_slop=float(collision_slop),
                                          collision_bias=float(collision_bias)))
     return space, handles
@@ -293,13 +319,15 @@ def read_state(handles):
 @dataclass(frozen=True)
 class PymunkOptions:
     """The settings of a pymunk run, as `Trajectory.options` (a SimOptions for our runs): h (s), Chipmunk's
-    iterations, collision_slop (m) and collision_bias, and the friction rule ("product" or "pre_solve")."""
+    iterations, collision_slop (m) and collision_bias, the friction rule ("product" or "pre_solve") and the
+    restitution rule ("zero" or "pre_solve", `SpaceHandles.restitution_mode`)."""
 
     h: float
     iterations: int
     collision_slop: float
     collision_bias: float
     friction_mode: str
+    restitution_mode: str = "zero"
     solver: str = "pymunk"
     formulation: str = "sequential impulses"
 
@@ -381,7 +409,7 @@ def simulate_pymunk(scene, *, t_end=None, h=None, **settings) -> Trajectory:
     stats = dict(energy=mechanical_energy(mass, inertia, gravity, q_com, vc), n_contacts=con["count"].copy(),
                  penetration=np.maximum(0.0, np.where(recorded, -con["phi"], 0.0).max(axis=1)))
     con["shape_pairs"] = shape_pairs
-    options = PymunkOptions(h=h, friction_mode=hd.friction_mode, **hd.settings)
+    options = PymunkOptions(h=h, friction_mode=hd.friction_mode, restitution_mode=hd.restitution_mode, **hd.settings)
     return Trajectory(t=np.arange(n + 1) * h, q=q, v=v, q_com=q_com, v_com=vc, qk=qk, body_names=hd.dynamic_names,
                       kinematic_names=hd.kinematic_names, stats=stats, contacts=con, options=options, scene=scene)
 
