@@ -159,9 +159,9 @@ def plot_strobe(traj, path, every=8):
         tip = np.array([x, y]) + (half + r + 0.015) * d
         ax.text(tip[0], tip[1], f"{traj.t[i]:.2f}", fontsize=6, ha="center", va="center", color="0.15")
     ax.plot(traj.q[:, 0, 0], traj.q[:, 0, 1], color="tab:red", lw=0.6, ls="--", alpha=0.6)
-    ax.set_title(f"Falling rod{title_suffix(traj.scene)}, h = {traj.options.h:g} s: every {every} steps ({every * traj.options.h:g} s) until "
-                 f"rest at t = {t_stop:.4f} s\n(simulated time in seconds at the end the rod's angle points to; "
-                 f"dashed: path of the centre)", fontsize=9)
+    ax.set_title(f"Falling rod{title_suffix(traj.scene)}, h = {traj.options.h:g} s: every {every} steps "
+                 f"({every * traj.options.h:g} s) until rest at t = {t_stop:.4f} s\n(simulated time in seconds at "
+                 f"the end the rod's angle points to; dashed: path of the centre)", fontsize=9)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     common.save_png(fig, path)
@@ -234,7 +234,8 @@ def run(out, quick=False, restitution=None):
                                 ["h (s)", "friction arm", "impact", "tip stops sliding right", "slap-down", "rest",
                                  "slides left (s)", "contact losses", "final x (m)", "final theta (rad)"],
                                 spec=spec))
-        f.write("\n\n" + ("" if scene.world.restitution == 0 else "With e = 0: ") + "Seed paper (h not stated for these times; its Figure 2 uses h = 0.0025): impact t = 0.383, the "
+        f.write("\n\n" + ("" if scene.world.restitution == 0 else "With e = 0: ")
+                + "Seed paper (h not stated for these times; its Figure 2 uses h = 0.0025): impact t = 0.383, the "
                 "tip slides right, stops, slides left; slap-down t = 0.548; slides left for 0.02 s; then rest.\n")
 
     rows, phase_rows = common.write_convergence(out, scene, trajs, hs, h_ref, T_END, title="Falling rod",
