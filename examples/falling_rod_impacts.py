@@ -3,6 +3,7 @@
     python examples/falling_rod_impacts.py                    # e = 0 and e = 0.5 at h = 0.0025 (the strobe's step)
     python examples/falling_rod_impacts.py --h 0.00125 --e 0 0.5 1
     python examples/falling_rod_impacts.py --seed-arm          # friction at the end-cap centre, as the seed's d
+    python examples/falling_rod_impacts.py --e 1 --friction 0  # the scene's mu = 0.6 replaced
 
 A contact episode is a maximal run of steps with a normal impulse c_n > 0 (common.active_contacts); a bounce ends
 one (the study's "contact losses" count them). For each episode: the steps it spans (t[k0] to t[k1], k1 the first
@@ -18,6 +19,7 @@ slap-down, and every step of the run in which the impulses added kinetic energy 
 """
 
 import argparse
+import dataclasses
 import math
 
 import numpy as np
@@ -26,6 +28,7 @@ from planar_lcp.experiments.studies import common
 from planar_lcp.experiments.studies import falling_rod as fr
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import simulate
+from planar_lcp.spec.scene import load_scene
 from planar_lcp.trajectory import energy_changes
 
 GAIN_TOL = 1e-9      # J
@@ -60,16 +63,19 @@ def episodes(tr):
     return out
 
 
-def report(e, h, t_end, seed_arm=False):
-    tr = simulate("falling_rod", h=h, t_end=t_end, restitution=e, on_failure="record", seed_friction_arm=seed_arm)
+def report(e, h, t_end, seed_arm=False, friction=None):
+    scene = load_scene("falling_rod")
+    if friction is not None:
+        scene = dataclasses.replace(scene, world=dataclasses.replace(scene.world, friction=friction))
+    tr = simulate(scene, h=h, t_end=t_end, restitution=e, on_failure="record", seed_friction_arm=seed_arm)
     half, _ = fr.rod_geometry(tr.scene)
     _, imp, _ = energy_changes(compile_scene(tr.scene), tr.q_com, tr.v_com, h)
     eps = episodes(tr)
     ev = fr.events(tr)
     tip = next(iter(ends_touching(tr, eps[0][0], half))) if eps else 1
     arm = "end-cap centre (seed)" if seed_arm else "contact point"
-    print(f"\n## e = {e:g}, h = {h:g} s, friction arm: {arm}, t = 0 to {t_end:g} s ({len(tr.failures)} failed "
-          "steps)\n")
+    print(f"\n## e = {e:g}, h = {h:g} s, mu = {tr.scene.world.friction:g}, friction arm: {arm}, t = 0 to {t_end:g} s "
+          f"({len(tr.failures)} failed steps)\n")
     print("| # | from t (s) | to t (s) | steps | end | vy before | vy after | omega before | omega after "
           "| KE before (J) | KE after (J) | dKE_imp (J) |")
     print("|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|")
@@ -82,12 +88,13 @@ def report(e, h, t_end, seed_arm=False):
     if eps:
         k0 = eps[0][0]
         print("\nFirst steps of the first episode (step from t to t + h):\n")
-        print("| t (s) | c_n (N s) | vy after | omega after | KE before (J) | KE after (J) | dKE_imp (J) |")
-        print("|---:|---:|---:|---:|---:|---:|---:|")
+        print("| t (s) | c_n (N s) | vx after | vy after | omega after | KE before (J) | KE after (J) | dKE_imp (J) |")
+        print("|---:|---:|---:|---:|---:|---:|---:|---:|")
         for k in range(k0, min(k0 + 3, len(tr.t) - 1)):
             cn = sum(a["cn"] for a in common.active_contacts(tr, k))
-            print(f"| {tr.t[k]:.4f} | {cn:.4f} | {tr.v_com[k + 1, 0, 1]:.4f} | {tr.v_com[k + 1, 0, 2]:.4f} | "
-                  f"{kinetic(tr, k):.4f} | {kinetic(tr, k + 1):.4f} | {imp[k]:.4f} |")
+            vx, vy, w = tr.v_com[k + 1, 0]
+            print(f"| {tr.t[k]:.4f} | {cn:.4f} | {vx:.4f} | {vy:.4f} | {w:.4f} | "
+                  f"{kinetic(tr, k + 1):.4f} | {imp[k]:.4f} |")
     before = [p for p in eps if math.isnan(ev["t_slap_down"]) or tr.t[p[1]] < ev["t_slap_down"] - 1e-12]
     print(f"\nimpact {ev['t_impact']:.4f}  slap-down {ev['t_slap_down']:.4f}  rest {ev['t_rest']:.4f}  "
           f"contact losses {ev['contact_losses']}  final x {ev['x_final']:.4f} m")
@@ -108,9 +115,10 @@ def main():
     p.add_argument("--e", type=float, nargs="+", default=[0.0, 0.5])
     p.add_argument("--t-end", type=float, default=fr.T_END)
     p.add_argument("--seed-arm", action="store_true", help="friction at the end-cap centre (the seed's d)")
+    p.add_argument("--friction", type=float, help="the rod-table friction coefficient (default: the scene's 0.6)")
     a = p.parse_args()
     for e in a.e:
-        report(e, a.h, a.t_end, a.seed_arm)
+        report(e, a.h, a.t_end, a.seed_arm, a.friction)
 
 
 if __name__ == "__main__":
