@@ -93,7 +93,7 @@ def report(e, h, t_end, seed_arm=False, friction=None):
         for k in range(k0, min(k0 + 3, len(tr.t) - 1)):
             cn = sum(a["cn"] for a in common.active_contacts(tr, k))
             vx, vy, w = tr.v_com[k + 1, 0]
-            print(f"| {tr.t[k]:.4f} | {cn:.4f} | {vx:.4f} | {vy:.4f} | {w:.4f} | "
+            print(f"| {tr.t[k]:.4f} | {cn:.4f} | {vx:.4f} | {vy:.4f} | {w:.4f} | {kinetic(tr, k):.4f} | "
                   f"{kinetic(tr, k + 1):.4f} | {imp[k]:.4f} |")
     before = [p for p in eps if math.isnan(ev["t_slap_down"]) or tr.t[p[1]] < ev["t_slap_down"] - 1e-12]
     print(f"\nimpact {ev['t_impact']:.4f}  slap-down {ev['t_slap_down']:.4f}  rest {ev['t_rest']:.4f}  "
