@@ -6,7 +6,21 @@
 Matplotlib, scipy and tqdm are imported only when a study runs.
 """
 
+import math
 import sys
+
+
+def restitution_value(text):
+    """An argparse type for `--restitution E`: a number in [0, 1] (one line naming the range and the value)."""
+    import argparse
+
+    try:
+        e = float(text)
+    except ValueError:
+        e = math.nan
+    if not 0.0 <= e <= 1.0:          # also NaN and not a number at all
+        raise argparse.ArgumentTypeError(f"must be a number in [0, 1], got {text!r}")
+    return e
 
 
 def _add_common(p):
@@ -28,8 +42,11 @@ def _runner(module_name):
             return 2
         module = importlib.import_module(f"{__name__}.{module_name}")
         from planar_lcp.experiments.studies.common import print_phase_table_and_files
-        print(module.TITLE + (" --quick" if args.quick else ""))
-        res = module.run(args.out, quick=args.quick)
+        restitution = getattr(args, "restitution", None)
+        kwargs = {} if restitution is None else dict(restitution=restitution)
+        print(module.TITLE + (" --quick" if args.quick else "")
+              + ("" if restitution is None else f" --restitution {restitution:g}"))
+        res = module.run(args.out, quick=args.quick, **kwargs)
         module.print_summary(res)
         print_phase_table_and_files(res, args.out)
         return 0
@@ -42,10 +59,16 @@ def register(subparsers):
                               description="Reproduce the seed paper's section 4 experiments: figures, event tables "
                                           "and the Table 1 error measures over step sizes.")
     sub = s.add_subparsers(dest="study", required=True, metavar="STUDY")
-    fr = sub.add_parser("falling-rod", help="section 4.1: the spinning rod dropped on a table (Figures 2-5)",
-                        description="Falling rod over h = 0.02 ... 0.00125: strobe, velocity plots, events, "
-                                    "convergence table, and the seed's friction moment arm.")
+    from planar_lcp.cli import one_line_errors
+
+    fr = one_line_errors(sub.add_parser(
+        "falling-rod", help="section 4.1: the spinning rod dropped on a table (Figures 2-5)",
+        description="Falling rod over h = 0.02 ... 0.00125: strobe, velocity plots, events, convergence table, and "
+                    "the seed's friction moment arm."))
     _add_common(fr)
+    fr.add_argument("--restitution", type=restitution_value, metavar="E",
+                    help="Newton's coefficient of restitution in [0, 1] of the rod-table contact, for every run of "
+                         "the study (default: the scene's, 0: the seed's inelastic contact; docs/falling-rod.md)")
     fr.set_defaults(func=_runner("falling_rod"))
     fd = sub.add_parser("four-disks", help="section 4.2 in elevation: a thrown disk hits a row of three (Figure 6)",
                         description="Four disks over h = 0.02 ... 0.00125: trajectories, the impulses of the first "

@@ -53,13 +53,15 @@ def all_contacts(traj, k):
     return active_contacts(traj, k, min_cn=-np.inf)
 
 
-def start(out, scene_name, quick, t_end, *, desc):
+def start(out, scene_name, quick, t_end, *, desc, restitution=None):
     """A study's first part: create `out`, load the scene and run it to t_end over the study's step sizes and the
-    reference. Returns (scene, step sizes with an error, reference step size, {h: Trajectory})."""
-    from planar_lcp.spec.scene import load_scene
+    reference. `restitution` (in [0, 1]), when given, replaces the scene's world.restitution (`--restitution`), so
+    every run made from the returned scene uses it. Returns (scene, step sizes with an error, reference step size,
+    {h: Trajectory})."""
+    from planar_lcp.spec.scene import load_scene, restitution_setting
 
+    scene = restitution_setting(load_scene(scene_name), restitution, "--restitution")
     ensure_dir(out)
-    scene = load_scene(scene_name)
     hs, h_ref = step_sizes(quick)
     return scene, hs, h_ref, run_steps(scene, list(hs) + [h_ref], desc=desc, t_end=t_end)
 
@@ -280,17 +282,17 @@ def phase_md(rows, h_ref, t_end):
                                      pos_err_max=".4f", order_vel=".2f", order_pos=".2f")) + "\n"
 
 
-def write_convergence(out, scene, trajs, hs, h_ref, t_end, *, title, bodies, desc):
+def write_convergence(out, scene, trajs, hs, h_ref, t_end, *, title, bodies, desc, note=""):
     """convergence.csv, convergence_phase.csv and convergence.md (both tables) of a study in `out`: the Table 1
-    measures of the runs trajs[h], h in hs, against trajs[h_ref], and their grid-phase averages. Returns (rows,
-    phase rows)."""
+    measures of the runs trajs[h], h in hs, against trajs[h_ref], and their grid-phase averages; `note`, if any,
+    right under convergence.md's title. Returns (rows, phase rows)."""
     rows = convergence({h: trajs[h] for h in hs}, trajs[h_ref], t_end)
     write_csv(os.path.join(out, "convergence.csv"), CONVERGENCE_COLUMNS, rows)
     phase_rows, phase_ref = phase_averaged(scene, hs, t_end, desc=desc)
     write_csv(os.path.join(out, "convergence_phase.csv"), PHASE_COLUMNS, phase_rows)
     with open(os.path.join(out, "convergence.md"), "w") as f:
         f.write(convergence_md(rows, f"{title}: errors and variations (analogue of the seed's Table 1)",
-                               CONVERGENCE_NOTE.format(t_end=t_end, h_ref=h_ref, bodies=bodies)))
+                               note + CONVERGENCE_NOTE.format(t_end=t_end, h_ref=h_ref, bodies=bodies)))
         f.write("\n## The same errors averaged over the phase of the time grid\n\n")
         f.write(phase_md(phase_rows, phase_ref, t_end))
     return rows, phase_rows

@@ -1,7 +1,9 @@
 """The seed paper's falling rod (section 4.1, Figures 2-5), over the seed's step sizes.
 
-`planar-lcp study falling-rod --out DIR [--quick]` writes strobe.png, vy.png, omega.png, vx.png, seed_arm.png,
-events.csv/.md and convergence.csv/.md (see docs/falling-rod.md).
+`planar-lcp study falling-rod --out DIR [--quick] [--restitution E]` writes strobe.png, vy.png, omega.png, vx.png,
+seed_arm.png, events.csv/.md and convergence.csv/.md (see docs/falling-rod.md). --restitution E replaces the scene's
+world.restitution (0: the seed's inelastic contact) in every run; events.md and convergence.md then state E, and the
+figures' titles too when E > 0.
 """
 
 import math
@@ -17,6 +19,28 @@ SCENE = "falling_rod"
 STROBE_H = 0.0025          # the seed's Figure 2
 REST_TOL = 1e-6            # m/s and rad/s: "at rest"
 T_END = 1.0
+ZOOM = (0.36, 0.62)         # the velocity figures' zoom on impact, slap-down and rest (e = 0)
+
+
+def restitution_note(e):
+    """The line events.md and convergence.md state E with (only when --restitution was given)."""
+    return f"Coefficient of restitution (`--restitution`): e = {e:g} in every run.\n\n"
+
+
+def title_suffix(scene):
+    """', e = E' for figure titles when the scene's world.restitution E > 0, else ''."""
+    e = scene.world.restitution
+    return f", e = {e:g}" if e > 0 else ""
+
+
+def zoom_window(trajs):
+    """ZOOM with e = 0; with e > 0 the bounces last longer: from ZOOM's start to 0.1 s after the run with the
+    finest step rests (the end of the run if it does not)."""
+    finest = min(trajs.values(), key=lambda tr: tr.options.h)
+    if finest.scene.world.restitution == 0:
+        return ZOOM
+    t_rest = events(finest)["t_rest"]
+    return ZOOM[0], min(T_END, t_rest + 0.1) if math.isfinite(t_rest) else T_END
 
 EVENT_COLUMNS = ("h", "friction_arm", "t_impact", "t_tip_stops_right", "t_slap_down", "t_rest", "slide_left_s",
                  "contact_losses", "x_final", "theta_final")
@@ -135,9 +159,9 @@ def plot_strobe(traj, path, every=8):
         tip = np.array([x, y]) + (half + r + 0.015) * d
         ax.text(tip[0], tip[1], f"{traj.t[i]:.2f}", fontsize=6, ha="center", va="center", color="0.15")
     ax.plot(traj.q[:, 0, 0], traj.q[:, 0, 1], color="tab:red", lw=0.6, ls="--", alpha=0.6)
-    ax.set_title(f"Falling rod, h = {traj.options.h:g} s: every {every} steps ({every * traj.options.h:g} s) until "
-                 f"rest at t = {t_stop:.4f} s\n(simulated time in seconds at the end the rod's angle points to; "
-                 f"dashed: path of the centre)", fontsize=9)
+    ax.set_title(f"Falling rod{title_suffix(traj.scene)}, h = {traj.options.h:g} s: every {every} steps "
+                 f"({every * traj.options.h:g} s) until rest at t = {t_stop:.4f} s\n(simulated time in seconds at "
+                 f"the end the rod's angle points to; dashed: path of the centre)", fontsize=9)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     common.save_png(fig, path)
@@ -148,7 +172,7 @@ def plot_velocity(trajs, comp, path, label, seed_fig):
     colors = common.h_colors(trajs)
     fig = new_figure((11, 4.2))
     axes = [fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)]
-    for ax, (t0, t1) in zip(axes, ((0.0, T_END), (0.36, 0.62))):
+    for ax, (t0, t1) in zip(axes, ((0.0, T_END), zoom_window(trajs))):
         for h in sorted(trajs, reverse=True):
             tr = trajs[h]
             ax.plot(tr.t, tr.v[:, 0, comp], color=colors[h], lw=1.1, label=f"h = {h:g}")
@@ -157,7 +181,8 @@ def plot_velocity(trajs, comp, path, label, seed_fig):
         ax.set_ylabel(label)
         ax.grid(True, color="0.9", lw=0.6)
     axes[0].legend(fontsize=8, loc="best")
-    axes[0].set_title(f"{label} of the rod (cf. the seed's {seed_fig})", fontsize=10)
+    sfx = title_suffix(next(iter(trajs.values())).scene)
+    axes[0].set_title(f"{label} of the rod{sfx} (cf. the seed's {seed_fig})", fontsize=10)
     axes[1].set_title("zoom on impact, slap-down and rest", fontsize=10)
     fig.tight_layout()
     common.save_png(fig, path)
@@ -170,22 +195,24 @@ def plot_seed_arm(ours, seed, path):
         ax = fig.add_subplot(1, 3, j + 1)
         ax.plot(ours.t, ours.v[:, 0, comp], color="tab:blue", lw=1.2, label="contact point (ours)")
         ax.plot(seed.t, seed.v[:, 0, comp], color="tab:orange", lw=1.2, ls="--", label="end-cap centre (seed's d)")
-        ax.set_xlim(0.3, 0.7)
+        ax.set_xlim(0.3, 0.7 if ours.scene.world.restitution == 0 else zoom_window({0: ours})[1])
         ax.set_xlabel("t [s]")
         ax.set_ylabel(label)
         ax.grid(True, color="0.9", lw=0.6)
         if j == 0:
             ax.legend(fontsize=8, loc="best")
-    fig.suptitle(f"Friction moment arm, h = {ours.options.h:g} s", fontsize=10)
+    fig.suptitle(f"Friction moment arm{title_suffix(ours.scene)}, h = {ours.options.h:g} s", fontsize=10)
     fig.tight_layout()
     common.save_png(fig, path)
 
 
 # ---------------------------------------------------------------------------------------------------------- study
 
-def run(out, quick=False):
-    """Run the study and write its files into `out`; returns a dict with the runs, events and convergence rows."""
-    scene, hs, h_ref, trajs = common.start(out, SCENE, quick, T_END, desc="falling rod")
+def run(out, quick=False, restitution=None):
+    """Run the study and write its files into `out`; returns a dict with the runs, events and convergence rows.
+    restitution: Newton's coefficient in [0, 1] of the rod-table contact in every run (None: the scene's, 0)."""
+    scene, hs, h_ref, trajs = common.start(out, SCENE, quick, T_END, desc="falling rod", restitution=restitution)
+    note = "" if restitution is None else restitution_note(scene.world.restitution)
     seed_arm = common.run_steps(scene, [STROBE_H], desc="falling rod, seed arm", t_end=T_END,
                                 seed_friction_arm=True)[STROBE_H]
     ref = trajs[h_ref]
@@ -201,16 +228,18 @@ def run(out, quick=False):
                 slide_left_s=".4f", x_final=".4f", theta_final=".6f")
     with open(os.path.join(out, "events.md"), "w") as f:
         f.write("# Falling rod: events per step size\n\n")
+        f.write(note)
         f.write(EVENTS_NOTE.format(t_exact=t_exact))
         f.write(common.md_table(EVENT_COLUMNS, ev_rows,
                                 ["h (s)", "friction arm", "impact", "tip stops sliding right", "slap-down", "rest",
                                  "slides left (s)", "contact losses", "final x (m)", "final theta (rad)"],
                                 spec=spec))
-        f.write("\n\nSeed paper (h not stated for these times; its Figure 2 uses h = 0.0025): impact t = 0.383, the "
+        f.write("\n\n" + ("" if scene.world.restitution == 0 else "With e = 0: ")
+                + "Seed paper (h not stated for these times; its Figure 2 uses h = 0.0025): impact t = 0.383, the "
                 "tip slides right, stops, slides left; slap-down t = 0.548; slides left for 0.02 s; then rest.\n")
 
     rows, phase_rows = common.write_convergence(out, scene, trajs, hs, h_ref, T_END, title="Falling rod",
-                                                bodies="the rod", desc="falling rod, grid phases")
+                                                bodies="the rod", desc="falling rod, grid phases", note=note)
 
     strobe_h = STROBE_H if STROBE_H in trajs else min(trajs)
     plot_strobe(trajs[strobe_h], os.path.join(out, "strobe.png"))
@@ -220,7 +249,7 @@ def run(out, quick=False):
         plot_velocity(trajs, comp, os.path.join(out, name), label, fig_name)
     plot_seed_arm(trajs[STROBE_H], seed_arm, os.path.join(out, "seed_arm.png"))
     return dict(trajs=trajs, ref=ref, seed_arm=seed_arm, events=ev_rows, convergence=rows, phase=phase_rows,
-                t_exact=t_exact, files=sorted(os.listdir(out)))
+                t_exact=t_exact, restitution=scene.world.restitution, files=sorted(os.listdir(out)))
 
 
 EVENTS_NOTE = """\
