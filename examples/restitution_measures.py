@@ -7,6 +7,8 @@
    step at h = 0.0025, and after the cascade at h = 1e-6.
 3. One step of 30 random rods landing (no gravity), e in {0.5, 1}, mu in {0, 0.3, 1}: the largest kinetic-energy
    change of a rod relative to its kinetic energy before the step (tests/test_restitution.py draws the same kind).
+4. The shipped falling rod at e = 0.9 (an open contact that the step's impacts drive in may end the step inside):
+   the deepest penetration at the end of a step, per h.
 """
 
 import numpy as np
@@ -99,7 +101,15 @@ def rods():
                   f"{int((rel > 1e-12).sum())} of 30")
 
 
+def rod_penetration():
+    print("4. falling_rod at e = 0.9: deepest penetration at the end of a step")
+    for h in (0.005, 0.0025, 0.00125):
+        tr = simulate("falling_rod", restitution=0.9, h=h, t_end=3.0)
+        print(f"  h = {h:g}: {tr.stats['penetration'].max():.2e} m")
+
+
 if __name__ == "__main__":
     bounces()
     row()
     rods()
+    rod_penetration()

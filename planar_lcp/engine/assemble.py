@@ -209,8 +209,8 @@ def normal_column(m, w, vk, h, velocity_form, a, u, b):
     """Contact j = w.island_con[a]'s unit normal impulse as generalized column u, and the constant of its normal
     row, b[u]: position forms (linearized at q_hat = q + h v_hat) phi/h + n.(v_tilde - v_hat); velocity form
     n.v_tilde + max(phi, 0)/h + the kinematic bodies' normal velocity. With restitution e > 0 (docs/method.md,
-    "Restitution"): an impact's row is at most n.v_tilde + (kinematic normal velocity) + e v_n-, any other row at least
-    that with e = 1. Returns (j, n_x, n_y)."""
+    "Restitution"): an impact's row is at most n.v_tilde + (kinematic normal velocity) + e v_n-, an open contact's row
+    at least that. Returns (j, n_x, n_y)."""
     j = w.island_con[a]
     nx = w.con_n[j, 0]
     ny = w.con_n[j, 1]
@@ -228,14 +228,17 @@ def normal_column(m, w, vk, h, velocity_form, a, u, b):
         kin = kinematic_velocity_along(m, w.body_pose, vk, w.con_pair, w.con_p, j, nx, ny)
         vn_start = column_dot(w.column_slot, w.column_g, u, w.v_start) + kin
         free = column_dot(w.column_slot, w.column_g, u, w.v_tilde) + kin
-        if b[u] < 0.0 and vn_start < 0.0:
-            # an impact: free motion closes the contact within the step and it was approaching. It leaves at
-            # n.v+ >= -e v_n-; the stronger of that and the gap's row, so the gap's row still holds.
-            b[u] = min(b[u], free + e * vn_start)
+        if b[u] < 0.0:
+            if vn_start < 0.0:
+                # an impact: free motion closes the contact within the step and it was approaching. It leaves at
+                # n.v+ >= -e v_n-; the stronger of that and the gap's row, so the gap's row still holds.
+                b[u] = min(b[u], free + e * vn_start)
         else:
-            # any other contact of the pair: the weaker of the gap's row and n.v+ >= -v_n-, so that an impulse here
-            # (one the step's impacts drive it into, like a struck rod's far end) never does positive work
-            b[u] = max(b[u], free + vn_start)
+            # free motion keeps the contact open, yet the step's impacts may drive it in (a struck rod's far end):
+            # the weaker of the gap's row and the same law n.v+ >= -e v_n-, so that the law, not the gap, sets what an
+            # impulse there does (Moreau's law on every contact that takes an impulse: no step gains kinetic energy
+            # without friction)
+            b[u] = max(b[u], free + e * vn_start)
     return j, nx, ny
 
 
