@@ -9,6 +9,9 @@
    change of a rod relative to its kinetic energy before the step (tests/test_restitution.py draws the same kind).
 4. The shipped falling rod at e = 0.9 (an open contact that the step's impacts drive in may end the step inside):
    the deepest penetration at the end of a step, per h.
+5. The 200 seeded random scenes (tests/test_reliability.py) at e = 0.5, each formulation: failed runs, island solves
+   that fell back to e = 0 (solved_inelastic), the largest one-step energy gain / E0 (vertical plane; energy with the
+   ground as datum) and the largest rise of the energy above E0.
 """
 
 import numpy as np
@@ -108,8 +111,38 @@ def rod_penetration():
         print(f"  h = {h:g}: {tr.stats['penetration'].max():.2e} m")
 
 
+def random_set():
+    from planar_lcp.spec.random_scenes import random_scene
+    from planar_lcp.spec.scene import FORMULATIONS
+    from planar_lcp.trajectory import energy_changes
+
+    print("5. the 200 random scenes at e = 0.5")
+    for form in FORMULATIONS:
+        failed = inelastic = solves = runs_inelastic = 0
+        gain, rise = (0.0, -1), (0.0, -1)
+        for seed in range(200):
+            data = random_scene(seed)
+            scene = parse_scene(data, f"<random scene {seed}>")
+            tr = simulate(scene, formulation=form, restitution=0.5, on_failure="record")
+            failed += bool(tr.failures)
+            n = int(tr.stats["solved_inelastic"].sum())
+            inelastic += n
+            runs_inelastic += n > 0
+            solves += int(sum(tr.stats[k].sum() for k in ("warm_starts", "solved_lemke", "solved_equilibrated",
+                                                             "solved_strict", "solved_velocity", "solved_inelastic")))
+            if data["world"]["plane"] == "vertical":
+                e0 = tr.stats["energy"][0]
+                total = energy_changes(compile_scene(scene), tr.q_com, tr.v_com, scene.sim.h)[0] / e0
+                gain = max(gain, (float(total.max()), seed))
+                rise = max(rise, (float(tr.stats["energy"].max() / e0 - 1), seed))
+        print(f"  {form:<11}: {failed} failed runs; inelastic fallbacks {inelastic} of {solves} island solves, in "
+              f"{runs_inelastic} runs; largest one-step gain / E0 {gain[0]:.3g} (seed {gain[1]}), largest rise "
+              f"above E0 {rise[0]:.3g} (seed {rise[1]})")
+
+
 if __name__ == "__main__":
     bounces()
     row()
     rods()
     rod_penetration()
+    random_set()

@@ -37,9 +37,10 @@ class Trajectory:
         solved_lemke (Lemke on the LCP as assembled: the default path), solved_equilibrated (Lemke on the
         exactly equilibrated LCP), solved_strict (as assembled, stricter pivot tolerances), solved_velocity
         (position forms: the island's normal rows in the velocity form, so that step neither corrects penetration
-        nor linearizes about q + h v; docs/method.md, "Certified solves"), pgs_uncertified (no method was
-        certified: PGS's answer was used and the step is a failure); fp_change (the fixed point's last change of the
-        linearization pose), pgs_update (PGS's largest impulse change in its last sweep: its convergence), status
+        nor linearizes about q + h v; docs/method.md, "Certified solves"), solved_inelastic (an island with
+        restitution whose elastic LCP had no certified answer, solved with e = 0: docs/method.md, "Restitution"),
+        pgs_uncertified (no method was certified: PGS's answer was used and the step is a failure); fp_change (the
+        fixed point's last change of the linearization pose), pgs_update (PGS's largest impulse change in its last sweep: its convergence), status
         (0 ok, 1 LCP failed, 2 non-finite); energy (T,) J.
     contacts : dict of per-step contact arrays (count (T-1,), then (T-1, C[, 2]): pair, phi, normal, point, cn, ft,
         vt, mode with mode 0 separated, 1 sticking, 2 sliding) and `shape_pairs` naming each pair's bodies. The

@@ -28,6 +28,11 @@ FINAL_PENETRATION_BOUND = 5e-3
 # impulses never add kinetic energy.
 ENERGY_GAIN_BOUND = {"position": 5.0, "fixed_point": 1.0, "velocity": 5e-3}
 IMPULSE_KE_GAIN_BOUND_VELOCITY = 1e-12
+# The same with e = 0.5 on every pair (python examples/restitution_measures.py, part 5): position 0.41 (seed 133),
+# fixed_point 0.10 (seed 135), velocity 0.052 (seed 127). The velocity form's is friction's: a Newton impact with
+# friction can gain kinetic energy (docs/method.md, "Restitution"); with the friction set to 0 that seed gains
+# nothing. Its energy never rises above E0.
+ENERGY_GAIN_BOUND_RESTITUTION = {"position": 5.0, "fixed_point": 1.0, "velocity": 0.1}
 
 
 @pytest.mark.parametrize("seed", range(N_SCENES))
@@ -47,7 +52,7 @@ def test_random_scene_runs_to_the_end_certified(seed):
         assert tr.stats["penetration"][-1] <= FINAL_PENETRATION_BOUND, where
         # every step that had an LCP was solved by certified methods (none uncertified: checked above)
         solved = sum(tr.stats[k] for k in ("warm_starts", "solved_lemke", "solved_equilibrated", "solved_strict",
-                                           "solved_velocity"))
+                                           "solved_velocity", "solved_inelastic"))
         assert np.all((solved > 0) == (tr.stats["lcp_size"] > 0)), where
         if data["world"]["plane"] == "vertical":
             e0 = tr.stats["energy"][0]
@@ -58,6 +63,56 @@ def test_random_scene_runs_to_the_end_certified(seed):
                 assert impulses.max() <= IMPULSE_KE_GAIN_BOUND_VELOCITY, where
             else:
                 assert np.abs(projection).max() <= 1e-9, where      # q+ = q + h v+: no position change beyond it
+
+
+@pytest.mark.parametrize("seed", range(N_SCENES))
+def test_random_scene_with_restitution_runs_to_the_end_certified(seed):
+    """The same scenes with e = 0.5 on every pair: no aborted run, every island certified, the same final-penetration
+    and energy bounds. Where Newton's law has no solution (a simultaneous impact asking a body to leave two contacts
+    it cannot leave at once) the island is solved inelastically and counted (solved_inelastic; docs/method.md)."""
+    data = random_scene(seed)
+    sc = parse_scene(data, f"<random scene {data['name']}>")
+    model = compile_scene(sc)
+    for formulation in FORMULATIONS:
+        where = f"seed {seed}, formulation {formulation!r}, restitution 0.5\n{scene_to_toml(data)}"
+        try:
+            tr = simulate(sc, formulation=formulation, restitution=0.5)
+        except SimulationError as e:
+            pytest.fail(f"{e}\n{where}")
+        assert np.all(np.isfinite(tr.q)) and np.all(np.isfinite(tr.v)), where
+        assert tr.stats["pgs_uncertified"].sum() == 0 and not tr.failures, where
+        assert tr.stats["penetration"][-1] <= FINAL_PENETRATION_BOUND, where
+        if data["world"]["plane"] == "vertical":
+            e0 = tr.stats["energy"][0]
+            total = energy_changes(model, tr.q_com, tr.v_com, sc.sim.h)[0] / e0
+            assert total.max() <= ENERGY_GAIN_BOUND_RESTITUTION[formulation], where
+            if formulation == "velocity":
+                assert tr.stats["energy"].max() <= e0 * (1 + 1e-12), where
+
+
+def test_restitution_that_cannot_hold_falls_back_to_inelastic_and_counts_it():
+    """Seed 4's position-form run at e = 0.5 meets islands whose elastic LCP has no certified answer (Lemke ends on a
+    ray in every form): they are solved with e = 0, counted, and the run completes."""
+    sc = parse_scene(random_scene(4), "<random scene 4>")
+    tr = simulate(sc, formulation="position", restitution=0.5)
+    assert tr.stats["solved_inelastic"].sum() > 0 and not tr.failures
+    assert simulate(sc, formulation="position").stats["solved_inelastic"].sum() == 0
+
+
+def test_the_velocity_forms_gain_with_restitution_is_frictions():
+    """Seed 127 has the velocity form's largest one-step gain at e = 0.5 (0.052 E0). Without friction the same run's
+    impulses add no kinetic energy: the gain is a Newton impact's with friction (docs/method.md, "Restitution")."""
+    data = random_scene(127)
+    world = dict(data["world"], friction=0.0,
+                 friction_pairs=[dict(p, mu=0.0) for p in data["world"].get("friction_pairs", [])])
+    for frictionless, bound in ((False, None), (True, 1e-12)):
+        sc = parse_scene(dict(data, world=world) if frictionless else data, "<random scene 127>")
+        tr = simulate(sc, formulation="velocity", restitution=0.5)
+        impulses = energy_changes(compile_scene(sc), tr.q_com, tr.v_com, sc.sim.h)[1] / tr.stats["energy"][0]
+        if bound is None:
+            assert impulses.max() > 0.04
+        else:
+            assert impulses.max() <= bound
 
 
 def test_the_random_scenes_are_reproducible_and_valid_toml(tmp_path):

@@ -78,5 +78,5 @@ def test_trajectory_stats_keys_are_the_contract():
     assert sorted(tr.stats) == sorted([
         "lcp_size", "lcp_max", "pivots", "n_contacts", "n_islands", "fp_iterations", "resolves", "residual",
         "penetration", "lemke_retries", "warm_starts", "solved_lemke", "solved_equilibrated", "solved_strict",
-        "solved_velocity", "pgs_uncertified", "fp_change", "pgs_update", "status", "energy"])
+        "solved_velocity", "solved_inelastic", "pgs_uncertified", "fp_change", "pgs_update", "status", "energy"])
     assert tr.stats["pivots"].dtype.kind == "i" and tr.stats["residual"].dtype.kind == "f"

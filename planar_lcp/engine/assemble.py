@@ -205,12 +205,12 @@ def kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, dx, dy):
 
 
 @njit(cache=True, inline='always')
-def normal_column(m, w, vk, h, velocity_form, a, u, b):
+def normal_column(m, w, vk, h, velocity_form, a, u, b, elastic=True):
     """Contact j = w.island_con[a]'s unit normal impulse as generalized column u, and the constant of its normal
     row, b[u]: position forms (linearized at q_hat = q + h v_hat) phi/h + n.(v_tilde - v_hat); velocity form
     n.v_tilde + max(phi, 0)/h + the kinematic bodies' normal velocity. With restitution e > 0 (docs/method.md,
     "Restitution"): an impact's row is at most n.v_tilde + (kinematic normal velocity) + e v_n-, an open contact's row
-    at least that. Returns (j, n_x, n_y)."""
+    at least that; elastic=False: the e = 0 rows for every pair. Returns (j, n_x, n_y)."""
     j = w.island_con[a]
     nx = w.con_n[j, 0]
     ny = w.con_n[j, 1]
@@ -221,7 +221,7 @@ def normal_column(m, w, vk, h, velocity_form, a, u, b):
     else:
         b[u] = w.con_phi[j] / h + column_dot(w.column_slot, w.column_g, u, w.v_tilde) - \
             column_dot(w.column_slot, w.column_g, u, w.v_hat)
-    e = m.pair_e[w.con_pair[j]]
+    e = m.pair_e[w.con_pair[j]] if elastic else 0.0
     if e > 0.0:
         # Newton's impact law at the velocity level (Moreau). v_n- is the start-of-step normal velocity, not v_tilde's:
         # gravity's h g within the step would otherwise make a resting contact bounce.
@@ -243,7 +243,7 @@ def normal_column(m, w, vk, h, velocity_form, a, u, b):
 
 
 @njit(cache=True)
-def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b):
+def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b, elastic=True):
     """Build the LCP (A, b) of the island whose contacts and support points are w.island_con[:nci],
     w.island_sup[:nsi] (geometry at the linearization pose w.body_pose); the generalized columns of its force
     unknowns go to w.column_slot / w.column_g. Returns (LCP size n, number of frictional contacts).
@@ -251,6 +251,7 @@ def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b):
     Normal rows: position forms (linearized at the pose q_hat = q + h v_hat):  phi/h + n.(v+ - v_hat) >= 0;
     velocity form (contacts at q):  n.v+ + (kinematic normal velocity) + max(phi, 0)/h >= 0.
     Friction rows: lambda e + D^T v+ (+ kinematic tangential velocity) >= 0.  Slack rows: mu c_n - e^T beta >= 0.
+    Restitution changes the normal rows' constants (`normal_column`); elastic=False assembles them as at e = 0.
     """
     poses, con_pair, con_phi, con_n, con_p = w.body_pose, w.con_pair, w.con_phi, w.con_n, w.con_p
     col_dyn, col_g, v_tilde, isl_sup = w.column_slot, w.column_g, w.v_tilde, w.island_sup
@@ -264,7 +265,7 @@ def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b):
     # generalized columns of the force unknowns (and the normal rows' constants)
     f = 0
     for a in range(nci):
-        j, nx, ny = normal_column(m, w, vk, h, velocity_form, a, a, b)
+        j, nx, ny = normal_column(m, w, vk, h, velocity_form, a, a, b, elastic)
         if m.pair_mu[con_pair[j]] > 0.0:
             # tangent t = (-n_y, n_x); the two rays +t and -t make the 2-D friction "cone" exact
             friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, -ny, nx, col_dyn, col_g, o_bc + 2 * f)
@@ -321,6 +322,15 @@ def apply_impulses(nforce, col_dyn, col_g, z, m, v):
                 v[d, 0] += col_g[u, side, 0] * zu / m.dyn_mass[d]
                 v[d, 1] += col_g[u, side, 1] * zu / m.dyn_mass[d]
                 v[d, 2] += col_g[u, side, 2] * zu / m.dyn_inertia[d]
+
+
+@njit(cache=True)
+def island_is_elastic(m, isl_con, nci, con_pair):
+    """Whether a contact of the island belongs to a pair with restitution (e > 0)."""
+    for a in range(nci):
+        if m.pair_e[con_pair[isl_con[a]]] > 0.0:
+            return True
+    return False
 
 
 @njit(cache=True)

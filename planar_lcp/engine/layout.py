@@ -187,6 +187,7 @@ STATS = (
     ("solved_equilibrated", True, "island LCPs solved by Lemke on the equilibrated problem"),
     ("solved_strict", True, "island LCPs solved by Lemke with stricter pivot tolerances"),
     ("solved_velocity", True, "island LCPs solved in the velocity form's normal rows"),
+    ("solved_inelastic", True, "island LCPs with restitution solved inelastically (e = 0): no elastic answer found"),
     ("pgs_uncertified", True, "islands that took PGS's uncertified answer after every certified method failed"),
 )
 Stat = IntEnum("Stat", [(name.upper(), i) for i, (name, _, _) in enumerate(STATS)], module=__name__)

@@ -181,23 +181,22 @@ class Scene:
 
         Order-insensitive. KeyError if either name is not a body of the scene.
         """
-        self.body(name_a)
-        self.body(name_b)
-        for a, b, mu in self.world.friction_pairs:
-            if {a, b} == {name_a, name_b}:
-                return mu
-        return self.world.friction
+        return self._pair_value(self.world.friction_pairs, self.world.friction, name_a, name_b)
 
     def restitution_between(self, name_a: str, name_b: str) -> float:
         """Newton's coefficient of restitution between two bodies: the `world.restitution_pairs` override if any,
         else `world.restitution` (0: the seed's perfectly inelastic contact). Order-insensitive; KeyError if either
         name is not a body of the scene."""
+        return self._pair_value(self.world.restitution_pairs, self.world.restitution, name_a, name_b)
+
+    def _pair_value(self, pairs, default, name_a, name_b):
+        """The value of the (a, b, value) entry of `pairs` for the two bodies in either order, else `default`."""
         self.body(name_a)
         self.body(name_b)
-        for a, b, e in self.world.restitution_pairs:
+        for a, b, value in pairs:
             if {a, b} == {name_a, name_b}:
-                return e
-        return self.world.restitution
+                return value
+        return default
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -21,8 +21,8 @@ the island-solver signature of engine/step.py.
 import numpy as np
 from numba import njit
 
-from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, contact_velocities, island_problem_size,
-                                        record_impulses, support_column_count)
+from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, contact_velocities, island_is_elastic,
+                                        island_problem_size, record_impulses, support_column_count)
 from planar_lcp.engine.layout import Stat
 
 STATUS_SOLVED = 0
@@ -504,14 +504,26 @@ def lemke_solve(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate):
 #                 v_hat. With no kinematic body in the island, Lemke processes this LCP (Anitescu & Potra 1997; the
 #                 seed's section 3.3; docs/method.md), while the position form's need not have a solution (a body
 #                 pressed into a corner it cannot leave in one step) or can end Lemke on a secondary ray
+#   inelastic     islands with restitution only: the same island with every pair's e = 0, in the formulation's rows
+#                 and then in the velocity form's. Newton's law can ask the impossible of a simultaneous impact (a body
+#                 struck towards a contact it cannot leave must still separate from both at once), and then its LCP has
+#                 no solution; the inelastic problem is the seed's, and the velocity form's always has one. The step
+#                 loses that island's bounce; `solved_inelastic` counts it.
 # When none is certified the step pipeline hands the island to its fallback (PGS: uncertified, the step is reported
 # as failed) or, in the variant without one, hands the step back to the caller.
 RETRY_PIV_TOLS = (1e-6, 1e-4)
-# The chain, in order: (stats counter, pivot tolerance (-1: the options'), equilibrate, velocity-form normal rows)
-LEMKE_CHAIN = ((int(Stat.SOLVED_LEMKE), -1.0, False, False), (int(Stat.SOLVED_EQUILIBRATED), -1.0, True, False),
-               (int(Stat.SOLVED_STRICT), RETRY_PIV_TOLS[0], False, False),
-               (int(Stat.SOLVED_STRICT), RETRY_PIV_TOLS[1], False, False),
-               (int(Stat.SOLVED_VELOCITY), -1.0, False, True), (int(Stat.SOLVED_VELOCITY), -1.0, True, True))
+# The chain, in order: (stats counter, pivot tolerance (-1: the options'), equilibrate, velocity-form normal rows,
+# the impact law of restitution)
+LEMKE_CHAIN = ((int(Stat.SOLVED_LEMKE), -1.0, False, False, True),
+               (int(Stat.SOLVED_EQUILIBRATED), -1.0, True, False, True),
+               (int(Stat.SOLVED_STRICT), RETRY_PIV_TOLS[0], False, False, True),
+               (int(Stat.SOLVED_STRICT), RETRY_PIV_TOLS[1], False, False, True),
+               (int(Stat.SOLVED_VELOCITY), -1.0, False, True, True),
+               (int(Stat.SOLVED_VELOCITY), -1.0, True, True, True),
+               (int(Stat.SOLVED_INELASTIC), -1.0, False, False, False),
+               (int(Stat.SOLVED_INELASTIC), -1.0, True, False, False),
+               (int(Stat.SOLVED_INELASTIC), -1.0, False, True, False),
+               (int(Stat.SOLVED_INELASTIC), -1.0, True, True, False))
 
 
 @njit(cache=True, inline='always')
@@ -547,19 +559,25 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
         # One call site for the whole chain: each inlined call of lemke_kernel costs compile time
         status = STATUS_RAY
         method = LEMKE_CHAIN[0][0]
-        velocity_rows = False
+        rows_velocity = velocity_form       # the rows (A, b) now hold
+        rows_elastic = True
+        elastic_island = island_is_elastic(m, w.island_con, nci, w.con_pair)
         for attempt in range(len(LEMKE_CHAIN)):
-            method, piv_tol, equilibrate, in_velocity_form = LEMKE_CHAIN[attempt]
+            method, piv_tol, equilibrate, in_velocity_form, elastic = LEMKE_CHAIN[attempt]
             if piv_tol < 0.0:
                 piv_tol = opt.piv_tol
             elif piv_tol <= opt.piv_tol:
                 continue                     # not stricter than the first try
-            if in_velocity_form and not velocity_rows:
-                if velocity_form:
-                    break                    # the velocity form's rows were the first try's
-                # the island's LCP in the velocity form over the same contacts: only the normal rows' constants change
-                assemble_lcp(m, w, vk, nci, nsi, h, True, A, w.lcp_vector)
-                velocity_rows = True
+            if not elastic and not elastic_island:
+                break                        # without restitution the inelastic rows were tried already
+            want_velocity = in_velocity_form or velocity_form
+            if in_velocity_form and velocity_form:
+                continue                     # the velocity form's rows were the first try's (inelastic: the try before)
+            if want_velocity != rows_velocity or elastic != rows_elastic:
+                # the island's LCP over the same contacts: only the normal rows' constants change
+                assemble_lcp(m, w, vk, nci, nsi, h, want_velocity, A, w.lcp_vector, elastic)
+                rows_velocity = want_velocity
+                rows_elastic = elastic
             if attempt > 0:
                 stats[Stat.LEMKE_RETRIES] += 1
             status, p, res = lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate)
