@@ -394,3 +394,16 @@ def test_under_gravity_an_elastic_impact_takes_half_c_n_h_g_n_from_the_free_moti
         assert dke == pytest.approx(expected, rel=1e-9, abs=1e-12)
         checked += 1
     assert checked >= 3
+
+
+@pytest.mark.parametrize("solver", ["pgs", "osqp"])
+def test_every_solver_reads_the_impact_law(solver):
+    """The law lives in the normal rows' constants, which PGS and OSQP assemble with the same code as Lemke: the
+    disk's first impact reverses it by exactly e, and its bounces are Lemke's."""
+    if solver == "osqp":
+        pytest.importorskip("osqp")
+    lemke = simulate(drop_scene(0.5, 1e-3, 1.2))
+    other = simulate(drop_scene(0.5, 1e-3, 1.2), solver=solver)
+    k = bounces(other)[0][0]
+    assert other.v[k + 1, 0, 1] == pytest.approx(-0.5 * other.v[k, 0, 1], rel=1e-12)
+    np.testing.assert_allclose(bounces(other)[1], bounces(lemke)[1], rtol=1e-9)
