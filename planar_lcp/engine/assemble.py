@@ -236,8 +236,8 @@ def normal_column(m, w, vk, h, velocity_form, a, u, b, elastic=True):
         else:
             # free motion keeps the contact open, yet the step's impacts may drive it in (a struck rod's far end):
             # the weaker of the gap's row and the same law n.v+ >= -e v_n-, so that the law, not the gap, sets what an
-            # impulse there does (Moreau's law on every contact that takes an impulse: no step gains kinetic energy
-            # without friction)
+            # impulse there does (where the law binds at every contact with an impulse, Moreau's identity keeps a
+            # frictionless step from gaining kinetic energy; docs/method.md, "Restitution")
             b[u] = max(b[u], free + e * vn_start)
     return j, nx, ny
 
