@@ -215,19 +215,20 @@ def normal_column(m, w, vk, h, velocity_form, a, u, b, elastic=True):
     nx = w.con_n[j, 0]
     ny = w.con_n[j, 1]
     contact_column(m, w.body_pose, w.con_pair, w.con_p, j, nx, ny, w.column_slot, w.column_g, u)
-    if velocity_form:
-        b[u] = column_dot(w.column_slot, w.column_g, u, w.v_tilde) + max(w.con_phi[j], 0.0) / h + \
-            kinematic_velocity_along(m, w.body_pose, vk, w.con_pair, w.con_p, j, nx, ny)
-    else:
-        b[u] = w.con_phi[j] / h + column_dot(w.column_slot, w.column_g, u, w.v_tilde) - \
-            column_dot(w.column_slot, w.column_g, u, w.v_hat)
+    n_free = column_dot(w.column_slot, w.column_g, u, w.v_tilde)
     e = m.pair_e[w.con_pair[j]] if elastic else 0.0
+    kin = 0.0
+    if velocity_form or e > 0.0:
+        kin = kinematic_velocity_along(m, w.body_pose, vk, w.con_pair, w.con_p, j, nx, ny)
+    if velocity_form:
+        b[u] = n_free + max(w.con_phi[j], 0.0) / h + kin
+    else:
+        b[u] = w.con_phi[j] / h + n_free - column_dot(w.column_slot, w.column_g, u, w.v_hat)
     if e > 0.0:
         # Newton's impact law at the velocity level (Moreau). v_n- is the start-of-step normal velocity, not v_tilde's:
         # gravity's h g within the step would otherwise make a resting contact bounce.
-        kin = kinematic_velocity_along(m, w.body_pose, vk, w.con_pair, w.con_p, j, nx, ny)
         vn_start = column_dot(w.column_slot, w.column_g, u, w.v_start) + kin
-        free = column_dot(w.column_slot, w.column_g, u, w.v_tilde) + kin
+        free = n_free + kin
         if b[u] < 0.0:
             if vn_start < 0.0:
                 # an impact: free motion closes the contact within the step and it was approaching. It leaves at
