@@ -232,6 +232,17 @@ def test_study_falling_rod(tmp_path):
     check_csv(out / "convergence.csv", min_rows=1)
 
 
+@covers("study falling-rod")
+def test_study_falling_rod_with_restitution(tmp_path):
+    """The README's [--restitution E] as a user types it: the study states E in its tables."""
+    out = tmp_path / "rod_e"
+    r = run_cli("study", "falling-rod", "--out", out, "--quick", "--restitution", "0.5", cwd=tmp_path)
+    ok(r)
+    check_dir(out, ["strobe.png", "vy.png", "events.csv", "events.md", "convergence.md"])
+    check_csv(out / "events.csv", first="h", min_rows=2)
+    assert "e = 0.5 in every run" in (out / "events.md").read_text()
+
+
 @covers("study four-disks")
 def test_study_four_disks(tmp_path):
     out = tmp_path / "disks"
