@@ -4,7 +4,8 @@ same on every machine. Prints each seed's (exact, iterations, solve time) and a 
     python examples/rrt_screen.py push_t --goal-bias 0.1 --iterations 60000
     python examples/rrt_screen.py push_box --goal-bias 0.3 --iterations 60000
 
-Used for docs/planning.md ("Faster planning"). Runs in this process with the cyclic GC off (planners.plan does it).
+Used for docs/planning.md ("Faster planning"). TASK is a shipped task or a task file. Runs in this process with the
+cyclic GC off (planners.plans.plan_task does it).
 """
 
 import argparse
@@ -12,18 +13,18 @@ import dataclasses
 
 import numpy as np
 
-from planners.plan import plan_task
-from planners.tasks import TASKS
+from planners import load_task
+from planners.plans import plan_task
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("task", choices=sorted(TASKS))
+    ap.add_argument("task", help="a shipped task's name or a task file")
     ap.add_argument("--goal-bias", type=float, default=None, help="RRT's goal bias (default: the task's)")
     ap.add_argument("--iterations", type=int, default=60000)
     ap.add_argument("--seeds", type=int, default=10, help="seeds 1..N")
     a = ap.parse_args()
-    task = TASKS[a.task]
+    task = load_task(a.task)
     if a.goal_bias is not None:
         task = dataclasses.replace(task, goal_bias=a.goal_bias)
     its = []

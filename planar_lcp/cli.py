@@ -223,17 +223,18 @@ def _cmd_scenes(args):
     from planar_lcp.spec.scene import SceneError, list_scenes, scenes_dir
 
     try:
-        scenes = list_scenes()
+        scenes = list_scenes(tasks=True)
     except SceneError as e:
         print(f"planar-lcp scenes: error: {e}", file=sys.stderr)
         return 2
     if not scenes:
         print(f"no scenes in {scenes_dir()}")
         return 0
-    width = max(len(n) for n, _ in scenes)
-    print(f"{len(scenes)} scenes in {scenes_dir()} (run one with: planar-lcp simulate NAME):")
-    for name, description in scenes:
-        print(f"  {name:<{width}}  {description}")
+    width = max(len(n) for n, _, _ in scenes)
+    print(f"{len(scenes)} scenes in {scenes_dir()} (run one with: planar-lcp simulate NAME; [task]: a planning "
+          "task too, plan it with: planar-lcp plan NAME):")
+    for name, description, has_task in scenes:
+        print(f"  {name:<{width}}  {'[task]' if has_task else '      '}  {description}")
     return 0
 
 

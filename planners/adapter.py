@@ -7,8 +7,8 @@ The OMPL state is the full physics state, so propagation is a pure function of (
                        [+ SE2 + R^3 for each obstacle, in Task.obstacles order (push_clutter)]
                        + R^2 (pusher x, y)
 
-with the task's distance weights `Task.weights = (w_pos, w_ang, w_vel, w_pus)` (the shipped tasks' values are in
-planners/tasks.py, the reasons in docs/planning.md), so that OMPL's distance between two states is
+with the task's distance weights `Task.weights = (w_pos, w_ang, w_vel, w_pus)` (derived from the object's size by
+`planar_lcp.spec.task.derived_weights`, the reasons in docs/planning.md), so that OMPL's distance between two states is
 
     w_pos |dxy| + w_ang |dtheta| + w_vel |(dvx, dvy, domega)| + w_pus |dpusher|
 
@@ -163,12 +163,14 @@ class ObjectGrid(oc.GridDecomposition):
         del sampler, coord, s
 
 
-def state_space(t):
-    """The weighted CompoundStateSpace of task t (module docstring: SE2 + R^3 per body, R^2, the distance formula)."""
-    (px0, px1), (py0, py1) = t.pusher_bounds
+def state_space(tm):
+    """The weighted CompoundStateSpace of a TaskModel (module docstring: SE2 + R^3 per body, R^2, the distance
+    formula); each body's SE2 bounds are its centre-of-mass bounds (`TaskModel.com_bounds`)."""
+    t = tm.task
+    (px0, px1), (py0, py1) = t.pusher_workspace
     w_pos, w_ang, w_vel, w_pus = t.weights
     space = ob.CompoundStateSpace()
-    for i, ((x0, x1), (y0, y1)) in enumerate([t.object_bounds] + [t.table_region] * len(t.obstacles)):
+    for i, ((x0, x1), (y0, y1)) in enumerate(tm.com_bounds):
         se2 = ob.SE2StateSpace()
         se2.setBounds(bounds([x0, y0], [x1, y1]))
         se2.setSubspaceWeight(1, w_ang / w_pos)  # SE2 is scaled by w_pos (w_obs) below: its angle then weighs w_ang
@@ -185,13 +187,12 @@ def state_space(t):
 class Problem:
     """An OMPL SimpleSetup for a task with a named planner. Call `ou.RNG.setSeed` before building it."""
 
-    def __init__(self, task, planner="KPIECE1", tm=None):
-        check_planner(planner)
+    def __init__(self, task, planner=None, tm=None):
         self.tm = tm = tm if tm is not None else TaskModel(task)
         t = tm.task
         self.task = t
-        self.planner_name = planner
-        space = state_space(t)
+        self.planner_name = planner = check_planner(planner if planner is not None else t.planner)
+        space = state_space(tm)
         self.projection = ObjectXY(space, t.kpiece_cell)
         space.registerDefaultProjection(self.projection)     # before setup(): KPIECE1 reads it there
         cspace = oc.RealVectorControlSpace(space, 2)
@@ -236,7 +237,7 @@ class Problem:
             return oc.EST(si)
         if name == "KPIECE1":
             return oc.KPIECE1(si)
-        (ox0, ox1), (oy0, oy1) = self.task.object_bounds
+        (ox0, ox1), (oy0, oy1) = self.tm.com_bounds[0]
         self.decomposition = ObjectGrid(SYCLOP_GRID, bounds([ox0, oy0], [ox1, oy1]))
         return (oc.SyclopRRT if name == "SyclopRRT" else oc.SyclopEST)(si, self.decomposition)
 

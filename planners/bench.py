@@ -54,7 +54,7 @@ def _run_one(task, planner, seed, time_limit, iterations=None):
     """One planning run in a worker process; returns a flat record with the worker's address (None outside Dask)."""
     import gc
     gc.disable()
-    from .plan import plan_task
+    from .plans import plan_task
     t0 = time.perf_counter()
     worker = worker_address()
     host, cpuinfo = host_info()
@@ -88,11 +88,12 @@ def _fmt(v):
 UNKNOWN_HOST = "unknown-host"
 
 
-def write_logs(out, task, planners, records, time_limit, total_time):
+def write_logs(out, t, planners, records, time_limit, total_time):
     """OMPL benchmark logs of the runs, ONE PER HOST: OMPL's log format describes one experiment on one machine
     ("Running on <host>" and its CPU), and `ompl_benchmark_statistics` merges several logs into one database, so a
     benchmark spread over machines is one log per machine. With one host the log is `<task>.log`, otherwise
-    `<task>_<host>.log` for each. Returns the paths."""
+    `<task>_<host>.log` for each (t: the Task). Returns the paths."""
+    task = t.name
     hosts = {}
     for r in records:
         hosts.setdefault(r.get("host") or UNKNOWN_HOST, r.get("cpuinfo") or "unknown")
@@ -100,7 +101,7 @@ def write_logs(out, task, planners, records, time_limit, total_time):
     for host, cpu in sorted(hosts.items()):
         rs = [r for r in records if (r.get("host") or UNKNOWN_HOST) == host]
         name = f"{task}.log" if len(hosts) == 1 else f"{task}_{_file_safe(host)}.log"
-        paths.append(write_log(Path(out) / name, task, planners, rs, host, cpu, time_limit, total_time))
+        paths.append(write_log(Path(out) / name, t, planners, rs, host, cpu, time_limit, total_time))
     return paths
 
 
@@ -108,10 +109,9 @@ def _file_safe(s):
     return "".join(c if c.isalnum() or c in "-_." else "_" for c in s.split(" ")[0])
 
 
-def write_log(path, task, planners, records, host, cpuinfo, time_limit, total_time):
-    """One OMPL benchmark log (doc/markdown/benchmark.md) of `records`, all run on `host`."""
-    from .tasks import get_task
-    t = get_task(task)
+def write_log(path, t, planners, records, host, cpuinfo, time_limit, total_time):
+    """One OMPL benchmark log (doc/markdown/benchmark.md) of `records` of task `t` (a Task), all run on `host`."""
+    task = t.name
     try:
         from importlib.metadata import version
         ver = version("ompl")
@@ -120,7 +120,7 @@ def write_log(path, task, planners, records, host, cpuinfo, time_limit, total_ti
     runs = max([sum(1 for r in records if r["planner"] == p) for p in planners], default=0)
     lines = [f"OMPL version {ver}", f"Experiment {task}", "0 experiment properties",
              f"Running on {host}", f"Starting at {datetime.now().strftime('%Y-%m-%d %H:%M:%S')}",
-             "<<<|", f"task {task}: {t.description}; scene {t.scene}; planar_lcp LCP simulator as forward model",
+             "<<<|", f"task {task}: {t.description}; task file {t.source}; planar_lcp LCP simulator as forward model",
              "|>>>", "<<<|", cpuinfo, "|>>>",
              "0 is the random seed", f"{time_limit} seconds per run", "0 MB per run", f"{runs} runs per planner",
              f"{total_time} seconds spent to collect the data", "1 enum types", STATUS_ENUM,
@@ -210,15 +210,20 @@ def box_plots(records, planners, time_limit, path, task):
 
 
 def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iterations=None, scheduler=None):
-    """Run the benchmark (a time limit or, with `iterations`, an iteration budget per run) on Dask; write the log,
+    """Run the benchmark of `task` (a Task, a shipped task's name or a task file; each worker gets the validated
+    Task itself) with a time limit or, with `iterations`, an iteration budget per run, on Dask; write the log,
     database, summaries and box plots into `out`. Returns the summary rows."""
     from distributed import as_completed
     from tqdm import tqdm
 
+    from .tasks import load_task
+
+    t = load_task(task)
+    task = t.name
     out = Path(out)
     jobs = local_jobs(jobs, runs * len(planners))
     limit = None if iterations else float(time_limit)
-    todo = [(task, p, s, limit, iterations) for s in range(1, runs + 1) for p in planners]
+    todo = [(t, p, s, limit, iterations) for s in range(1, runs + 1) for p in planners]
     t0 = time.perf_counter()
     records = []
     client, cluster = open_cluster(scheduler, jobs)
@@ -251,7 +256,7 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
     total = time.perf_counter() - t0
     records.sort(key=lambda r: (planners.index(r["planner"]), r["seed"]))
     # OMPL's log has a time limit per run; with an iteration budget, the longest run's time stands for it
-    logs = write_logs(out, task, planners, records, limit if limit is not None else
+    logs = write_logs(out, t, planners, records, limit if limit is not None else
                       max((r["solve_time"] for r in records), default=0.0), total)
     wrote = list(logs)
     try:
@@ -265,7 +270,7 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
     (out / "summary.md").write_text(md)
     hosts = {r["host"]: r["cpuinfo"] for r in records if r.get("host")}
     (out / "summary.json").write_text(json.dumps(dict(
-        task=task, runs=runs, time_limit=limit, iterations=iterations, jobs=None if scheduler else jobs,
+        task=task, task_source=t.source, task_sha256=t.sha256, runs=runs, time_limit=limit, iterations=iterations, jobs=None if scheduler else jobs,
         scheduler=scheduler or "local", workers=sorted({r["worker"] for r in records if r["worker"]}),
         lost_workers=lost, retried_runs=retried, total_time=total, hosts=hosts, summary=rows,
         records=[{k: v for k, v in r.items() if k != "cpuinfo"} for r in records]), indent=1))

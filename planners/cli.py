@@ -9,20 +9,24 @@ from pathlib import Path
 
 from planar_lcp.cli import finite_number, one_line_errors
 
-from .tasks import PLANNERS, TASKS, TaskError, check_planner
+from .tasks import PLANNERS, TaskError, check_planner
+
+TASK_HELP = ("a shipped task's name (planar-lcp scenes marks them) or a scene file with a [task] table "
+             "(docs/scene-format.md, \"Task files\")")
 
 
 def register(sub):
-    tasks = ", ".join(sorted(TASKS))
     p = one_line_errors(sub.add_parser(
         "plan", help="plan pusher motions for a task with OMPL (our simulator as the forward model)",
-        description=f"Plan a task ({tasks}) with an OMPL kinodynamic planner. Writes plan.json, plan.png and "
-                    "plan.gif into --out. Exit status 0 only for an exact solution."))
-    p.add_argument("task", metavar="TASK", help=f"one of: {tasks}")
+        description="Plan a task (a shipped task or your own task file) with an OMPL kinodynamic planner. Writes "
+                    "plan.json (self-contained: it holds the task), plan.png and plan.gif into --out. Exit status 0 "
+                    "only for an exact solution."))
+    p.add_argument("task", metavar="TASK", help=TASK_HELP)
     p.add_argument("--planner", default=None, metavar="NAME",
-                   help=f"one of {', '.join(PLANNERS)} (default: the task's best, see docs/planning.md)")
+                   help=f"one of {', '.join(PLANNERS)} (default: the task's planner, RRT unless its file says "
+                        "otherwise)")
     p.add_argument("--time", type=finite_number(float, 0, True), default=None, metavar="SECONDS",
-                   help="wall-clock limit (default 60 s unless --iterations is given)")
+                   help="wall-clock limit (default: the task's time, 60 s unless its file says otherwise)")
     p.add_argument("--iterations", type=finite_number(int, 0, True), default=None, metavar="N",
                    help="iteration budget instead of a time limit: with --seed the plan is reproducible")
     p.add_argument("--seed", type=finite_number(int, 0, True), default=1, metavar="N",
@@ -46,13 +50,13 @@ def register(sub):
         description="Run each planner --runs times with seeds 1..N as Dask tasks, on the cluster at --scheduler or "
                     "on a local cluster of --jobs worker processes (127.0.0.1); write an OMPL benchmark log, its "
                     "SQLite database, summary.md / summary.json and box plots into --out."))
-    b.add_argument("task", metavar="TASK", help=f"one of: {tasks}")
+    b.add_argument("task", metavar="TASK", help=TASK_HELP)
     b.add_argument("--planners", nargs="+", default=list(PLANNERS), metavar="NAME",
                    help=f"planners to compare (default: all of {', '.join(PLANNERS)})")
     b.add_argument("--runs", type=finite_number(int, 0, True), default=10, metavar="N",
                    help="runs per planner, seeds 1..N")
     b.add_argument("--time", type=finite_number(float, 0, True), default=None, metavar="T",
-                   help="seconds per run (default 60)")
+                   help="seconds per run (default: the task's time, 60 s unless its file says otherwise)")
     b.add_argument("--iterations", type=finite_number(int, 0, True), default=None, metavar="N",
                    help="an iteration budget per run instead of --time: the same results on any machine")
     b.add_argument("--jobs", type=finite_number(int, 0, True), default=None, metavar="J",
@@ -64,61 +68,66 @@ def register(sub):
     b.set_defaults(func=cmd_bench)
 
 
-DEFAULT_PLANNER = {"push_box": "RRT", "push_t": "RRT", "tip_box": "RRT", "push_clutter": "RRT"}   # measured best (docs/planning.md)
-
-
 def _err(cmd, msg, code=2):
     print(f"planar-lcp {cmd}: error: {msg}", file=sys.stderr)
     return code
 
 
 def cmd_plan(args):
-    from .plan import animate_plan, plan_task, plot_plan, save_plan
-    from .tasks import TaskModel, get_task
+    from .plans import Plan, plan_task
+    from .tasks import TaskModel
 
     try:
-        task = get_task(args.task)
-        planner = check_planner(args.planner or DEFAULT_PLANNER.get(task.name, "RRT"))
         if args.time is not None and args.iterations is not None:
-            raise TaskError("give either --time or --iterations, not both")
-        tlim = args.time if (args.time is not None or args.iterations is not None) else 60.0
+            raise TaskError(f"give either --time or --iterations, not both: got --time {args.time:g} and "
+                            f"--iterations {args.iterations}")
+        tm = TaskModel(args.task)            # the task file is validated before anything is written
+        task = tm.task
+        planner = check_planner(args.planner or task.planner)
+        tlim = args.time if (args.time is not None or args.iterations is not None) else task.time
         out = Path(args.out)
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as e:
             raise TaskError(f"--out {args.out}: cannot create the directory ({e.strerror or e})") from None
-        tm = TaskModel(task)
     except TaskError as e:
         return _err("plan", e)
     budget = f"{args.iterations} iterations" if args.iterations else f"{tlim:g} s"
-    print(f"task           {task.name}: {task.description}")
+    print(f"task           {task.name} ({task.source}): {task.description or 'no description'}")
     print(f"planner        {planner} (seed {args.seed}, budget {budget})")
-    plan = plan_task(task, planner, seed=args.seed, time_limit=None if args.iterations else tlim,
+    data = plan_task(task, planner, seed=args.seed, time_limit=None if args.iterations else tlim,
                      iterations=args.iterations, tm=tm)
-    status = "exact" if plan["exact"] else ("approximate" if plan["approximate"] else "none")
-    print(f"solution       {status} after {plan['solve_time']:.2f} s, {plan['iterations']} iterations, "
-          f"{plan['sim_steps']} simulated steps ({plan['steps_per_second']:.0f} steps/s)")
+    p = Plan(data, task)            # a fresh TaskModel for the drawings: the planner's is warm-started state
+    status = "exact" if p.exact else ("approximate" if data["approximate"] else "none")
+    print(f"solution       {status} after {data['solve_time']:.2f} s, {data['iterations']} iterations, "
+          f"{data['sim_steps']} simulated steps ({data['steps_per_second']:.0f} steps/s)")
     wrote = [out / "plan.json"]
-    save_plan(plan, out / "plan.json")
-    if plan["controls"]:
-        print(f"path           {len(plan['controls'])} controls, {plan['path_duration']:.2f} s; goal: "
-              + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in plan["goal"].items()))
-        from .plan import replay_lcp
-        rep = replay_lcp(plan, tm=TaskModel(task))
-        title = (f"{task.name}, {planner}, seed {args.seed}: {status} solution, "
-                 f"{plan['path_duration']:.2f} s of pushing")
-        plot_plan(tm, rep["dense"], out / "plan.png", title=title)
+    p.save(out / "plan.json")
+    if data["controls"]:
+        print(f"path           {len(data['controls'])} controls, {p.path_duration:.2f} s; goal: "
+              + ", ".join(_show(k, v) for k, v in p.goal_report.items()))
+        rep = p.replay()
+        from .plans import animate_plan, plot_plan
+        plot_plan(p.model, rep["dense"], out / "plan.png", title=p.title())
         wrote.append(out / "plan.png")
         if not args.no_gif:
-            animate_plan(tm, rep["dense"], out / "plan.gif")
+            animate_plan(p.model, rep["dense"], out / "plan.gif")
             wrote.append(out / "plan.gif")
     for w in wrote:
         print(f"wrote          {w}")
-    return 0 if plan["exact"] else 1
+    return 0 if p.exact else 1
+
+
+def _show(k, v):
+    if isinstance(v, float):
+        return f"{k} {v:.4g}"
+    if isinstance(v, list):
+        return f"{k} [" + ", ".join(f"{x:.4g}" for x in v) + "]"
+    return f"{k} {v}"
 
 
 def cmd_replay(args):
-    from .plan import load_plan, plot_plan, replay_lcp
+    from .plans import load_plan, plot_plan
 
     try:
         plan = load_plan(args.plan)
@@ -129,23 +138,25 @@ def cmd_replay(args):
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         return _err("replay", f"--out {args.out}: cannot create the directory ({e.strerror or e})")
-    print(f"plan           {args.plan} (task {plan['task']}, planner {plan.get('planner')}, "
-          f"{len(plan['controls'])} controls)")
+    data = plan.data
+    print(f"plan           {args.plan} (task {data['task']}, planner {data.get('planner')}, "
+          f"{len(data['controls'])} controls)")
+    note = {"unchanged": "unchanged since planning", "edited": "EDITED since planning: replaying the plan's own "
+            "copy of the task", "missing": "not found: replaying the plan's own copy of the task",
+            "none": "given as text or a dict: replaying the plan's own copy"}[plan.task_file]
+    print(f"task file      {data['task_source']} ({note})")
     print(f"simulator      {args.simulator}", flush=True)
-    if args.simulator == "pymunk":
-        try:
-            from .plan import replay_pymunk
-            res = replay_pymunk(plan)
-        except (ImportError, NotImplementedError) as e:
-            return _err("replay", f"--simulator pymunk is not available: {e}")
-    else:
-        res = replay_lcp(plan)
-    tm, rep = res["tm"], res["report"]
+    try:
+        res = plan.replay(args.simulator)
+    except ImportError as e:
+        return _err("replay", f"--simulator pymunk is not available: {e}")
+    rep = res["report"]
     for k, v in rep.items():
-        print(f"{k:<14} {v:.6g}" if isinstance(v, float) else f"{k:<14} {v}")
+        print(f"{k:<16} {v:.6g}" if isinstance(v, float) else _show(f"{k:<16}", v) if isinstance(v, list)
+              else f"{k:<16} {v}")
     name = f"replay_{args.simulator}.png"
-    plot_plan(tm, res["dense"], out / name,
-              title=f"replay of {plan['task']} in {args.simulator}: goal {'holds' if rep['goal_holds'] else 'missed'}")
+    plot_plan(plan.model, res["dense"], out / name,
+              title=f"replay of {data['task']} in {args.simulator}: goal {'holds' if rep['goal_holds'] else 'missed'}")
     print(f"wrote          {out / name}")
     return 0 if rep["goal_holds"] else 1
 
@@ -156,10 +167,10 @@ def cmd_bench(args):
 
     require("distributed")                 # the runs are Dask tasks: checked before any work
     from .bench import run_bench
-    from .tasks import get_task
+    from .tasks import TaskModel
 
     try:
-        task = get_task(args.task)
+        task = TaskModel(args.task).task     # validated here, before any worker starts
         for p in args.planners:
             check_planner(p)
     except TaskError as e:
@@ -175,7 +186,7 @@ def cmd_bench(args):
     except OSError as e:
         return _err("plan-bench", f"--out {out}: cannot create the directory ({e.strerror or e})")
     try:
-        run_bench(task.name, args.planners, runs=args.runs, time_limit=60.0 if args.time is None else args.time,
+        run_bench(task, args.planners, runs=args.runs, time_limit=task.time if args.time is None else args.time,
                   jobs=args.jobs, out=out, iterations=args.iterations, scheduler=args.scheduler)
     except SchedulerUnreachable as e:
         return _err("plan-bench", str(e), 1)

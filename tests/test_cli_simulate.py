@@ -59,11 +59,14 @@ def summary_field(out, label):
 
 
 def _check_scene_listing(out):
-    listed = list_scenes()
+    listed = list_scenes(tasks=True)
     # issue B's eight scenes are shipped (the planning tasks add scenes of their own)
-    assert set(SHIPPED) <= {n for n, _ in listed}
-    for name, description in listed:
-        assert re.search(rf"^\s+{re.escape(name)}\s+{re.escape(description)}$", out, re.M), (name, out)
+    assert set(SHIPPED) <= {n for n, _, _ in listed}
+    for name, description, has_task in listed:
+        mark = r"\[task\]" if has_task else ""
+        assert re.search(rf"^\s+{re.escape(name)}\s+{mark}\s*{re.escape(description)}$", out, re.M), (name, out)
+    # the scenes that carry a [task] table are marked: the four shipped planning tasks at least
+    assert {"push_box", "push_t", "tip_box", "push_clutter"} <= {n for n, _, t in listed if t}
 
 
 def test_scenes_lists_the_eight_shipped_scenes_with_descriptions(capsys):

@@ -63,11 +63,11 @@ def test_replay_lcp_reproduces_the_plan_bit_for_bit(small_plan, tmp_path):
     _, out = small_plan
     r = run_cli("replay", out / "plan.json", "--simulator", "lcp", "--out", tmp_path)
     assert r.returncode == 0, r.stdout + r.stderr
-    assert "goal_holds     True" in r.stdout and r.stderr.strip() == "", r.stderr
+    assert "goal_holds       True" in r.stdout and r.stderr.strip() == "", r.stderr
     assert (tmp_path / "replay_lcp.png").stat().st_size > 1000
-    from planners.plan import load_plan, replay_lcp
+    from planners import load_plan
     plan = load_plan(out / "plan.json")
-    np.testing.assert_array_equal(replay_lcp(plan)["bound"], np.array(plan["states"]))
+    np.testing.assert_array_equal(plan.replay()["bound"], plan.states)
 
 
 def test_replay_pymunk_runs_and_judges_the_goal(small_plan, tmp_path):
@@ -76,25 +76,33 @@ def test_replay_pymunk_runs_and_judges_the_goal(small_plan, tmp_path):
     r = run_cli("replay", out / "plan.json", "--simulator", "pymunk", "--out", tmp_path)
     # open loop in another simulator the goal may be missed (exit 1), but it must be judged, not crash
     assert r.returncode in (0, 1) and r.stderr.strip() == "", r.stdout + r.stderr
-    holds = "goal_holds     True" in r.stdout
-    assert holds == (r.returncode == 0) and ("goal_holds     False" in r.stdout) == (not holds), r.stdout
-    assert "simulation_ok  True" in r.stdout
+    holds = "goal_holds       True" in r.stdout
+    assert holds == (r.returncode == 0) and ("goal_holds       False" in r.stdout) == (not holds), r.stdout
+    assert "simulation_ok    True" in r.stdout
     assert (tmp_path / "replay_pymunk.png").stat().st_size > 1000
 
 
 @pytest.mark.parametrize("field, value, expected", [
-    ("format", 99, "format must be 1, got 99"),
+    ("format", 99, "format must be 2, got 99"),
     ("steps", 10**9, "steps[0] must be an integer in 1..10 (the task's control durations, in propagation steps), "
                      "got 1000000000"),
     ("steps", 2.5, "steps[0] must be an integer in 1..10"),
     ("controls", 7.0, "controls[0][1] must be a number in [-0.2, 0.2] m/s (the task's control bounds), got 7.0"),
     ("step_duration", 0.2, "step_duration must be the task's 0.1 s, got 0.2"),
-    ("task", "nope", "task: unknown task 'nope'"),
+    ("task_sha256", "0" * 64, "task_sha256 must be the hash of task_document"),
+    ("task_document", {"name": "x"}, "task_sha256 must be the hash of task_document"),
+    ("task_document", [1], "task_document must be an object"),
+    ("doc_goal", {"y": 0.05, "angle_deg": -90.0, "position_tol": -1.0},
+     "task_document (scenes/tip_box.toml): task.goal.position_tol must be > 0, got -1.0"),
 ])
 def test_bad_plan_fields_give_one_line_errors(small_plan, tmp_path, field, value, expected):
     _, out = small_plan
     plan = json.loads((out / "plan.json").read_text())
-    if field == "steps":
+    if field == "doc_goal":             # an edited copy of the task, its hash made to match
+        from planar_lcp.spec.task import document_sha256
+        plan["task_document"]["task"]["goal"] = value
+        plan["task_sha256"] = document_sha256(plan["task_document"])
+    elif field == "steps":
         plan["steps"][0] = value
     elif field == "controls":
         plan["controls"][0][1] = value

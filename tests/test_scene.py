@@ -403,7 +403,7 @@ BODY_KEYS = ("name, type, shapes, mass, inertia, position, angle, angle_deg, vel
 CASES = [
     # unknown keys, everywhere
     ("top-unknown", base, [put(("foo",), 1)],
-     "unknown key 'foo' (allowed: name, description, world, sim, bodies)"),
+     "unknown key 'foo' (allowed: name, description, world, sim, bodies, task)"),
     ("world-unknown", base, [put(("world", "gravty"), [0, 0])],
      "world: unknown key 'gravty' (allowed: plane, gravity, support_gravity, friction, friction_pairs, "
      "support_model, restitution, restitution_pairs)"),

@@ -10,6 +10,10 @@
   2 m/s, with table friction 0 .. 5, pusher friction 0 .. 5, sometimes between two rails (walls along the push).
 
 The same seed always gives the same scene (numpy's default_rng). Bodies start separated (a grid with a clearance).
+
+`random_task(seed)` is a scene with a [task] table (docs/scene-format.md, "Task files"): planning problems nobody
+wrote by hand, valid by construction, with the derived defaults unless a key is drawn (tests/test_tasks.py plans
+each of them).
 """
 
 import math
@@ -140,6 +144,110 @@ def random_scene(seed):
     return push_scene(rng, seed)
 
 
+#: the goal kinds of random_task: (kind, weight)
+TASK_GOALS = (("pose", 3), ("position", 2), ("angle", 1), ("rest", 1), ("cover", 1), ("tip", 2))
+
+
+def random_task(seed):
+    """A valid planning task (a scene dict with a [task] table) for `seed`.
+
+    Horizontal tasks: an object of one or two shapes (box, rounded box, polygon, disk, capsule), a disk pusher, 0 to
+    3 movable obstacles and 0 to 2 static blocks, each in its own cell of a grid 3 object sizes wide (so nothing
+    overlaps at the start or at the goal), and a goal in a free cell: a full pose, a position, an angle (a turn in
+    place), a pose at rest, or a cover. Vertical tasks: a box standing on a static table, a finger beside it, the
+    goal tipped onto either side at rest. Some tasks draw optional keys (control_max, control_steps, goal_bias, the
+    tolerances)."""
+    rng = np.random.default_rng([20261201, int(seed)])
+    kinds = [k for k, _ in TASK_GOALS]
+    w = np.array([wt for _, wt in TASK_GOALS], float)
+    kind = kinds[int(rng.choice(len(kinds), p=w / w.sum()))]
+    size = float(rng.uniform(0.03, 0.06))
+    if kind == "tip":
+        return _random_tip_task(rng, seed, size)
+    cell = 3.2 * size
+    free = [(i, j) for i in range(-2, 3) for j in range(-2, 3) if (i, j) != (0, 0)]
+    order = rng.permutation(len(free))
+    cells = [free[k] for k in order]
+    shapes = [_shape(rng, size if kind != "cover" else size, allow=("box", "rounded_box", "polygon", "disk",
+                                                                      "capsule"))]
+    if rng.random() < 0.3 and kind != "cover":      # a compound object: a second shape offset along x
+        extra = _shape(rng, 0.5 * size, allow=("box", "disk", "polygon"))
+        extra["offset"] = [float(0.5 * size), 0.0]
+        shapes.append(extra)
+    if kind == "cover":                             # a cover needs an object with area that turns visibly
+        shapes = [{"type": "box", "width": 1.4 * size, "height": 0.7 * size}]
+    a0 = float(rng.uniform(-math.pi, math.pi))
+    bodies = [{"name": "object", "type": "dynamic", "mass": _log_uniform(rng, 0.05, 2.0), "position": [0.0, 0.0],
+               "angle": a0, "support_friction": float(rng.uniform(0.1, 0.6)),
+               "shapes": shapes}]
+    # the goal's cell is the nearest free one in a random direction (short problems: seconds of pushing)
+    near = [c for c in cells if max(abs(c[0]), abs(c[1])) == 1]
+    goal_cell = near[0]
+    cells.remove(goal_cell)
+    pusher_cell = cells.pop(0)
+    r_p = size * float(rng.uniform(0.25, 0.45))
+    bodies.append({"name": "pusher", "type": "kinematic",
+                   "position": [pusher_cell[0] * cell, pusher_cell[1] * cell],
+                   "shapes": [{"type": "disk", "radius": r_p}]})
+    for k in range(int(rng.integers(0, 4))):
+        c = cells.pop(0)
+        bodies.append({"name": f"obstacle{k}", "type": "dynamic", "mass": _log_uniform(rng, 0.02, 0.5),
+                       "position": [c[0] * cell, c[1] * cell], "angle": float(rng.uniform(-math.pi, math.pi)),
+                       "support_friction": float(rng.uniform(0.1, 0.6)),
+                       "shapes": [_shape(rng, 0.6 * size, allow=("box", "disk", "polygon", "capsule"))]})
+    for k in range(int(rng.integers(0, 3))):
+        c = cells.pop(0)
+        bodies.append({"name": f"block{k}", "type": "static", "position": [c[0] * cell, c[1] * cell],
+                       "shapes": [{"type": "box", "width": float(rng.uniform(0.5, 1.0) * size),
+                                   "height": float(rng.uniform(0.5, 1.0) * size)}]})
+    gx, gy = goal_cell[0] * cell, goal_cell[1] * cell
+    # the goal angle 60 to 180 degrees from the start's (an angle goal is never solved at the start)
+    turn = float(rng.uniform(60.0, 180.0)) * (1.0 if rng.random() < 0.5 else -1.0)
+    ga = float((math.degrees(a0) + turn + 180.0) % 360.0 - 180.0)
+    goal = {"pose": {"x": gx, "y": gy, "angle_deg": ga}, "position": {"x": gx, "y": gy},
+            "angle": {"angle_deg": ga}, "rest": {"x": gx, "y": gy, "angle_deg": ga, "at_rest": True},
+            "cover": {"x": gx, "y": gy, "angle_deg": ga, "min_cover": float(rng.uniform(0.8, 0.95))}}[kind]
+    if kind in ("pose", "position", "rest") and rng.random() < 0.3:
+        goal["position_tol"] = float(rng.uniform(0.01, 0.03))
+    if kind in ("pose", "angle", "rest") and rng.random() < 0.3:
+        goal["angle_tol_deg"] = float(rng.uniform(10.0, 30.0))
+    task = {"object": "object", "pusher": "pusher", "goal": goal,
+            "description": f"random task, seed {seed}: {kind} goal"}
+    _random_task_options(rng, task)
+    return {"name": f"random_task_{seed}", "description": f"random task, seed {seed}: {kind} goal",
+            "world": {"plane": "horizontal", "friction": float(rng.uniform(0.1, 0.8)), "support_gravity": 9.81},
+            "sim": {"h": float(rng.choice([0.01, 0.02])), "t_end": 1.0}, "bodies": bodies, "task": task}
+
+
+def _random_tip_task(rng, seed, size):
+    w, hgt = 2 * size, 2 * size * float(rng.uniform(1.5, 2.5))
+    side = 1.0 if rng.random() < 0.5 else -1.0
+    r_f = size * float(rng.uniform(0.15, 0.3))
+    bodies = [{"name": "object", "type": "dynamic", "mass": _log_uniform(rng, 0.1, 1.0), "position": [0.0, hgt / 2],
+               "shapes": [{"type": "box", "width": w, "height": hgt}]},
+              {"name": "table", "type": "static", "position": [0.0, -0.05],
+               "shapes": [{"type": "box", "width": 6 * hgt, "height": 0.1}]},
+              {"name": "finger", "type": "kinematic", "position": [-side * (w / 2 + 2 * r_f), 0.75 * hgt],
+               "shapes": [{"type": "disk", "radius": r_f}]}]
+    task = {"object": "object", "pusher": "finger", "description": f"random task, seed {seed}: tip goal",
+            "goal": {"y": w / 2, "angle_deg": -90.0 * side, "position_tol": 0.005, "at_rest": True,
+                     "speed_tol": 0.02, "omega_tol": 0.2}}
+    _random_task_options(rng, task)
+    return {"name": f"random_task_{seed}", "description": f"random task, seed {seed}: tip goal",
+            "world": {"plane": "vertical", "gravity": [0.0, -9.81], "friction": float(rng.uniform(0.5, 1.0))},
+            "sim": {"h": 0.01, "t_end": 1.0}, "bodies": bodies, "task": task}
+
+
+def _random_task_options(rng, task):
+    """Some optional [task] keys, drawn (each task has the derived defaults otherwise)."""
+    if rng.random() < 0.2:
+        task["control_steps"] = [1, int(rng.integers(5, 16))]
+    if rng.random() < 0.2:
+        task["goal_bias"] = float(rng.uniform(0.05, 0.3))
+    if rng.random() < 0.2:
+        task["planner"] = "RRT"
+
+
 def _toml_value(x):
     if isinstance(x, bool):
         return "true" if x else "false"
@@ -157,11 +265,14 @@ def _toml_value(x):
 
 
 def scene_to_toml(data):
-    """A scene dict (as `random_scene` returns) as TOML text that `load_scene` reads back to the same scene."""
+    """A scene dict (as `random_scene` or `random_task` returns) as TOML text that `load_scene` reads back to the
+    same scene (and `load_task` to the same task)."""
     lines = [f"name = {_toml_value(data['name'])}", f"description = {_toml_value(data.get('description', ''))}"]
     for table in ("world", "sim"):
         if table in data:
             lines += ["", f"[{table}]"] + [f"{k} = {_toml_value(v)}" for k, v in data[table].items()]
     for body in data["bodies"]:
         lines += ["", "[[bodies]]"] + [f"{k} = {_toml_value(v)}" for k, v in body.items()]
+    if "task" in data:
+        lines += ["", "[task]"] + [f"{k} = {_toml_value(v)}" for k, v in data["task"].items()]
     return "\n".join(lines) + "\n"

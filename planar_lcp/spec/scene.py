@@ -168,6 +168,9 @@ class Scene:
     sim: SimSpec
     bodies: tuple
     source: str
+    #: the file's [task] table as written (a planning task, docs/scene-format.md "Task files"), or None; the scene
+    #: itself ignores it: planar_lcp.spec.task validates it against the scene
+    task: dict | None = dataclasses.field(default=None, hash=False)
 
     def body(self, name: str) -> BodySpec:
         """The body called `name`; KeyError if there is none."""
@@ -216,12 +219,13 @@ def _shipped_files() -> list[Path]:
     return sorted(d.glob("*.toml")) if d.is_dir() else []
 
 
-def list_scenes() -> list[tuple[str, str]]:
-    """(name, description) of every scene in `scenes_dir()`, sorted by name. Each file is loaded and validated."""
+def list_scenes(tasks: bool = False) -> list[tuple]:
+    """(name, description) of every scene in `scenes_dir()`, sorted by name; with `tasks`, (name, description,
+    has_task), has_task True for a scene file with a [task] table. Each file is loaded and validated."""
     out = []
     for path in _shipped_files():
         s = load_scene(path)
-        out.append((s.name, s.description))
+        out.append((s.name, s.description, s.task is not None) if tasks else (s.name, s.description))
     return sorted(out)
 
 
@@ -240,6 +244,46 @@ def display_source(scene) -> str:
         return scene.source
 
 
+def scene_path(name_or_path) -> Path:
+    """The file of a scene: a shipped name (looked up in `scenes_dir()`) or a path (a PathLike, or a string ending in
+    ".toml" or containing a path separator). SceneError for an unknown shipped name (the message lists them)."""
+    if isinstance(name_or_path, os.PathLike):
+        return Path(name_or_path)
+    if not isinstance(name_or_path, str):
+        raise TypeError(f"load_scene: expected a scene name or a path, got {type(name_or_path).__name__}")
+    s = name_or_path
+    if s.endswith(".toml") or "/" in s or os.sep in s or (os.altsep and os.altsep in s):
+        return Path(s)
+    path = scenes_dir() / f"{s}.toml"
+    if not path.is_file():
+        names = ", ".join(p.stem for p in _shipped_files()) or "none"
+        raise SceneError(f"unknown scene {s!r}: not a shipped scene in {scenes_dir()} (available: {names}); "
+                         "give a path to a .toml file to load another")
+    return path
+
+
+def read_document(path) -> tuple[dict, str]:
+    """The TOML document of a scene file as (dict, text); SceneError for a missing or unreadable file, text that is
+    not UTF-8, or invalid TOML."""
+    path = Path(path)
+    if not path.is_file():
+        raise SceneError(f"{path}: no such scene file")
+    try:
+        raw = path.read_bytes()
+    except OSError as e:
+        raise SceneError(f"{path}: cannot read the scene file: {e.strerror or e}") from None
+    text = _decode_utf8(raw, path)
+    return parse_toml(text, str(path)), text
+
+
+def parse_toml(text: str, source: str) -> dict:
+    """tomllib.loads with a SceneError naming `source` for invalid TOML."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError(f"{source}: invalid TOML: {e}") from None
+
+
 def load_scene(name_or_path) -> Scene:
     """Load and validate a scene.
 
@@ -255,30 +299,8 @@ def load_scene(name_or_path) -> Scene:
         For an unknown name (the message lists the shipped names), a missing or unreadable file, invalid TOML, or
         any validation failure.
     """
-    if isinstance(name_or_path, os.PathLike):
-        path = Path(name_or_path)
-    elif isinstance(name_or_path, str):
-        s = name_or_path
-        if s.endswith(".toml") or "/" in s or os.sep in s or (os.altsep and os.altsep in s):
-            path = Path(s)
-        else:
-            path = scenes_dir() / f"{s}.toml"
-            if not path.is_file():
-                names = ", ".join(p.stem for p in _shipped_files()) or "none"
-                raise SceneError(f"unknown scene {s!r}: not a shipped scene in {scenes_dir()} (available: {names}); "
-                                 "give a path to a .toml file to load another")
-    else:
-        raise TypeError(f"load_scene: expected a scene name or a path, got {type(name_or_path).__name__}")
-    if not path.is_file():
-        raise SceneError(f"{path}: no such scene file")
-    try:
-        raw = path.read_bytes()
-    except OSError as e:
-        raise SceneError(f"{path}: cannot read the scene file: {e.strerror or e}") from None
-    try:
-        data = tomllib.loads(_decode_utf8(raw, path))
-    except tomllib.TOMLDecodeError as e:
-        raise SceneError(f"{path}: invalid TOML: {e}") from None
+    path = scene_path(name_or_path)
+    data, _ = read_document(path)
     return parse_scene(data, source=str(path))
 
 
@@ -305,7 +327,7 @@ def _decode_utf8(raw: bytes, path) -> str:
 # Validation
 
 
-_TOP_KEYS = ("name", "description", "world", "sim", "bodies")
+_TOP_KEYS = ("name", "description", "world", "sim", "bodies", "task")
 _WORLD_KEYS = ("plane", "gravity", "support_gravity", "friction", "friction_pairs", "support_model", "restitution",
                "restitution_pairs")
 _SIM_KEYS = ("h", "t_end", "solver", "formulation", "fixed_point_iterations", "friction_directions", "pgs_iterations",
@@ -509,11 +531,13 @@ def parse_scene(data: dict, source: str = "<dict>") -> Scene:
         seen[body.name] = i
         bodies.append(body)
 
+    task = v.table("task", data["task"]) if "task" in data else None
     names = [b.name for b in bodies]
     world = dataclasses.replace(
         world, friction_pairs=_parse_pairs(v, "friction_pairs", world_tbl.get("friction_pairs", []), names),
         restitution_pairs=_parse_pairs(v, "restitution_pairs", world_tbl.get("restitution_pairs", []), names))
-    return Scene(name=name, description=description, world=world, sim=sim, bodies=tuple(bodies), source=source)
+    return Scene(name=name, description=description, world=world, sim=sim, bodies=tuple(bodies), source=source,
+                 task=task)
 
 
 def _sim_value(v: _Validator, key: str, label: str, value):

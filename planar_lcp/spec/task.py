@@ -1,0 +1,510 @@
+"""Planning tasks: a scene file's `[task]` table, validated against its scene, with every default derived.
+
+A task names the dynamic body to bring to a goal (`object`), the kinematic body whose velocity (vx, vy) the planner
+drives (`pusher`) and the goal (`[task.goal]`); everything else has a default derived from the scene, so that a
+minimal task is three lines:
+
+    [task]
+    object = "box"
+    pusher = "pusher"
+    goal = { x = 0.25, y = 0.08 }
+
+Every other dynamic body of the scene is a movable obstacle. The keys, their units and their defaults are documented
+in docs/scene-format.md, "Task files"; the messages follow the scene loader's (`FILE: task.KEY must be ..., got
+...`). This module is numpy only: the geometric checks that need shapely (a goal overlapping a static body, a start
+state that is already invalid) are made by `planners.tasks.TaskModel`, also before any planning.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from planar_lcp.frames import rotation
+from planar_lcp.spec.massprops import body_area_properties
+from planar_lcp.spec.scene import (SceneError, _is_real, _shipped_files, _Validator, display_source, parse_scene,
+                                   parse_toml, read_document, scene_path, scenes_dir)
+
+#: The OMPL control planners that the 2.0.1 wheel can construct from Python (SST and PDST have no constructor
+#: there, docs/planning.md). Here, not in planners.adapter, so that tasks and the CLI check them without ompl.
+PLANNERS = ("RRT", "EST", "KPIECE1", "SyclopRRT", "SyclopEST")
+DEFAULT_PLANNER = "RRT"            # the best measured on every shipped task (docs/planning.md)
+
+TASK_KEYS = ("object", "pusher", "goal", "description", "planner", "time", "control_max", "step_duration",
+             "control_steps", "workspace", "pusher_workspace", "speed_max", "omega_max", "goal_bias")
+GOAL_KEYS = ("x", "y", "angle_deg", "position_tol", "angle_tol_deg", "at_rest", "speed_tol", "omega_tol",
+             "min_cover")
+
+# Upper bounds that keep a typo from asking for days of planning or a control held for hours.
+MAX_TIME = 86_400.0                # s of planning budget
+MAX_CONTROL_STEPS = 1_000          # propagation steps one control is held
+#: the default propagation step: the multiple of h nearest this (s)
+DEFAULT_STEP = 0.1
+
+
+class TaskError(SceneError):
+    """A bad task file, task name, plan file or planning request; the message names the source, the key and what
+    was expected."""
+
+
+@dataclass(frozen=True)
+class Goal:
+    """The goal of a task, on the object's BODY-FRAME pose (as `position` / `angle` in the scene).
+
+    Each of x, y (m) and angle (rad) is None when the goal leaves it free. Position errors are measured over the
+    named coordinates (the distance in the plane when both are named), the angle error the shorter way round.
+    """
+
+    x: float | None
+    y: float | None
+    angle: float | None
+    position_tol: float = 0.01
+    angle_tol: float = math.radians(10.0)
+    at_rest: bool = False
+    speed_tol: float = 0.005
+    omega_tol: float = 0.05
+    min_cover: float | None = None
+
+    @property
+    def pose(self):
+        """(x, y, angle) when the goal names all three, else None."""
+        if self.x is None or self.y is None or self.angle is None:
+            return None
+        return (self.x, self.y, self.angle)
+
+
+@dataclass(frozen=True)
+class Task:
+    """A validated planning task: the scene, the bodies, the limits, the goal and the derived planner settings.
+
+    Attributes
+    ----------
+    name : str
+        The file's stem (a shipped task's name), or the scene's name for a task given as text or a dict.
+    scene : Scene
+    source : str
+        Where the task came from, as reports name it (`scenes/push_box.toml`, a relative path, "<string>").
+    document : dict
+        The whole TOML document as parsed (scene and task): what a plan file stores to replay the task anywhere.
+    sha256 : str
+        Hash of `document` in its canonical JSON form (`canonical_json`).
+    object, pusher : str
+    obstacles : tuple of str
+        The scene's other dynamic bodies, in scene order: movable obstacles, held in the planning state.
+    planner : str
+    time : float
+        The planning budget in s when the command gives none.
+    control_max : float
+        Pusher velocity bound per axis, m/s.
+    step_duration : float
+        The propagation step, s (a multiple of the scene's h).
+    min_steps, max_steps : int
+        A control is held for min_steps..max_steps propagation steps (`control_steps`).
+    workspace, pusher_workspace : ((xmin, xmax), (ymin, ymax))
+        No point of any dynamic body may leave `workspace`; the pusher's centre stays in `pusher_workspace`. m.
+    speed_max, omega_max : float
+        Velocity bounds of every dynamic body (m/s, rad/s): faster states are invalid.
+    goal_bias : float
+        RRT's goal bias.
+    goal : Goal
+    weights : (position, angle, velocity, pusher)
+        OMPL distance weights, derived (module `derived_weights`): per m of object position, per rad of its angle,
+        per m/s and rad/s of velocity, per m of pusher position.
+    obstacle_weight : float
+        OMPL distance weight of an obstacle's position (per m).
+    kpiece_cell : float
+        KPIECE1's cell size on the object's position, m.
+    object_extent : dict
+        The object's sizes about its centre of mass (m): "circumradius", "min_support" (the least half-width over
+        directions), "gyration" (radius of gyration of its area).
+    given : frozenset of str
+        The [task] keys the file gave (the rest are derived).
+    """
+
+    name: str
+    scene: object
+    source: str
+    document: dict
+    sha256: str
+    object: str
+    pusher: str
+    obstacles: tuple
+    description: str
+    planner: str
+    time: float
+    control_max: float
+    step_duration: float
+    min_steps: int
+    max_steps: int
+    workspace: tuple
+    pusher_workspace: tuple
+    speed_max: float
+    omega_max: float
+    goal_bias: float
+    goal: Goal
+    weights: tuple
+    obstacle_weight: float
+    kpiece_cell: float
+    object_extent: dict
+    given: frozenset
+
+    @property
+    def nobj(self):
+        """Dynamic bodies in the planning state: the object and the obstacles."""
+        return 1 + len(self.obstacles)
+
+    @property
+    def state_dim(self):
+        return 6 * self.nobj + 2
+
+    def state_names(self):
+        """Names of the flat planning state's entries (planners.tasks)."""
+        names = ["x", "y", "theta", "vx", "vy", "omega"]
+        for b in self.obstacles:
+            names += [f"{b}_{n}" for n in ("x", "y", "theta", "vx", "vy", "omega")]
+        return names + ["pusher_x", "pusher_y"]
+
+
+def canonical_json(document) -> str:
+    """The document as JSON with sorted keys and no spaces: the form a plan file hashes (floats as repr: exact)."""
+    return json.dumps(document, sort_keys=True, separators=(",", ":"), allow_nan=False)
+
+
+def document_sha256(document) -> str:
+    return hashlib.sha256(canonical_json(document).encode()).hexdigest()
+
+
+def shipped_tasks() -> list[str]:
+    """Names of the shipped scene files that carry a [task] table (their stems), sorted."""
+    out = []
+    for p in _shipped_files():
+        try:
+            data, _ = read_document(p)
+        except SceneError:
+            continue
+        if isinstance(data.get("task"), dict):
+            out.append(p.stem)
+    return sorted(out)
+
+
+def load_task(src) -> Task:
+    """Load and validate a task.
+
+    Parameters
+    ----------
+    src : str, os.PathLike, dict or Task
+        A shipped task's name ("push_box"), a path to a scene file with a [task] table, the text of such a file (a
+        string with a newline), or its document as a dict (as tomllib parses it). A Task is returned as it is.
+
+    Raises
+    ------
+    TaskError
+        One line naming the source, the key, the expected and the actual value.
+    """
+    if isinstance(src, Task):
+        return src
+    if isinstance(src, dict):
+        return parse_task(src, source="<dict>", name=None)
+    if isinstance(src, str) and "\n" in src:
+        return parse_task(_as_task_error(parse_toml, src, "<string>"), source="<string>", name=None)
+    if isinstance(src, str) and not (src.endswith(".toml") or "/" in src or os.sep in src):
+        path = scenes_dir() / f"{src}.toml"
+        if not path.is_file():
+            raise TaskError(f"unknown task {src!r}: not a shipped task (shipped tasks: {', '.join(shipped_tasks())}); "
+                            "give a path to a scene file with a [task] table to plan another")
+    elif isinstance(src, (str, os.PathLike)):
+        path = _as_task_error(scene_path, src)
+    else:
+        raise TypeError(f"load_task: expected a task name, a path, TOML text or a dict, got {type(src).__name__}")
+    data, _ = _as_task_error(read_document, path)
+    return parse_task(data, source=str(path), name=Path(path).stem)
+
+
+def _as_task_error(fn, *args):
+    try:
+        return fn(*args)
+    except TaskError:
+        raise
+    except SceneError as e:
+        raise TaskError(str(e)) from None
+
+
+def parse_task(document: dict, source: str = "<dict>", name: str | None = None, display: str | None = None) -> Task:
+    """Validate a scene document with a [task] table; see `load_task`. `name` defaults to the scene's name; messages
+    name `display` when given (a plan file's copy of a task), else the source."""
+    if not isinstance(document, dict):
+        raise TaskError(f"{display or source}: the scene must be a table, got {type(document).__name__}")
+    try:
+        scene = parse_scene(document, source)
+    except SceneError as e:
+        msg = str(e)
+        if display and msg.startswith(f"{source}: "):
+            msg = f"{display}: {msg[len(source) + 2:]}"
+        raise TaskError(msg) from None
+    if scene.task is None:
+        raise TaskError(f"{display or source}: task is required: a [task] table with object, pusher and [task.goal] "
+                        f"(docs/scene-format.md, \"Task files\"); scene {scene.name!r} has none")
+    # how reports name the task: a shipped file as scenes/NAME.toml, another relative to the working directory
+    shown = source if source.startswith("<") or display else display_source(scene)
+    v = _TaskValidator(display or shown)
+    t = scene.task
+    v.keys("task", t, TASK_KEYS)
+    bodies = {b.name: b for b in scene.bodies}
+    dynamic = [b.name for b in scene.bodies if b.type == "dynamic"]
+    kinematic = [b.name for b in scene.bodies if b.type == "kinematic"]
+    obj = v.string("task.object", v.require("task", t, "object"), nonempty=True)
+    if obj not in bodies:
+        v.fail(f"task.object must name a dynamic body of the scene (one of {_names(dynamic)}), got {obj!r}")
+    if bodies[obj].type != "dynamic":
+        v.fail(f"task.object must be a dynamic body (one of {_names(dynamic)}), got {obj!r}, a "
+               f"{bodies[obj].type} body")
+    pusher = v.string("task.pusher", v.require("task", t, "pusher"), nonempty=True)
+    if pusher not in bodies:
+        v.fail(f"task.pusher must name a kinematic body of the scene (one of {_names(kinematic)}), got {pusher!r}")
+    if bodies[pusher].type != "kinematic":
+        v.fail(f"task.pusher must be a kinematic body (one of {_names(kinematic)}), got {pusher!r}, a "
+               f"{bodies[pusher].type} body")
+    for b in scene.bodies:
+        # the planning state holds the pusher's position only: another kinematic body must stand still, or
+        # propagation would depend on time and not on the state alone
+        if b.type == "kinematic" and b.name != pusher and (b.velocity != (0.0, 0.0) or b.angular_velocity != 0.0):
+            v.fail(f"bodies[{scene.bodies.index(b)}] ({b.name!r}) is a kinematic body other than task.pusher: it "
+                   f"must not move in a task (velocity [0, 0], angular_velocity 0), got velocity "
+                   f"{list(b.velocity)}, angular_velocity {b.angular_velocity}")
+    obstacles = tuple(n for n in dynamic if n != obj)
+    extent = body_extent(bodies[obj])
+    pusher_extent = body_extent(bodies[pusher], about_origin=True)
+    h = scene.sim.h
+    goal = _parse_goal(v, t, extent)
+
+    description = v.string("task.description", t["description"]) if "description" in t else ""
+    planner = v.choice("task.planner", t["planner"], PLANNERS) if "planner" in t else DEFAULT_PLANNER
+    time = v.bounded("task.time", t["time"], MAX_TIME) if "time" in t else 60.0
+    L = extent["circumradius"]
+    control_max = v.positive("task.control_max", t["control_max"]) if "control_max" in t else 2.0 * L
+    if "step_duration" in t:
+        step = v.positive("task.step_duration", t["step_duration"])
+        n = step / h
+        if not (round(n) >= 1 and abs(n - round(n)) <= 1e-9 * max(1.0, n)):
+            v.fail(f"task.step_duration must be a multiple of the scene's sim.h = {h!r} s, got {step!r} "
+                   f"({n:.6g} steps)")
+    else:
+        step = h * max(1, round(DEFAULT_STEP / h))
+    if "control_steps" in t:
+        cs = t["control_steps"]
+        if not (isinstance(cs, (list, tuple)) and len(cs) == 2):
+            v.fail(f"task.control_steps must be [min, max], 2 integers, got {cs!r}")
+        lo = v.integer("task.control_steps[0]", cs[0], 1, MAX_CONTROL_STEPS)
+        hi = v.integer("task.control_steps[1]", cs[1], 1, MAX_CONTROL_STEPS)
+        if lo > hi:
+            v.fail(f"task.control_steps must be [min, max] with min <= max, got {list(cs)}")
+    else:
+        lo, hi = 1, 10
+
+    if "workspace" in t:
+        workspace = v.region("task.workspace", t["workspace"])
+    else:
+        workspace = _default_workspace(scene, obj, goal, extent)
+    if "pusher_workspace" in t:
+        pusher_workspace = v.region("task.pusher_workspace", t["pusher_workspace"])
+    else:
+        # the pusher must be able to reach every side of a body that touches the workspace's edge
+        g = 2.0 * pusher_extent["circumradius"]
+        pusher_workspace = ((workspace[0][0] - g, workspace[0][1] + g), (workspace[1][0] - g, workspace[1][1] + g))
+    _check_goal_in_workspace(v, goal, workspace, bodies[obj])
+
+    if "speed_max" in t:
+        speed_max = v.positive("task.speed_max", t["speed_max"])
+    else:
+        speed_max = 8.0 * control_max
+        if scene.world.plane == "vertical":         # room to fall across the workspace
+            height = workspace[1][1] - workspace[1][0]
+            speed_max = max(speed_max, math.sqrt(2.0 * math.hypot(*scene.world.gravity) * height))
+    omega_max = v.positive("task.omega_max", t["omega_max"]) if "omega_max" in t else speed_max / L
+    if "goal_bias" in t:
+        goal_bias = v.number("task.goal_bias", t["goal_bias"])
+        if not 0.0 <= goal_bias < 1.0:
+            v.fail(f"task.goal_bias must be in [0, 1), got {goal_bias!r}")
+    else:
+        # a cover goal needs the pose within millimetres and degrees, which goal samples reach best (push_t:
+        # docs/planning.md, "Faster planning")
+        goal_bias = 0.3 if goal.min_cover is not None else 0.1
+
+    return Task(name=name if name is not None else scene.name, scene=scene, source=shown, document=document,
+                sha256=document_sha256(document), object=obj, pusher=pusher, obstacles=obstacles,
+                description=description, planner=planner, time=time, control_max=control_max, step_duration=step,
+                min_steps=lo, max_steps=hi, workspace=workspace, pusher_workspace=pusher_workspace,
+                speed_max=speed_max, omega_max=omega_max, goal_bias=goal_bias, goal=goal,
+                weights=derived_weights(extent, step), obstacle_weight=0.05, kpiece_cell=L / 3.0,
+                object_extent=extent, given=frozenset(t))
+
+
+def derived_weights(extent, step_duration):
+    """OMPL's distance weights (position, angle, velocity, pusher) of a task, from the object's size.
+
+    A radian of the object's angle weighs like the distance its farthest point moves (the circumradius about the
+    centre of mass; 0.07 for push_box's 0.1 m box, which the hand-tuned 0.06 had approximated); a velocity weighs
+    like a fiftieth of the distance it covers in one propagation step (pushing is nearly quasi-static: velocities
+    must not decide which tree state is nearest); the pusher's position a tenth of the object's."""
+    return (1.0, extent["circumradius"], 0.02 * step_duration, 0.1)
+
+
+def body_extent(body, about_origin: bool = False) -> dict:
+    """Sizes of a body about its area centroid (its centre of mass at uniform density), or about its body-frame
+    origin with `about_origin` (a pusher: the planning state holds its origin), m: "circumradius" (the farthest
+    point), "min_support" (the least, over directions, of the farthest extent in that direction), "gyration" (the
+    radius of gyration of its area about the centroid; 0 about the origin) and "com" (the centre used, body frame).
+    Exact for rounded convex shapes: a shape's extreme point in a direction is one of its core vertices pushed out
+    by its radius (min_support over 720 directions)."""
+    pts, radii = body_core_points(body)
+    if about_origin:
+        com, gyration = np.zeros(2), 0.0
+    else:
+        area, com, polar = body_area_properties(body)
+        gyration = math.sqrt(polar / area)
+    rel = pts - com
+    ang = np.linspace(0.0, 2.0 * math.pi, 720, endpoint=False)
+    support = np.max(rel @ np.stack([np.cos(ang), np.sin(ang)]) + radii[:, None], axis=0)
+    return dict(circumradius=float(np.max(np.hypot(rel[:, 0], rel[:, 1]) + radii)),
+                min_support=float(np.min(support)), gyration=float(gyration), com=(float(com[0]), float(com[1])))
+
+
+def body_core_points(body):
+    """(k, 2) core vertices of every shape of a body in its body frame, and (k,) the radius of each vertex's shape
+    (halfplanes have none)."""
+    pts, radii = [], []
+    for s in body.shapes:
+        if s.type == "halfplane":
+            continue
+        c = s.core_vertices_body()
+        pts.append(c)
+        radii.append(np.full(len(c), float(s.radius)))
+    return np.concatenate(pts), np.concatenate(radii)
+
+
+def placed_bounds(body, position, angle):
+    """((xmin, xmax), (ymin, ymax)) of a body placed at a body-frame pose, m (halfplanes excluded)."""
+    pts, r = body_core_points(body)
+    w = pts @ rotation(angle).T + np.asarray(position, float)
+    return ((float(np.min(w[:, 0] - r)), float(np.max(w[:, 0] + r))),
+            (float(np.min(w[:, 1] - r)), float(np.max(w[:, 1] + r))))
+
+
+def _default_workspace(scene, obj, goal, extent):
+    """The bounding box of the scene's finite bodies (dynamic, kinematic and static, halfplanes excluded) and of
+    the goal (the object placed at a full goal pose; else its circumradius about each named coordinate), grown by
+    the object's circumradius."""
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    for b in scene.bodies:
+        if all(s.type == "halfplane" for s in b.shapes):
+            continue
+        (x0, x1), (y0, y1) = placed_bounds(b, b.position, b.angle)
+        lo, hi = np.minimum(lo, [x0, y0]), np.maximum(hi, [x1, y1])
+    ob = scene.body(obj)
+    if goal.pose is not None:
+        (x0, x1), (y0, y1) = placed_bounds(ob, goal.pose[:2], goal.pose[2])
+        lo, hi = np.minimum(lo, [x0, y0]), np.maximum(hi, [x1, y1])
+    else:                        # the object at the named coordinates, at any angle
+        for i, c in enumerate((goal.x, goal.y)):
+            if c is not None:
+                lo[i], hi[i] = min(lo[i], c - extent["circumradius"]), max(hi[i], c + extent["circumradius"])
+    m = extent["circumradius"]
+    return ((float(lo[0] - m), float(hi[0] + m)), (float(lo[1] - m), float(hi[1] + m)))
+
+
+def _check_goal_in_workspace(v, goal, workspace, body):
+    (x0, x1), (y0, y1) = workspace
+    if goal.pose is not None:
+        (gx0, gx1), (gy0, gy1) = placed_bounds(body, goal.pose[:2], goal.pose[2])
+        if not (x0 <= gx0 and gx1 <= x1 and y0 <= gy0 and gy1 <= y1):
+            v.fail(f"task.goal must place the object inside task.workspace = [[{x0:g}, {x1:g}], [{y0:g}, {y1:g}]], "
+                   f"got the object spanning x {gx0:.4g}..{gx1:.4g}, y {gy0:.4g}..{gy1:.4g} at the goal")
+        return
+    for key, c, (lo, hi) in (("x", goal.x, (x0, x1)), ("y", goal.y, (y0, y1))):
+        if c is not None and not lo <= c <= hi:
+            v.fail(f"task.goal.{key} must lie inside task.workspace ({lo:g} .. {hi:g}), got {c!r}")
+
+
+def _parse_goal(v, t, extent) -> Goal:
+    g = v.table("task.goal", v.require("task", t, "goal"))
+    v.keys("task.goal", g, GOAL_KEYS)
+    x = v.number("task.goal.x", g["x"]) if "x" in g else None
+    y = v.number("task.goal.y", g["y"]) if "y" in g else None
+    ang = math.radians(v.number("task.goal.angle_deg", g["angle_deg"])) if "angle_deg" in g else None
+    if x is None and y is None and ang is None:
+        v.fail("task.goal must name at least one of x, y and angle_deg, got none")
+    kw = {}
+    if "min_cover" in g:
+        c = v.number("task.goal.min_cover", g["min_cover"])
+        if not 0.0 < c <= 1.0:
+            v.fail(f"task.goal.min_cover must be in (0, 1], got {c!r}")
+        if x is None or y is None or ang is None:
+            missing = [k for k, val in (("x", x), ("y", y), ("angle_deg", ang)) if val is None]
+            v.fail(f"task.goal.min_cover needs x, y and angle_deg (the goal footprint), got no {', '.join(missing)}")
+        for k in ("position_tol", "angle_tol_deg"):
+            if k in g:
+                v.fail(f"task.goal.{k} is not used with min_cover (the cover decides), got {g[k]!r}; remove one")
+        kw["min_cover"] = c
+    if "position_tol" in g:
+        if x is None and y is None:
+            v.fail(f"task.goal.position_tol needs x or y in the goal, got {g['position_tol']!r} with neither")
+        kw["position_tol"] = v.positive("task.goal.position_tol", g["position_tol"])
+    if "angle_tol_deg" in g:
+        if ang is None:
+            v.fail(f"task.goal.angle_tol_deg needs angle_deg in the goal, got {g['angle_tol_deg']!r} without it")
+        a = v.positive("task.goal.angle_tol_deg", g["angle_tol_deg"])
+        if not a <= 180.0:
+            v.fail(f"task.goal.angle_tol_deg must be <= 180, got {a!r}")
+        kw["angle_tol"] = math.radians(a)
+    at_rest = False
+    if "at_rest" in g:
+        at_rest = g["at_rest"]
+        if not isinstance(at_rest, bool):
+            v.fail(f"task.goal.at_rest must be true or false, got {at_rest!r}")
+    for k in ("speed_tol", "omega_tol"):
+        if k in g:
+            if not at_rest:
+                v.fail(f"task.goal.{k} needs at_rest = true, got {g[k]!r} without it")
+            kw[k] = v.positive(f"task.goal.{k}", g[k])
+    return Goal(x=x, y=y, angle=ang, at_rest=at_rest, **kw)
+
+
+def _names(names):
+    return ", ".join(repr(n) for n in names) or "none"
+
+
+class _TaskValidator(_Validator):
+    def fail(self, msg: str):
+        raise TaskError(f"{self.source}: {msg}")
+
+    def bounded(self, path, value, maximum):
+        x = self.positive(path, value)
+        if not x <= maximum:
+            self.fail(f"{path} must be <= {maximum:g}, got {x!r}")
+        return x
+
+    def region(self, path, value):
+        """[[xmin, xmax], [ymin, ymax]], finite, min < max."""
+        ok = isinstance(value, (list, tuple)) and len(value) == 2 and all(
+            isinstance(r, (list, tuple)) and len(r) == 2 and all(_is_real(c) for c in r) for r in value)
+        if not ok:
+            self.fail(f"{path} must be [[xmin, xmax], [ymin, ymax]] in m, got {value!r}")
+        out = []
+        for i, axis in enumerate("xy"):
+            lo = self.number(f"{path}[{i}][0]", value[i][0])
+            hi = self.number(f"{path}[{i}][1]", value[i][1])
+            if not lo < hi:
+                self.fail(f"{path}[{i}] must be [{axis}min, {axis}max] with {axis}min < {axis}max, got "
+                          f"[{lo!r}, {hi!r}]")
+            out.append((lo, hi))
+        return tuple(out)
+
+
+__all__ = ["DEFAULT_PLANNER", "GOAL_KEYS", "Goal", "PLANNERS", "TASK_KEYS", "Task", "TaskError", "canonical_json",
+           "document_sha256", "load_task", "parse_task", "shipped_tasks"]

@@ -1,0 +1,423 @@
+"""Plans: planning a task, the self-contained plan file, open-loop replay, and drawing.
+
+`plan(task, ...)` returns a `Plan`; `Plan.save` writes plan.json, `load_plan` reads one back. A plan file holds the
+task's whole scene document (scene and [task] table, as parsed, with its SHA-256), so `replay` re-simulates it bit
+for bit on any machine, after the task file was moved or edited (an edited file is reported, and the plan replays
+from its own copy). Only `plan_task` imports ompl (inside the function).
+"""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from planar_lcp.spec.scene import SceneError, read_document, scenes_dir
+from planar_lcp.spec.task import document_sha256, parse_task
+
+from .tasks import TaskError, TaskModel, check_planner, load_task
+
+#: 2: the plan holds its task's document (task files); 1 (before) named a built-in task only
+PLAN_FORMAT = 2
+
+
+def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=None):
+    """Solve `task` (a Task, a shipped task's name or a task file) with `planner` (default: the task's). Returns
+    the plan as a dict (the plan file's contents, `Plan.data`); `tm` may reuse a TaskModel of the task."""
+    import gc
+
+    from ompl import util as ou
+
+    from .adapter import Problem
+
+    tm = tm if tm is not None else TaskModel(task)
+    t = tm.task
+    planner = check_planner(planner if planner is not None else t.planner)
+    if time_limit is None and iterations is None:
+        raise TaskError("give a time limit (--time) or an iteration budget (--iterations)")
+    if time_limit is not None and iterations is not None:
+        raise TaskError("give either a time limit (--time) or an iteration budget (--iterations), not both")
+    if time_limit is not None and not (math.isfinite(time_limit) and time_limit > 0):
+        raise TaskError(f"the time limit must be > 0 s, got {time_limit}")
+    if iterations is not None and int(iterations) < 1:
+        raise TaskError(f"the iteration budget must be >= 1, got {iterations}")
+    seed = int(seed)
+    if seed < 1:
+        raise TaskError(f"the seed must be >= 1, got {seed}")
+    gc.disable()   # ompl 2.0.1: cyclic GC reads freed memory (see docs/planning.md)
+    # re-seeding a worker that planned before logs "Random number generation already started" but does re-seed
+    # (OMPL's RandomNumbers.cpp); keep that out of the output
+    ou.setLogLevel(ou.LOG_NONE)
+    ou.RNG.setSeed(seed)
+    ou.setLogLevel(ou.LOG_ERROR)
+    prob = Problem(t, planner, tm=tm)
+    res = prob.solve(time_limit=time_limit, iterations=iterations)
+    plan = dict(format=PLAN_FORMAT, task=t.name, task_source=t.source, task_sha256=t.sha256,
+                task_document=t.document, planner=planner, seed=seed,
+                time_limit=time_limit, iterations_budget=iterations, solve_time=res["solve_time"],
+                iterations=res["iterations"], exact=res["exact"], approximate=res["approximate"],
+                propagations=res["propagations"], sim_steps=res["sim_steps"],
+                steps_per_second=res["sim_steps"] / max(res["solve_time"], 1e-9),
+                h=tm.h, step_duration=t.step_duration,
+                state_names=t.state_names(),
+                start=tm.initial_state().tolist(), controls=[], steps=[], durations=[], states=[],
+                path_duration=0.0)
+    if res["exact"] or res["approximate"]:
+        states, controls, steps = prob.solution()
+        plan.update(controls=controls.tolist(), steps=steps.tolist(),
+                    durations=(steps * t.step_duration).tolist(), states=states.tolist(),
+                    path_duration=float(steps.sum() * t.step_duration),
+                    goal=tm.goal_report(states[-1]))
+    return plan
+
+
+class Plan:
+    """A plan: the task it solves, the controls, the states the planner reached, and how it was found.
+
+    Attributes
+    ----------
+    data : dict
+        The plan file's contents (module docstring; docs/planning.md, "Plan files").
+    task : planar_lcp.spec.task.Task
+        The task as planned (rebuilt from the plan's own copy of its document when loaded).
+    task_file : str
+        For a loaded plan, whether the task's file still matches the plan's copy: "unchanged", "edited",
+        "missing", or "none" (the task was given as text or a dict); "as planned" for a new plan.
+    """
+
+    def __init__(self, data, task, tm=None, task_file="as planned"):
+        self.data, self.task, self.task_file = data, task, task_file
+        self._tm = tm
+
+    @property
+    def exact(self):
+        """True when the planner found a plan that reaches the goal exactly."""
+        return bool(self.data["exact"])
+
+    @property
+    def controls(self):
+        """(n, 2) pusher velocities, m/s, each held for `durations` s."""
+        return np.asarray(self.data["controls"], float).reshape(-1, 2)
+
+    @property
+    def steps(self):
+        """(n,) propagation steps each control is held."""
+        return np.asarray(self.data["steps"], int)
+
+    @property
+    def durations(self):
+        """(n,) seconds each control is held."""
+        return np.asarray(self.data["durations"], float)
+
+    @property
+    def states(self):
+        """(n + 1, d) flat planning states (planners.tasks) at the control boundaries, as the planner reached them."""
+        return np.asarray(self.data["states"], float).reshape(-1, self.task.state_dim)
+
+    @property
+    def goal_report(self):
+        """The goal errors at the plan's last state (TaskModel.goal_report); {} without a path."""
+        return dict(self.data.get("goal", {}))
+
+    @property
+    def path_duration(self):
+        return float(self.data["path_duration"])
+
+    @property
+    def model(self):
+        """The TaskModel of the plan's task (built once)."""
+        if self._tm is None:
+            self._tm = TaskModel(self.task)
+        return self._tm
+
+    def save(self, path):
+        """Write the plan file (JSON)."""
+        save_plan(self.data, path)
+
+    def replay(self, simulator="lcp"):
+        """Re-simulate the controls open loop: "lcp" (ours, exactly as the planner propagated them: bit for bit) or
+        "pymunk" (planar_lcp.experiments.pymunk_bridge, from the scene's start). Returns a dict: final (d,),
+        report (the goal report, with simulation_ok and goal_holds), dense (states at every propagation step)."""
+        if simulator == "lcp":
+            return replay_lcp(self.data, tm=self.model)
+        if simulator == "pymunk":
+            return replay_pymunk(self.data, tm=self.model)
+        raise TaskError(f"simulator must be 'lcp' or 'pymunk', got {simulator!r}")
+
+    def plot(self, path, title=None):
+        """A strobe of the replayed plan over the scene (plan.png)."""
+        rep = self.replay()
+        plot_plan(self.model, rep["dense"], path, title=title if title is not None else self.title())
+
+    def animate(self, path):
+        """The replayed plan as a GIF (plan.gif)."""
+        animate_plan(self.model, self.replay()["dense"], path)
+
+    def title(self):
+        status = "exact" if self.exact else ("approximate" if self.data["approximate"] else "no")
+        return (f"{self.task.name}, {self.data['planner']}, seed {self.data['seed']}: {status} solution, "
+                f"{self.path_duration:.2f} s of pushing")
+
+
+def plan(task, planner=None, time=None, iterations=None, seed=1):
+    """Plan a task with OMPL, our simulator as the forward model.
+
+    Parameters
+    ----------
+    task : str, os.PathLike, dict or Task
+        A shipped task's name, a task file, its text or its document (`planar_lcp.spec.task.load_task`).
+    planner : str, optional
+        One of PLANNERS; default the task's `planner` ("RRT" unless the file says otherwise).
+    time : float, optional
+        Wall-clock budget, s. Default: the task's `time` (60 s unless the file says otherwise), unless
+        `iterations` is given.
+    iterations : int, optional
+        An iteration budget instead of a time limit: with `seed`, the plan is the same on any machine.
+    seed : int
+        OMPL's random seed, >= 1.
+
+    Returns
+    -------
+    Plan
+        `.exact` is True when the goal is reached; planning stops at the first exact solution.
+    """
+    tm = TaskModel(task)
+    if time is None and iterations is None:
+        time = tm.task.time
+    data = plan_task(tm.task, planner, seed=seed, time_limit=time, iterations=iterations, tm=tm)
+    return Plan(data, tm.task, tm=tm)
+
+
+def save_plan(plan, path):
+    Path(path).write_text(json.dumps(plan, indent=1) + "\n")
+
+
+def _task_file_status(source, sha):
+    """Whether the task file a plan names still holds the document the plan holds."""
+    if source.startswith("<"):
+        return "none"
+    p = Path(source)
+    candidates = [p]
+    if p.parts[:1] == ("scenes",):
+        candidates.insert(0, scenes_dir().joinpath(*p.parts[1:]))
+    for c in candidates:
+        if c.is_file():
+            try:
+                doc, _ = read_document(c)
+            except SceneError:
+                return "edited"
+            return "unchanged" if document_sha256(doc) == sha else "edited"
+    return "missing"
+
+
+def load_plan(path):
+    """Read and check a plan file; returns a Plan. A TaskError says what is wrong, naming the file and the field."""
+    p = Path(path)
+    try:
+        plan = json.loads(p.read_text())
+    except FileNotFoundError:
+        raise TaskError(f"{path}: no such plan file") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise TaskError(f"{path}: cannot read: {e}") from None
+    except json.JSONDecodeError as e:
+        raise TaskError(f"{path}: not a JSON plan file ({e})") from None
+    if not isinstance(plan, dict):
+        raise TaskError(f"{path}: a plan file holds a JSON object, got {type(plan).__name__}")
+    if "format" in plan and plan["format"] == 1 and not isinstance(plan["format"], bool):
+        raise TaskError(f"{path}: format must be {PLAN_FORMAT}, got 1 (a plan made before task files, which names "
+                        "its task only): plan it again with `planar-lcp plan`")
+    for key in ("format", "task", "task_source", "task_sha256", "task_document", "controls", "steps", "start"):
+        if key not in plan:
+            raise TaskError(f"{path}: missing key {key!r}")
+    if plan["format"] != PLAN_FORMAT or isinstance(plan["format"], bool):
+        raise TaskError(f"{path}: format must be {PLAN_FORMAT}, got {plan['format']!r}")
+    doc, src, sha = plan["task_document"], plan["task_source"], plan["task_sha256"]
+    if not isinstance(doc, dict) or not isinstance(src, str) or not isinstance(plan["task"], str):
+        raise TaskError(f"{path}: task_document must be an object and task, task_source strings, got "
+                        f"{type(doc).__name__}, {type(plan['task']).__name__}, {type(src).__name__}")
+    try:
+        own = document_sha256(doc)
+    except (TypeError, ValueError) as e:
+        raise TaskError(f"{path}: task_document is not a scene document ({e})") from None
+    if own != sha:
+        raise TaskError(f"{path}: task_sha256 must be the hash of task_document, {own}, got {sha!r} (the plan file "
+                        "was edited)")
+    try:
+        task = parse_task(doc, source=src, name=plan["task"], display=f"{path}: task_document ({src})")
+    except SceneError as e:
+        raise TaskError(str(e)) from None
+    try:
+        u = np.asarray(plan["controls"], float).reshape(-1, 2)
+        k = np.asarray(plan["steps"], float)
+        x0 = np.asarray(plan["start"], float)
+    except (TypeError, ValueError):
+        raise TaskError(f"{path}: controls must be [[vx, vy], ...], steps a list of integers, start "
+                        f"{task.state_dim} numbers")
+    if len(u) != len(k) or k.ndim != 1 or x0.shape != (task.state_dim,):
+        raise TaskError(f"{path}: need one positive integer step count per control and a {task.state_dim}-number "
+                        f"start, got {len(u)} controls, {len(k)} step counts, start of shape {x0.shape}")
+    # a control is held for min_steps..max_steps propagation steps (the task's control durations, the only ones
+    # the planner samples): more would be a plan no planner wrote, and 1e9 steps a replay of days
+    for i, ki in enumerate(plan["steps"]):
+        if isinstance(ki, bool) or not isinstance(ki, (int, float)) or ki != k[i] or k[i] != np.rint(k[i]) \
+                or not task.min_steps <= k[i] <= task.max_steps:
+            raise TaskError(f"{path}: steps[{i}] must be an integer in {task.min_steps}..{task.max_steps} (the task's "
+                            f"control durations, in propagation steps), got {ki!r}")
+    cm = task.control_max
+    for (i, j) in zip(*np.nonzero(~(np.abs(u) <= cm))):
+        raise TaskError(f"{path}: controls[{i}][{j}] must be a number in [-{cm:g}, {cm:g}] m/s (the task's control "
+                        f"bounds), got {plan['controls'][i][j]!r}")
+    if not np.all(np.isfinite(x0)):
+        raise TaskError(f"{path}: start must be {task.state_dim} finite numbers, got {plan['start']!r}")
+    if "step_duration" in plan:
+        sd = plan["step_duration"]
+        if isinstance(sd, bool) or not isinstance(sd, (int, float)) or abs(sd - task.step_duration) > 1e-12:
+            raise TaskError(f"{path}: step_duration must be the task's {task.step_duration:g} s, got {sd!r}")
+    for key in ("exact", "approximate"):
+        plan.setdefault(key, False)
+    plan.setdefault("durations", (k * task.step_duration).tolist())
+    plan.setdefault("path_duration", float(k.sum() * task.step_duration))
+    return Plan(plan, task, task_file=_task_file_status(src, sha))
+
+
+def replay_lcp(plan, tm=None):
+    """Re-simulate the plan's controls open loop with our simulator, exactly as the planner propagated them.
+
+    `plan` is a plan dict (Plan.data). Returns dict(final state, report, dense states, bound states, tm)."""
+    tm = tm if tm is not None else TaskModel(plan["task_document"])
+    bound, dense, ok = tm.execute(plan["start"], plan["controls"], plan["steps"])
+    x = dense[-1]
+    rep = tm.goal_report(x)
+    rep["simulation_ok"] = bool(ok)
+    rep["goal_holds"] = bool(rep["goal_holds"] and ok and tm.admissible(x))
+    return dict(final=x, report=rep, dense=dense, bound=bound, tm=tm)
+
+
+def _frame_poses(tm, X):
+    """Body-frame poses of the dynamic bodies (n, ndyn, 3), in the scene's order, and kinematic poses (n, nkin, 3)
+    of flat states X (n, d)."""
+    X = np.asarray(X, float)
+    qc = np.empty((len(X), tm.nobj, 3))
+    qc[:, tm.dyn_order] = X[:, :tm.ip].reshape(len(X), tm.nobj, 6)[:, :, 0:3]
+    qf = tm.model.com_to_frame(qc)
+    qk = np.repeat(tm.qk0[None], len(X), axis=0)
+    qk[:, tm.ipusher, 0:2] = X[:, tm.ip:tm.ip + 2]
+    return qf, qk
+
+
+def _view(tm):
+    """The drawing's limits: the workspace and the pusher's together."""
+    (ox0, ox1), (oy0, oy1) = tm.task.workspace
+    (px0, px1), (py0, py1) = tm.task.pusher_workspace
+    return (min(ox0, px0), max(ox1, px1)), (min(oy0, py0), max(oy1, py1))
+
+
+def _draw_goal(ax, tm, label=False):
+    """The workspace's outline, and the goal: the object's outline at a full goal pose, else a line at each named
+    coordinate."""
+    (x0, x1), (y0, y1) = tm.task.workspace
+    ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], ":", color="tab:gray", lw=1,
+            label="workspace" if label else None)
+    g = tm.task.goal
+    if tm.goal_poly is not None:
+        xs, ys = tm.goal_poly.exterior.xy
+        ax.plot(xs, ys, "--", color="tab:green", lw=1.5, label="goal" if label else None)
+        return
+    if g.x is not None:
+        ax.axvline(g.x, color="tab:green", ls="--", lw=1, label="goal x" if label else None)
+    if g.y is not None:
+        ax.axhline(g.y, color="tab:green", ls="--", lw=1, label="goal y" if label else None)
+
+
+def plot_plan(tm, X, path, title="", goal_state=None):
+    """A strobe of object and pusher along the states X (n, 8) over the scene, with the goal outline."""
+    from planar_lcp.viz import draw_scene, new_figure
+
+    qf, qk = _frame_poses(tm, X)
+    fig = new_figure((7, 5.5), dpi=110)
+    ax = fig.add_subplot(1, 1, 1)
+    n = len(X)
+    idx = np.unique(np.linspace(0, n - 1, min(n, 14)).round().astype(int))
+    # fix the view first: the workspaces
+    (x0, x1), (y0, y1) = _view(tm)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_autoscale_on(False)
+    for j, i in enumerate(idx):
+        a = 0.15 + 0.85 * (j + 1) / len(idx)
+        draw_scene(ax, tm.scene, qf[i], qk[i], alpha=a)
+    ax.plot(X[:, 0], X[:, 1], "-", color="tab:blue", lw=1, label="object COM")
+    for i in range(1, tm.nobj):
+        ax.plot(X[:, 6 * i], X[:, 6 * i + 1], ":", color="tab:gray", lw=1,
+                label="obstacles' COM" if i == 1 else None)
+    ax.plot(X[:, tm.ip], X[:, tm.ip + 1], "-", color="tab:red", lw=1, label="pusher")
+    _draw_goal(ax, tm, label=True)
+    ax.legend(loc="upper left", fontsize=8)
+    ax.set_title(title, fontsize=9)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    fig.savefig(path)
+
+
+def animate_plan(tm, X, path, fps=20, max_frames=120):
+    from matplotlib.animation import PillowWriter
+
+    from planar_lcp.viz import draw_scene, new_figure
+
+    qf, qk = _frame_poses(tm, X)
+    idx = np.unique(np.linspace(0, len(X) - 1, min(len(X), max_frames)).round().astype(int))
+    fig = new_figure((5, 4), dpi=80)
+    ax = fig.add_subplot(1, 1, 1)
+    (x0, x1), (y0, y1) = _view(tm)
+    writer = PillowWriter(fps=fps)
+    with writer.saving(fig, str(path), dpi=80):
+        for i in idx:
+            ax.clear()
+            ax.set_xlim(x0, x1)
+            ax.set_ylim(y0, y1)
+            ax.set_autoscale_on(False)
+            _draw_goal(ax, tm)
+            draw_scene(ax, tm.scene, qf[i], qk[i])
+            ax.set_title(f"{tm.task.name}  t = {i * tm.task.step_duration:.2f} s", fontsize=9)
+            writer.grab_frame()
+
+
+def replay_pymunk(plan, tm=None):
+    """Re-simulate the plan's controls open loop in pymunk (planar_lcp.experiments.pymunk_bridge), from the scene's
+    start.
+
+    The pusher's velocity is set to each control in turn; the space is stepped with the scene's h. Returns the
+    same dict as `replay_lcp` (the goal is judged by the same task test)."""
+    try:
+        from planar_lcp.experiments.pymunk_bridge import build_space, read_state
+    except ImportError as e:  # the bridge, or pymunk itself
+        raise ImportError(f"planar_lcp.experiments.pymunk_bridge cannot be used ({e})") from None
+    tm = tm if tm is not None else TaskModel(plan["task_document"])
+    space, hd = build_space(tm.scene, h=tm.h)
+    pusher = hd.bodies[tm.task.pusher]
+
+    def flat():
+        q, _, qk, vc = read_state(hd)        # vc: the centre-of-mass velocities, as the flat state holds them
+        qc = tm.model.frame_to_com(q)
+        x = np.empty(tm.ip + 2)
+        for i, d in enumerate(tm.dyn_order):
+            x[6 * i:6 * i + 3] = qc[d]
+            x[6 * i + 2] = math.atan2(math.sin(qc[d, 2]), math.cos(qc[d, 2]))
+            x[6 * i + 3:6 * i + 6] = vc[d]
+        x[tm.ip:tm.ip + 2] = qk[hd.kinematic_names.index(tm.task.pusher), 0:2]
+        return x
+
+    dense = [flat()]
+    for u, k in zip(np.asarray(plan["controls"], float), np.asarray(plan["steps"], int)):
+        pusher.velocity = (float(u[0]), float(u[1]))
+        pusher.angular_velocity = 0.0
+        for _ in range(int(k)):
+            for _ in range(tm.steps_per_prop):
+                space.step(tm.h)
+            dense.append(flat())
+    dense = np.array(dense)
+    x = dense[-1]
+    rep = tm.goal_report(x)
+    rep["simulation_ok"] = bool(np.all(np.isfinite(dense)))
+    rep["goal_holds"] = bool(rep["goal_holds"] and tm.admissible(x))
+    return dict(final=x, report=rep, dense=dense, bound=None, tm=tm)
