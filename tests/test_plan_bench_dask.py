@@ -103,7 +103,8 @@ def test_a_worker_lost_mid_benchmark_does_not_lose_its_run(cluster, tmp_path):
 def test_ctrl_c_cancels_plan_bench_cleanly(tmp_path):
     """Ctrl-C while the local cluster's workers plan: the runs are cancelled, the workers stopped, one line, 130."""
     from cli_helpers import interrupt_cli
-    rc, err, dt = interrupt_cli(["plan-bench", "push_t", "--planners", "RRT", "--runs", "2", "--time", "60",
+    # EST does not solve push_t within a minute (docs/planning.md): the runs are still going when Ctrl-C comes
+    rc, err, dt = interrupt_cli(["plan-bench", "push_t", "--planners", "EST", "--runs", "2", "--time", "60",
                                  "--jobs", "2", "--out", tmp_path / "out"], "cluster", tmp_path, wait=5.0)
     assert rc == 130, err
     assert err.strip().splitlines()[-1] == "planar-lcp plan-bench: error: interrupted (Ctrl-C); stopped", err

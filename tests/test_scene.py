@@ -654,13 +654,22 @@ def test_docs_examples_are_valid():
     import tomllib
     doc = (Path(__file__).resolve().parents[1] / "docs" / "scene-format.md").read_text()
     blocks = re.findall(r"```toml\n(.*?)```", doc, flags=re.S)
-    assert len(blocks) == 2
+    assert len(blocks) == 3
     first = parse_scene(tomllib.loads(blocks[0]), "doc")
     shipped = load_scene("box_tip")
     assert (first.world, first.sim, first.bodies, first.description) == (shipped.world, shipped.sim, shipped.bodies,
                                                                          shipped.description)
     t = parse_scene(tomllib.loads(blocks[1]), "doc").body("T")
     assert t.inertia == 0.0002 and len(t.support_points) == 3
+    # the minimal task of "Task files": three lines, which with push_box's scene are a task that loads
+    from planar_lcp.spec.scene import read_document, scenes_dir
+    from planar_lcp.spec.task import load_task
+    task = tomllib.loads(blocks[2])
+    assert list(task) == ["task"] and blocks[2].strip().count("\n") == 3            # the header and three lines
+    doc, _ = read_document(scenes_dir() / "push_box.toml")
+    doc["task"] = task["task"]
+    t = load_task(doc)
+    assert (t.object, t.pusher, t.goal.x, t.goal.y, t.goal.angle) == ("box", "pusher", 0.25, 0.08, None)
 
 
 def test_scene_must_be_a_table():

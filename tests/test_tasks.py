@@ -53,8 +53,8 @@ def test_a_minimal_task_is_three_lines_and_gets_every_default():
     assert t.step_duration == pytest.approx(40 * h) and (t.min_steps, t.max_steps) == (1, 10)
     assert t.weights == pytest.approx((1.0, L, 0.02 * 0.1, 0.1))
     # the workspace: the bodies (box -0.05..0.05, pusher -0.095..-0.065) and the object at the goal point at any
-    # angle ((0.1, 0) +- L), grown by L
-    assert np.array(t.workspace) == pytest.approx(np.array(((-0.095 - L, 0.1 + 2 * L), (-2 * L, 2 * L))))
+    # angle ((0.1, 0) +- L), grown by the object's diameter 2 L
+    assert np.array(t.workspace) == pytest.approx(np.array(((-0.095 - 2 * L, 0.1 + 3 * L), (-3 * L, 3 * L))))
     (x0, x1), (y0, y1) = t.workspace
     assert np.array(t.pusher_workspace) == pytest.approx(np.array(((x0 - 0.03, x1 + 0.03), (y0 - 0.03, y1 + 0.03))))
     g = t.goal

@@ -399,7 +399,7 @@ def placed_bounds(body, position, angle):
 def _default_workspace(scene, obj, goal, extent):
     """The bounding box of the scene's finite bodies (dynamic, kinematic and static, halfplanes excluded) and of
     the goal (the object placed at a full goal pose; else its circumradius about each named coordinate), grown by
-    the object's circumradius."""
+    the object's diameter (twice its circumradius about its centre of mass)."""
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     for b in scene.bodies:
         if all(s.type == "halfplane" for s in b.shapes):
@@ -414,7 +414,8 @@ def _default_workspace(scene, obj, goal, extent):
         for i, c in enumerate((goal.x, goal.y)):
             if c is not None:
                 lo[i], hi[i] = min(lo[i], c - extent["circumradius"]), max(hi[i], c + extent["circumradius"])
-    m = extent["circumradius"]
+    # the object's diameter: room to pass a static body that stands at the edge of the rest
+    m = 2.0 * extent["circumradius"]
     return ((float(lo[0] - m), float(hi[0] + m)), (float(lo[1] - m), float(hi[1] + m)))
 
 
