@@ -124,3 +124,30 @@ print("exact", n_exact)
     lines = out.strip().splitlines()
     assert len(lines) == 31, out
     assert int(lines[-1].split()[1]) >= 3, out              # the planner does solve some at this budget
+
+
+def test_the_docs_example_task_plans_as_the_docs_say(tmp_path):
+    """docs/planning.md, "Plan your own task": its TOML file, its two commands and its Python block, run from the
+    page's own text in an empty directory, give what the page says."""
+    import re
+    text = (ROOT / "docs" / "planning.md").read_text()
+    sec = re.search(r"^## Plan your own task\n(.*?)^### Plan files", text, re.M | re.S).group(1)
+    (tmp_path / "my_push.toml").write_text(re.search(r"```toml\n(.*?)```", sec, re.S).group(1))
+    commands = re.search(r"```\n(planar-lcp plan .*?)```", sec, re.S).group(1).strip().splitlines()
+    assert [c.split()[1] for c in commands] == ["plan", "replay"]
+    r = run_cli(*commands[0].split()[1:], cwd=tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    n = re.search(r"RRT finds an exact plan after (\d+) iterations", sec).group(1)
+    assert "exact after" in r.stdout and f" {n} iterations" in r.stdout, r.stdout
+    m = re.search(r"(\d+) controls, ([\d.]+)\s+s of pushing", sec)
+    assert f"path           {m.group(1)} controls, {float(m.group(2)):.2f} s" in r.stdout, r.stdout
+    r = run_cli(*commands[1].split()[1:], cwd=tmp_path)
+    assert r.returncode == 0 and "task file      my_push.toml (unchanged since planning)" in r.stdout, r.stdout
+    assert re.search(r"^goal_holds\s+True$", r.stdout, re.M)
+    code = re.search(r"```python\n(.*?)```", sec, re.S).group(1)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=cli_env(),
+                       timeout=600)
+    assert r.returncode == 0, r.stderr
+    expected = [line.split("# ")[1].strip() for line in code.splitlines() if line.startswith("print(")]
+    assert r.stdout.split("\n")[:2] == expected, (r.stdout, expected)
+    assert (tmp_path / "my_plan.png").stat().st_size > 1000

@@ -283,7 +283,7 @@ def parse_task(document: dict, source: str = "<dict>", name: str | None = None, 
     h = scene.sim.h
     goal = _parse_goal(v, t, extent)
 
-    description = v.string("task.description", t["description"]) if "description" in t else ""
+    description = v.string("task.description", t["description"]) if "description" in t else scene.description
     planner = v.choice("task.planner", t["planner"], PLANNERS) if "planner" in t else DEFAULT_PLANNER
     time = v.bounded("task.time", t["time"], MAX_TIME) if "time" in t else 60.0
     L = extent["circumradius"]
