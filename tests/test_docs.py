@@ -123,3 +123,21 @@ def test_the_readme_layout_names_every_module_and_folder():
             assert (top.name + "/") in named or f"{top.name}/run" in block, f"README Layout does not name {top.name}/"
     for name in sorted(n for n in named if n.endswith(".py") or n.endswith("/")):
         assert list(ROOT.rglob(name.rstrip("/"))), f"README Layout names {name}, which does not exist"
+
+
+#: the Python examples of the pages (docs/planning.md's needs its task file: tests/test_task_planning.py runs it)
+PY_BLOCKS = [(p, i, b) for p in (ROOT / "README.md", ROOT / "docs" / "scene-format.md")
+             for i, b in enumerate(re.findall(r"```python\n(.*?)```", p.read_text(), re.S))]
+
+
+@pytest.mark.parametrize("page, index, code", PY_BLOCKS, ids=[f"{p.name}-{i}" for p, i, _ in PY_BLOCKS])
+def test_the_python_examples_in_the_docs_run(page, index, code, tmp_path):
+    """Each example runs as a user pastes it, in an empty directory; each line whose comment shows its value
+    (`r.status, r.z, ...   # ('solved', ...)`) is left as written: the run must not fail."""
+    import subprocess
+    import sys
+    if "import planners" in code:
+        pytest.importorskip("ompl")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=600,
+                       env=dict(__import__("os").environ, MPLBACKEND="Agg"))
+    assert r.returncode == 0, f"{page.name} example {index}:\n{code}\n{r.stderr[-3000:]}"

@@ -401,3 +401,36 @@ def test_seeded_random_task_files_all_load_with_derived_defaults():
         assert tm.goal_distance(tm.initial_state()) > 1                  # not already solved
         kinds.add(re.search(r": (\w+) goal", t.description).group(1))
     assert kinds == {"pose", "position", "angle", "rest", "cover", "tip"}
+
+
+def test_the_benchmark_task_files_load_each_of_a_different_kind():
+    """tasks/*.toml (docs/planning.md, "New problems"): at least 8 files, each a valid task, with the derived defaults
+    except the keys it names; among them a non-convex compound object, a triangle, a disk, a capsule, a
+    position-only goal, an angle-only goal, a goal at rest, a cover goal, a vertical tip goal, six or more movable
+    obstacles and a heavy high-friction object."""
+    from pathlib import Path
+
+    from planners.tasks import TaskModel
+    files = sorted((Path(__file__).resolve().parent.parent / "tasks").glob("*.toml"))
+    assert len(files) >= 8
+    seen = set()
+    for f in files:
+        tm = TaskModel(f)
+        t, g = tm.task, tm.task.goal
+        assert t.given == {"object", "pusher", "goal"}, (f.name, t.given)      # every other key derived
+        body = t.scene.body(t.object)
+        types = {s.type for s in body.shapes}
+        seen |= {f"shape:{ty}" for ty in types} | ({"compound"} if len(body.shapes) > 1 else set())
+        if not tm.object_poly_body.equals(tm.object_poly_body.convex_hull):
+            seen.add("non-convex")
+        if len(body.shapes) == 1 and body.shapes[0].type == "polygon" and len(body.shapes[0].vertices) == 3:
+            seen.add("triangle")
+        seen.add("position only" if g.angle is None and g.x is not None and g.y is not None else
+                 "angle only" if g.x is None and g.y is None else "")
+        seen |= {"at rest"} if g.at_rest and t.scene.world.plane == "horizontal" else set()
+        seen |= {"cover"} if g.min_cover is not None else set()
+        seen |= {"tip"} if t.scene.world.plane == "vertical" and g.x is None else set()
+        seen |= {"crowd"} if len(t.obstacles) >= 6 else set()
+        seen |= {"heavy"} if body.mass >= 5.0 and (body.support_friction or 0.0) >= 0.8 else set()
+    assert {"compound", "non-convex", "triangle", "shape:disk", "shape:capsule", "position only", "angle only",
+            "at rest", "cover", "tip", "crowd", "heavy"} <= seen, seen
