@@ -46,7 +46,8 @@ def _crash_record(planner, seed, error, solve_time, worker, host=None, cpuinfo=N
     no worker and no host."""
     return dict(planner=planner, seed=seed, exact=False, approximate=False, solve_time=solve_time,
                 status=STATUS.CRASH.value, error=error, goal_distance=float("nan"), path_duration=float("nan"),
-                segments=0, propagations=0, iterations=0, sim_steps=0, steps_per_second=float("nan"), worker=worker,
+                segments=0, propagations=0, iterations=0, sim_steps=0, steps_per_second=float("nan"), replayed=None,
+                worker=worker,
                 host=host, cpuinfo=cpuinfo)
 
 
@@ -63,14 +64,21 @@ def _run_one(task, planner, seed, time_limit, iterations=None):
     except Exception as e:  # noqa: BLE001 - a crashed run is a result (status Crash), not the end of the benchmark
         return _crash_record(planner, seed, repr(e), time.perf_counter() - t0, worker, host, cpuinfo)
     exact, approx = plan["exact"], plan["approximate"]
+    # every exact plan is replayed open loop in a fresh TaskModel, as `planar-lcp replay` would: it must reach the
+    # planner's states bit for bit and the goal (None: no exact plan to replay)
+    replayed = None
+    if exact:
+        from .plans import replay_lcp
+        res = replay_lcp(plan)
+        replayed = bool(res["report"]["goal_holds"] and np.array_equal(res["bound"], np.asarray(plan["states"])))
     return dict(planner=planner, seed=seed, exact=exact, approximate=approx, solve_time=plan["solve_time"],
                 status=(STATUS.EXACT_SOLUTION if exact else STATUS.APPROXIMATE_SOLUTION if approx
                         else STATUS.TIMEOUT).value,       # the time limit ended a run without a solution
                 goal_distance=plan.get("goal", {}).get("goal_distance", float("nan")),
                 path_duration=plan["path_duration"] if (exact or approx) else float("nan"),
                 segments=len(plan["controls"]), propagations=plan["propagations"], iterations=plan["iterations"],
-                sim_steps=plan["sim_steps"], steps_per_second=plan["steps_per_second"], worker=worker, host=host,
-                cpuinfo=cpuinfo)
+                sim_steps=plan["sim_steps"], steps_per_second=plan["steps_per_second"], replayed=replayed,
+                worker=worker, host=host, cpuinfo=cpuinfo)
 
 
 def _fmt(v):
@@ -167,6 +175,7 @@ def summarize(records, planners, time_limit):
         ds = np.array([r["path_duration"] for r in ex])
         sps = np.array([r["steps_per_second"] for r in rs if np.isfinite(r["steps_per_second"])])
         rows.append(dict(planner=p, runs=len(rs), exact=len(ex), success_rate=len(ex) / max(len(rs), 1),
+                         replayed=sum(1 for r in ex if r.get("replayed")),
                          time_q1_med_q3=_quartiles(ts), duration_q1_med_q3=_quartiles(ds),
                          steps_per_second_median=float(np.median(sps)) if len(sps) else float("nan")))
     return rows
@@ -175,13 +184,13 @@ def summarize(records, planners, time_limit):
 def summary_markdown(task, rows, runs, budget, where):
     """budget: "60 s" or "5000 iterations" per run; where: "2 worker processes" or "the Dask cluster at ADDRESS"."""
     out = [f"Task `{task}`: {runs} runs per planner (seeds 1..{runs}), {budget} each, {where}.", "",
-           "| planner | exact | time to exact solution [s] median (q1-q3) | path duration [s] median (q1-q3) | "
-           "sim steps/s (median) |", "|---|---|---|---|---|"]
+           "| planner | exact | exact plans replayed to the goal | time to exact solution [s] median (q1-q3) | "
+           "path duration [s] median (q1-q3) | sim steps/s (median) |", "|---|---|---|---|---|---|"]
     for r in rows:
         t, d = r["time_q1_med_q3"], r["duration_q1_med_q3"]
         ft = f"{t[1]:.2f} ({t[0]:.2f}-{t[2]:.2f})" if r["exact"] else "-"
         fd = f"{d[1]:.2f} ({d[0]:.2f}-{d[2]:.2f})" if r["exact"] else "-"
-        out.append(f"| {r['planner']} | {r['exact']}/{r['runs']} | {ft} | {fd} | "
+        out.append(f"| {r['planner']} | {r['exact']}/{r['runs']} | {r['replayed']}/{r['exact']} | {ft} | {fd} | "
                    f"{r['steps_per_second_median']:.0f} |")
     return "\n".join(out) + "\n"
 

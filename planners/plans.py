@@ -15,7 +15,7 @@ import numpy as np
 from planar_lcp.spec.scene import SceneError, read_document, scenes_dir
 from planar_lcp.spec.task import document_sha256, parse_task
 
-from .tasks import TaskError, TaskModel, check_planner, load_task
+from .tasks import TaskError, TaskModel, check_planner
 
 #: 2: the plan holds its task's document (task files); 1 (before) named a built-in task only
 PLAN_FORMAT = 2

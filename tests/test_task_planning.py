@@ -102,6 +102,9 @@ def test_plan_bench_runs_a_task_file(own_plan, tmp_path):
     d = json.loads((tmp_path / "pb" / "summary.json").read_text())
     assert d["task"] == "bench_task" and d["task_source"] == "bench_task.toml"
     assert [rec["exact"] for rec in d["records"]] == [True, True]
+    # each exact plan was replayed in the worker, bit for bit to the goal, and the summary counts them
+    assert [rec["replayed"] for rec in d["records"]] == [True, True] and d["summary"][0]["replayed"] == 2
+    assert "| RRT | 2/2 | 2/2 |" in (tmp_path / "pb" / "summary.md").read_text()
     assert "task file bench_task.toml" in (tmp_path / "pb" / "bench_task.log").read_text()
 
 

@@ -256,20 +256,9 @@ def parse_task(document: dict, source: str = "<dict>", name: str | None = None, 
     t = scene.task
     v.keys("task", t, TASK_KEYS)
     bodies = {b.name: b for b in scene.bodies}
+    obj = _body_of_type(v, t, "object", "dynamic", scene.bodies)
+    pusher = _body_of_type(v, t, "pusher", "kinematic", scene.bodies)
     dynamic = [b.name for b in scene.bodies if b.type == "dynamic"]
-    kinematic = [b.name for b in scene.bodies if b.type == "kinematic"]
-    obj = v.string("task.object", v.require("task", t, "object"), nonempty=True)
-    if obj not in bodies:
-        v.fail(f"task.object must name a dynamic body of the scene (one of {_names(dynamic)}), got {obj!r}")
-    if bodies[obj].type != "dynamic":
-        v.fail(f"task.object must be a dynamic body (one of {_names(dynamic)}), got {obj!r}, a "
-               f"{bodies[obj].type} body")
-    pusher = v.string("task.pusher", v.require("task", t, "pusher"), nonempty=True)
-    if pusher not in bodies:
-        v.fail(f"task.pusher must name a kinematic body of the scene (one of {_names(kinematic)}), got {pusher!r}")
-    if bodies[pusher].type != "kinematic":
-        v.fail(f"task.pusher must be a kinematic body (one of {_names(kinematic)}), got {pusher!r}, a "
-               f"{bodies[pusher].type} body")
     for b in scene.bodies:
         # the planning state holds the pusher's position only: another kinematic body must stand still, or
         # propagation would depend on time and not on the state alone
@@ -474,6 +463,18 @@ def _parse_goal(v, t, extent) -> Goal:
                 v.fail(f"task.goal.{k} needs at_rest = true, got {g[k]!r} without it")
             kw[k] = v.positive(f"task.goal.{k}", g[k])
     return Goal(x=x, y=y, angle=ang, at_rest=at_rest, **kw)
+
+
+def _body_of_type(v, t, key, btype, bodies):
+    """The body named by task.KEY, which must be a body of type `btype`."""
+    of_type = _names([b.name for b in bodies if b.type == btype])
+    name = v.string(f"task.{key}", v.require("task", t, key), nonempty=True)
+    found = [b for b in bodies if b.name == name]
+    if not found:
+        v.fail(f"task.{key} must name a {btype} body of the scene (one of {of_type}), got {name!r}")
+    if found[0].type != btype:
+        v.fail(f"task.{key} must be a {btype} body (one of {of_type}), got {name!r}, a {found[0].type} body")
+    return name
 
 
 def _names(names):
