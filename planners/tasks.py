@@ -144,32 +144,18 @@ class TaskModel:
             self.goal_com = frame_to_com(qf, self.com_local1)[0]
             self.goal_poly = _place(self.object_poly_body, (g.x, g.y), g.angle)
         if g.min_cover is not None:
-            self.cover_pos_scale, self.cover_ang_scale = self._cover_scales()
+            self.cover_com_bound = self._cover_bound()
 
-    def _cover_scales(self):
-        """Pose errors beyond which the cover goal cannot hold (a cheap test before the polygon intersection): twice
-        the largest translation (over 16 directions) and rotation about the centre of mass at which the cover of
-        the goal footprint falls to min_cover."""
-        g = self.task.goal
-        base = np.array([*self.goal_com], float)
+    def _cover_bound(self):
+        """How far (m) the object's centre of mass can be from the goal footprint's while the cover still reaches
+        min_cover c: 2 L (1 - c) / c, L the object's circumradius about its centre of mass (the area centroid).
 
-        def cover_at(dx, dy, da):
-            return self.cover(np.array([base[0] + dx, base[1] + dy, base[2] + da]))
-
-        def bisect(f, hi):
-            lo = 0.0
-            if f(hi) >= g.min_cover:
-                return hi
-            for _ in range(30):
-                mid = 0.5 * (lo + hi)
-                lo, hi = (mid, hi) if f(mid) >= g.min_cover else (lo, mid)
-            return hi
-
-        reach = 2.0 * self.object_radius
-        pos = max(bisect(lambda r, a=a: cover_at(r * math.cos(a), r * math.sin(a), 0.0), reach)
-                  for a in np.linspace(0.0, 2.0 * math.pi, 16, endpoint=False))
-        ang = max(bisect(lambda r: cover_at(0.0, 0.0, r), math.pi), bisect(lambda r: cover_at(0.0, 0.0, -r), math.pi))
-        return 2.0 * pos, min(2.0 * ang, math.pi)
+        Why: with A the footprint, A' the placed object (equal areas) and I their intersection, the centroids satisfy
+        |A| (a' - a) = |A' - I| u' - |A - I| u with |A - I| = |A' - I| = (1 - cover) |A|, u, u' the centroids of the
+        two differences, each within L of its body's centroid; so cover |a' - a| <= 2 L (1 - cover). A necessary
+        condition, so the cheap test never rejects a pose the cover accepts."""
+        c = self.task.goal.min_cover
+        return max(2.0 * self.object_radius * (1.0 - c) / c, 1e-12)
 
     def _check_start_and_goal(self):
         t = self.task
@@ -340,10 +326,8 @@ class TaskModel:
         g = self.task.goal
         d = 0.0
         if g.min_cover is not None:
-            # cheap pose bound first (_cover_scales): beyond it the cover cannot reach min_cover
-            pe = math.hypot(x[0] - self.goal_com[0], x[1] - self.goal_com[1])
-            ae = abs(wrap_angle(x[2] - self.goal_com[2]))
-            proxy = max(pe / self.cover_pos_scale, ae / self.cover_ang_scale)
+            # a cheap bound first (_cover_bound): farther, the cover cannot reach min_cover
+            proxy = math.hypot(x[0] - self.goal_com[0], x[1] - self.goal_com[1]) / self.cover_com_bound
             if proxy > 1.0:
                 return 1.0 + proxy
             d = (1.0 - self.cover(x)) / (1.0 - g.min_cover) if g.min_cover < 1.0 else \

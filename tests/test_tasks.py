@@ -339,6 +339,16 @@ def test_the_cover_goal_is_the_covered_share_of_the_goal_footprint():
         n_goal += holds
         assert (tm.goal_distance(x) <= 1.0) == holds, (d, cover)
     assert 20 < n_goal < 380             # both sides of the boundary were tried
+    # the cheap bound is the centroid inequality |a' - a| <= 2 L (1 - cover) / cover (TaskModel._cover_bound),
+    # checked at any angle and for the cover each pose has, not only the goal's min_cover
+    L = tm.object_radius
+    for _ in range(400):
+        d = np.array([*rng.uniform(-0.01, 0.01, 2), rng.uniform(-math.pi, math.pi)])
+        x = _com_state(tm, (g.x + d[0], g.y + d[1], g.angle + d[2]))
+        pf = tm.object_frame_pose(x)
+        cover = _place(tm.object_poly_body, pf[:2], pf[2]).intersection(tm.goal_poly).area / tm.goal_poly.area
+        if cover > 0:
+            assert math.hypot(*(x[:2] - tm.goal_com[:2])) <= 2 * L * (1 - cover) / cover + 1e-12, (d, cover)
 
 
 def test_goal_samples_lie_in_the_goal_region_and_the_bounds():
