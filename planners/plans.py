@@ -135,9 +135,21 @@ class Plan:
         save_plan(self.data, path)
 
     def replay(self, simulator="lcp"):
-        """Re-simulate the controls open loop: "lcp" (ours, exactly as the planner propagated them: bit for bit) or
-        "pymunk" (planar_lcp.experiments.pymunk_bridge, from the scene's start). Returns a dict: final (d,),
-        report (the goal report, with simulation_ok and goal_holds), dense (states at every propagation step)."""
+        """Re-simulate the controls open loop.
+
+        Parameters
+        ----------
+        simulator : {"lcp", "pymunk"}
+            "lcp": ours, exactly as the planner propagated them (bit for bit); "pymunk": through
+            planar_lcp.experiments.pymunk_bridge, from the scene's start (another contact model: expect drift).
+
+        Returns
+        -------
+        dict
+            final : (d,) the last state; report : the goal report with simulation_ok and goal_holds; dense :
+            (k, d) the states at every propagation step; bound : (n + 1, d) those at the control boundaries
+            ("lcp" only, else None); tm : the TaskModel.
+        """
         if simulator == "lcp":
             return replay_lcp(self.data, tm=self.model)
         if simulator == "pymunk":
@@ -211,7 +223,24 @@ def _task_file_status(source, sha):
 
 
 def load_plan(path):
-    """Read and check a plan file; returns a Plan. A TaskError says what is wrong, naming the file and the field."""
+    """Read and check a plan file (`Plan.save`, `planar-lcp plan`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    Plan
+        Its task rebuilt from the plan's own copy (`task_document`), never from the task file; `Plan.task_file`
+        says whether that file still holds the same document.
+
+    Raises
+    ------
+    TaskError
+        One line naming the file and the field: not a plan, format 1, a hash that does not match the document, a
+        bad document (the task file's own messages), controls, steps or start that the task could not have made.
+    """
     p = Path(path)
     try:
         plan = json.loads(p.read_text())
