@@ -15,8 +15,8 @@ from cli_helpers import run_cli
 pytest.importorskip("ompl")
 pytest.importorskip("shapely")
 
-#: seed 6 needs 2584 iterations (docs/planning.md): the budget leaves a margin of 3.5
-PLAN_ARGS = ("plan", "push_clutter", "--planner", "RRT", "--seed", "6", "--iterations", "9000")
+#: seed 1 needs 1496 iterations (docs/planning.md): the budget leaves a margin of 6
+PLAN_ARGS = ("plan", "push_clutter", "--planner", "RRT", "--seed", "1", "--iterations", "9000")
 
 
 @pytest.fixture(scope="module")

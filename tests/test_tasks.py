@@ -51,7 +51,7 @@ def test_a_minimal_task_is_three_lines_and_gets_every_default():
     assert t.omega_max == pytest.approx(16.0)
     h = 0.0025                                                            # the scene's default [sim] h
     assert t.step_duration == pytest.approx(40 * h) and (t.min_steps, t.max_steps) == (1, 10)
-    assert t.weights == pytest.approx((1.0, L, 0.02 * 0.1, 0.1))
+    assert t.weights == pytest.approx((1.0, math.sqrt(0.02 / 12), 0.02 * 0.1, 0.1))   # the box's radius of gyration
     # the workspace: the bodies (box -0.05..0.05, pusher -0.095..-0.065) and the object at the goal point at any
     # angle ((0.1, 0) +- L), grown by the object's diameter 2 L
     assert np.array(t.workspace) == pytest.approx(np.array(((-0.095 - 2 * L, 0.1 + 3 * L), (-3 * L, 3 * L))))
