@@ -91,8 +91,8 @@ class TaskModel:
         obj = sc.body(t.object)
         self.object_poly_body = unary_union([shape_geometry(s, quad_segs=8) for s in obj.shapes])  # body frame
         self.object_area = self.object_poly_body.area
-        self.pusher_radius = body_extent(sc.body(t.pusher), about_origin=True)["circumradius"]
-        pusher_inner = body_extent(sc.body(t.pusher), about_origin=True)["min_support"]
+        pusher_extent = body_extent(sc.body(t.pusher), about_origin=True)
+        self.pusher_radius, pusher_inner = pusher_extent["circumradius"], pusher_extent["min_support"]
         statics = []
         for b in sc.bodies:
             if b.type == "dynamic" or b.name == t.pusher:

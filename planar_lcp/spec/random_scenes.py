@@ -168,8 +168,7 @@ def random_task(seed):
     free = [(i, j) for i in range(-2, 3) for j in range(-2, 3) if (i, j) != (0, 0)]
     order = rng.permutation(len(free))
     cells = [free[k] for k in order]
-    shapes = [_shape(rng, size if kind != "cover" else size, allow=("box", "rounded_box", "polygon", "disk",
-                                                                      "capsule"))]
+    shapes = [_shape(rng, size, allow=("box", "rounded_box", "polygon", "disk", "capsule"))]
     if rng.random() < 0.3 and kind != "cover":      # a compound object: a second shape offset along x
         extra = _shape(rng, 0.5 * size, allow=("box", "disk", "polygon"))
         extra["offset"] = [float(0.5 * size), 0.0]
