@@ -358,9 +358,10 @@ def build_parser():
     d.set_defaults(func=cmd_demo)
 
     b = sub.add_parser("bench", help="benchmarks against peers measured in the same run")
-    b.add_argument("what", choices=["step", "lcp", "scaling", "all"],
+    b.add_argument("what", choices=["step", "lcp", "scaling", "pile", "all"],
                    help="step: microseconds per step and compile time; lcp: our Lemke vs QuantEcon's lcp_lemke; "
-                        "scaling: cost per step against the number of bodies")
+                        "scaling: cost per step against the number of bodies; pile: towers and a bin against "
+                        "Box2D v3 (not part of all)")
     b.add_argument("--json", metavar="FILE", help="also write the measurements as JSON")
     b.set_defaults(func=cmd_bench)
 

@@ -12,11 +12,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from planar_lcp.engine.constants import SUPPORT_POINTS
-from planar_lcp.engine.layout import NSTAT, STATS, Stat, StepOptions, make_step_work, model_struct, work_struct
+from planar_lcp.engine.layout import (NSTAT, STATS, Stat, StepOptions, make_step_work, model_struct, step_work_bytes,
+                                      work_struct)
 from planar_lcp.engine.rollout import Recording, rollout_lemke, rollout_lemke_full, rollout_pgs
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES
-from planar_lcp.engine.step import (FORM_VELOCITY, STEP_LCP_FAILED, STEP_NEEDS_FALLBACK, STEP_NONFINITE, STEP_OK,
-                                    step_lemke, step_lemke_full, step_pgs)
+from planar_lcp.engine.step import (FORM_VELOCITY, STEP_LCP_FAILED, STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE,
+                                    STEP_NONFINITE, STEP_OK, step_lemke, step_lemke_full, step_pgs)
 from planar_lcp.model import Model, compile_scene
 from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
 from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, restitution_setting, sim_settings,
@@ -54,6 +55,10 @@ class SimOptions:
     # LCP has several solutions the warm start can keep a different one than Lemke's (docs/method.md, "Warm start"),
     # so the default is the method as published; the planners turn it on for speed.
     warm_start: bool = False
+    # Islands without table friction whose LCP has at least this many unknowns try the sparse solver first (certified
+    # by the same residual test; dense Lemke when it gives no certified answer): docs/method.md, "Large islands".
+    # 0: never. Smaller islands take the dense path as before, so the goldens and the committed plans are unchanged.
+    sparse_min_unknowns: int = 128
 
     def kernel_options(self):
         if self.solver not in SOLVERS:
@@ -66,13 +71,15 @@ class SimOptions:
             raise ValueError(f"fixed_point_iterations must be >= 1, got {self.fixed_point_iterations}")
         if int(self.pgs_iterations) < 1:
             raise ValueError(f"pgs_iterations must be >= 1, got {self.pgs_iterations}")
+        if int(self.sparse_min_unknowns) < 0:
+            raise ValueError(f"sparse_min_unknowns must be >= 0, got {self.sparse_min_unknowns}")
         return StepOptions(
             formulation=FORMULATIONS[self.formulation],
             fp_iters=int(self.fixed_point_iterations), fp_tol=float(self.fixed_point_tol),
             pgs_iters=int(self.pgs_iterations), margin=float(self.contact_margin), pen_tol=float(self.penetration_tol),
             max_resolves=int(self.max_resolves), piv_tol=float(self.piv_tol), ratio_tol=float(self.ratio_tol),
             res_tol=float(self.res_tol), slip_tol=float(self.slip_tol), impulse_tol=float(self.impulse_tol),
-            warm_start=bool(self.warm_start))
+            warm_start=bool(self.warm_start), sparse_min=int(self.sparse_min_unknowns))
 
 
 def _cause(status, stats, stopped):
@@ -130,12 +137,31 @@ class Simulator:
         m = self.model
         return m.q0.copy(), m.v0.copy(), m.qk0.copy(), m.vk0.copy()
 
+    def _grow_dense(self):
+        """Larger dense buffers after a step asked for them (STEP_NEEDS_SPACE: work.dense_needed unknowns): at least
+        double, at most the model's bound. Every other buffer is carried over (the warm-start memory with it)."""
+        needed = int(self.work.dense_needed[0])
+        have = self.work.lemke_lu.shape[0]
+        if needed <= have:
+            raise RuntimeError(f"a step asked for dense buffers of {needed} unknowns, and they hold {have}")
+        new = make_step_work(self.model, min(self.model.max_unknowns(), max(needed, 2 * have)))
+        for old, fresh in zip(self.work, new):
+            if old.shape == fresh.shape:
+                fresh[...] = old
+        self.work = new
+        self.kwork = work_struct(new)
+
     def _step_into(self, q, v, qk, vk, q_out, v_out, qk_out, stats):
-        for step, _ in self._variants:  # the last one never hands a step back
+        level = 0
+        while True:  # the last variant never hands a step back for a fallback
+            step = self._variants[level][0]
             st = int(step(self.kmodel, q, v, qk, vk, self.h, self.kopt, self.kwork, q_out, v_out, qk_out, stats))
-            if st != STEP_NEEDS_FALLBACK:
-                break
-        return st
+            if st == STEP_NEEDS_SPACE:
+                self._grow_dense()
+            elif st == STEP_NEEDS_FALLBACK:
+                level += 1
+            else:
+                return st
 
     def reset_warm_start(self):
         """Forget the LCP bases kept for warm starts: the next `step` starts cold."""
@@ -220,6 +246,9 @@ class Simulator:
             start += done
             if done and stop_on_failure and rec.status[start - 1] != STEP_OK:
                 return start                  # stopped on a failed step
+            if done < n and rec.status[start] == STEP_NEEDS_SPACE:
+                self._grow_dense()            # and run that step again, by the same variant
+                continue
             level = level + 1 if done < n else 0
         return nsteps
 
@@ -248,14 +277,12 @@ def estimate_run_bytes(model, nsteps, record_contacts=True):
 
     Trajectory: per step the rollout's q, v (ndyn x 3), qk (nkin x 3), stats (NSTAT), status, the contact arrays
     (88 bytes per contact slot, 2 slots per shape pair) when recorded, and the Trajectory's copies (frame poses and
-    velocities, NSTAT stats, energy, t). Work: the Lemke tableau U x (2U + 2), the dense A and LU (U x U each) and
-    ~30 vectors of U, U = model.max_unknowns() (engine/step.py `make_step_work`)."""
+    velocities, NSTAT stats, energy, t). Work: what `make_step_work` allocates (engine/layout.py `step_work_bytes`;
+    mostly the Lemke tableau U x (2U + 2) and the dense A and LU, U x U each, U = model.max_unknowns())."""
     nd, nk = model.ndyn, model.nkin
     C = model.max_contacts() if record_contacts else 0
     per_step = 8 * (2 * 3 * nd + 3 * nk + NSTAT + 1) + (8 + 88 * C if C else 0) + 8 * (2 * 3 * nd + NSTAT + 2)
-    U = max(1, model.max_unknowns())
-    work = 8 * (U * (2 * U + 2) + 2 * U * U + 30 * U) + 2 * max(1, nd) * U
-    return (nsteps + 1) * per_step, work
+    return (nsteps + 1) * per_step, step_work_bytes(model)
 
 
 def check_run_size(model, nsteps, names=None, record_contacts=True, limit=None):

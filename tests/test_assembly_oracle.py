@@ -675,6 +675,7 @@ def test_oracle_catches_a_mutated_kernel(mutant, monkeypatch):
             with monkeypatch.context() as mp:
                 mp.setattr(AS, "assemble_lcp", assemble)
                 # its helper that calls the mutated ones runs as python too, so that it sees them
+                mp.setattr(AS, "assemble_columns", getattr(AS.assemble_columns, "py_func", AS.assemble_columns))
                 mp.setattr(AS, "normal_column", getattr(AS.normal_column, "py_func", AS.normal_column))
                 mp.setattr(AS, "support_columns", getattr(AS.support_columns, "py_func", AS.support_columns))
                 A, b, *_ = kernel_lcp(*prob.args(isl_con, isl_sup), parts["n"])

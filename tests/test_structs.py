@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from planar_lcp import load_scene, simulate
-from planar_lcp.engine.layout import (MODEL_LAYOUT, WORK_LAYOUT, Stat, make_step_work, model_struct, work_sizes,
-                                      work_struct)
+from planar_lcp.engine.layout import (DENSE_CAPACITY, MODEL_LAYOUT, WORK_LAYOUT, Stat, make_step_work, model_struct,
+                                      work_sizes, work_struct)
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
 
@@ -42,10 +42,15 @@ def test_the_model_arrays_have_the_shapes_the_table_declares(name):
 
 
 def test_the_allocator_sizes_the_lcp_buffers_for_the_largest_problem():
+    """Linear buffers for the largest LCP; the dense (quadratic) ones for min(that, DENSE_CAPACITY), grown on demand
+    (tests/test_piles.py::test_dense_buffers_grow_when_an_island_needs_them)."""
     model = compile_scene(load_scene("push_t"))
     w, sizes = make_step_work(model), work_sizes(model)
     U = model.max_unknowns()
-    assert sizes["unknown"] == U and w.lemke_tableau.shape == (U * (2 * U + 2),) and w.lcp_matrix.shape == (U * U,)
+    D = min(U, DENSE_CAPACITY)
+    assert sizes["unknown"] == U and sizes["dense"] == D
+    assert w.lemke_tableau.shape == (D * (2 * D + 2),) and w.lcp_matrix.shape == (D * D,)
+    assert w.lemke_lu.shape == (D, D) and w.lemke_z.shape == (U,)
     assert w.con_pair.shape == (model.max_contacts(),) and w.warm_basic_z.shape == (model.ndyn, U)
     assert np.all(w.warm_size == -1) and np.all(w.warm_size_saved == -1) and not w.warm_basic_z.any()
     for f, v in zip(WORK_LAYOUT, w):
@@ -77,6 +82,6 @@ def test_trajectory_stats_keys_are_the_contract():
     tr = simulate("falling_rod", t_end=0.05)
     assert sorted(tr.stats) == sorted([
         "lcp_size", "lcp_max", "pivots", "n_contacts", "n_islands", "fp_iterations", "resolves", "residual",
-        "penetration", "lemke_retries", "warm_starts", "solved_lemke", "solved_equilibrated", "solved_strict",
-        "solved_velocity", "solved_inelastic", "pgs_uncertified", "fp_change", "pgs_update", "status", "energy"])
+        "penetration", "lemke_retries", "warm_starts", "solved_sparse", "sparse_fallbacks", "solved_lemke",
+        "solved_equilibrated", "solved_strict", "solved_velocity", "solved_inelastic", "pgs_uncertified", "fp_change", "pgs_update", "status", "energy"])
     assert tr.stats["pivots"].dtype.kind == "i" and tr.stats["residual"].dtype.kind == "f"

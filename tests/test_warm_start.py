@@ -131,7 +131,9 @@ def test_warm_and_cold_runs_agree_on_the_shipped_scenes(name):
     warm = simulate(name, t_end=t_end, warm_start=True)
     cold = simulate(name, t_end=t_end)
     assert np.abs(warm.q - cold.q).max() <= 1e-8
-    assert warm.stats["warm_starts"].sum() > 0 or warm.stats["lcp_size"].sum() == 0
+    # a run whose every island went to the sparse solver (the tower) has no dense basis to keep
+    all_sparse = np.all(warm.stats["solved_sparse"] > 0) and warm.stats["sparse_fallbacks"].sum() == 0
+    assert warm.stats["warm_starts"].sum() > 0 or warm.stats["lcp_size"].sum() == 0 or all_sparse
     assert cold.stats["warm_starts"].sum() == 0
 
 

@@ -244,16 +244,10 @@ def normal_column(m, w, vk, h, velocity_form, a, u, b, elastic=True):
 
 
 @njit(cache=True)
-def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b, elastic=True):
-    """Build the LCP (A, b) of the island whose contacts and support points are w.island_con[:nci],
-    w.island_sup[:nsi] (geometry at the linearization pose w.body_pose); the generalized columns of its force
-    unknowns go to w.column_slot / w.column_g. Returns (LCP size n, number of frictional contacts).
-
-    Normal rows: position forms (linearized at the pose q_hat = q + h v_hat):  phi/h + n.(v+ - v_hat) >= 0;
-    velocity form (contacts at q):  n.v+ + (kinematic normal velocity) + max(phi, 0)/h >= 0.
-    Friction rows: lambda e + D^T v+ (+ kinematic tangential velocity) >= 0.  Slack rows: mu c_n - e^T beta >= 0.
-    Restitution changes the normal rows' constants (`normal_column`); elastic=False assembles them as at e = 0.
-    """
+def assemble_columns(m, w, vk, nci, nsi, h, velocity_form, b, elastic=True):
+    """The island's force columns (w.column_slot / w.column_g) and the LCP's constant vector b, without its matrix:
+    all a sparse solver needs (engine/solvers/sparse.py). `assemble_lcp` is this and the matrix. Returns (LCP size
+    n, number of frictional contacts)."""
     poses, con_pair, con_phi, con_n, con_p = w.body_pose, w.con_pair, w.con_phi, w.con_n, w.con_p
     col_dyn, col_g, v_tilde, isl_sup = w.column_slot, w.column_g, w.v_tilde, w.island_sup
     k = support_column_count(m)
@@ -262,7 +256,6 @@ def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b, elastic=True):
     o_bs = o_bc + 2 * nf
     o_lc = o_bs + k * nsi
     o_ls = o_lc + nf
-    nforce = o_lc
     # generalized columns of the force unknowns (and the normal rows' constants)
     f = 0
     for a in range(nci):
@@ -274,16 +267,11 @@ def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b, elastic=True):
             f += 1
     for a in range(nsi):
         support_columns(m, w, isl_sup[a], o_bs + k * a)
-    for i in range(n):
-        for c in range(n):
-            A[i, c] = 0.0
-    delassus(m, nforce, col_dyn, col_g, A)
-    # the friction and slack rows
+    # the friction and slack rows' constants
     f = 0
     for a in range(nci):
         j = w.island_con[a]
-        mu = m.pair_mu[con_pair[j]]
-        if mu <= 0.0:
+        if m.pair_mu[con_pair[j]] <= 0.0:
             continue
         nx = con_n[j, 0]
         ny = con_n[j, 1]
@@ -291,11 +279,6 @@ def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b, elastic=True):
         vt = kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, -ny, nx)
         b[u] = column_dot(col_dyn, col_g, u, v_tilde) + vt
         b[u + 1] = column_dot(col_dyn, col_g, u + 1, v_tilde) - vt
-        A[u, o_lc + f] = 1.0
-        A[u + 1, o_lc + f] = 1.0
-        A[o_lc + f, a] = mu
-        A[o_lc + f, u] = -1.0
-        A[o_lc + f, u + 1] = -1.0
         b[o_lc + f] = 0.0
         f += 1
     for a in range(nsi):
@@ -303,10 +286,50 @@ def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b, elastic=True):
         for i in range(k):
             u = o_bs + k * a + i
             b[u] = column_dot(col_dyn, col_g, u, v_tilde)
-            A[u, o_ls + a] = 1.0
-            A[o_ls + a, u] = -1.0
         # the normal impulse on the table is known: h * load
         b[o_ls + a] = m.sup_mu[s] * h * m.sup_load[s]
+    return n, nf
+
+
+@njit(cache=True)
+def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b, elastic=True):
+    """Build the LCP (A, b) of the island whose contacts and support points are w.island_con[:nci],
+    w.island_sup[:nsi] (geometry at the linearization pose w.body_pose); the generalized columns of its force
+    unknowns go to w.column_slot / w.column_g. Returns (LCP size n, number of frictional contacts).
+
+    Normal rows: position forms (linearized at the pose q_hat = q + h v_hat):  phi/h + n.(v+ - v_hat) >= 0;
+    velocity form (contacts at q):  n.v+ + (kinematic normal velocity) + max(phi, 0)/h >= 0.
+    Friction rows: lambda e + D^T v+ (+ kinematic tangential velocity) >= 0.  Slack rows: mu c_n - e^T beta >= 0.
+    Restitution changes the normal rows' constants (`normal_column`); elastic=False assembles them as at e = 0.
+    """
+    n, nf = assemble_columns(m, w, vk, nci, nsi, h, velocity_form, b, elastic)
+    k = support_column_count(m)
+    o_bc = nci
+    o_bs = o_bc + 2 * nf
+    o_lc = o_bs + k * nsi
+    o_ls = o_lc + nf
+    for i in range(n):
+        for c in range(n):
+            A[i, c] = 0.0
+    delassus(m, o_lc, w.column_slot, w.column_g, A)
+    # the friction and slack rows
+    f = 0
+    for a in range(nci):
+        mu = m.pair_mu[w.con_pair[w.island_con[a]]]
+        if mu <= 0.0:
+            continue
+        u = o_bc + 2 * f
+        A[u, o_lc + f] = 1.0
+        A[u + 1, o_lc + f] = 1.0
+        A[o_lc + f, a] = mu
+        A[o_lc + f, u] = -1.0
+        A[o_lc + f, u + 1] = -1.0
+        f += 1
+    for a in range(nsi):
+        for i in range(k):
+            u = o_bs + k * a + i
+            A[u, o_ls + a] = 1.0
+            A[o_ls + a, u] = -1.0
     return n, nf
 
 

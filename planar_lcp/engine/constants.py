@@ -9,3 +9,8 @@ MODE_SEPARATED, MODE_STICKING, MODE_SLIDING = 0, 1, 2
 
 #: Table-friction models: the index of each name in spec.scene.SUPPORT_MODELS.
 SUPPORT_LIMIT_SURFACE, SUPPORT_POINTS = 0, 1
+
+#: The sparse island solver (engine/solvers/sparse.py): the widest band of its reduced system it factors (larger
+#: islands' bands go to dense Lemke), and the reduced unknowns per dynamic body its buffers hold.
+SPARSE_MAX_BAND = 64
+SPARSE_UNKNOWNS_PER_BODY = 16

@@ -25,6 +25,8 @@ from numba.experimental import structref
 from numba.experimental.jitclass.base import imp_dtor
 from numba.extending import intrinsic
 
+from planar_lcp.engine.constants import SPARSE_MAX_BAND, SPARSE_UNKNOWNS_PER_BODY
+
 #: One field of a struct. dtype: "f8", "i8", "bool" (arrays, C-contiguous) or "int", "float", "bool" with shape ""
 #: (scalars). shape: sizes separated by " x ", each a number or a size name (`work_sizes`; model sizes for the
 #: reader). writer: the stage that writes it. init: the value the allocator fills in.
@@ -116,7 +118,7 @@ island_sup         | i8    | support           | -          | islands   | the su
 sup_recentred      | f8    | support x 3       | -, m       | contacts  | limit surface: -L(v_tilde), body frame
 column_slot        | i8    | unknown x 2       | -          | assemble  | its 2 bodies' slots (-1: none)
 column_g           | f8    | unknown x 2 x 3   | -          | assemble  | its generalized vectors on them
-lcp_matrix         | f8    | unknown2          | -          | assemble  | the island's matrix (n x n, row-major)
+lcp_matrix         | f8    | dense2            | -          | assemble  | the island's matrix (n x n, row-major)
 lcp_vector         | f8    | unknown           | m/s        | assemble  | the island's constant vector
 pgs_impulse        | f8    | unknown           | N s        | pgs       | PGS unknowns
 lemke_tableau      | f8    | tableau           | -          | lemke     | tableau (n x 2n + 2, row-major)
@@ -124,7 +126,7 @@ lemke_basis        | i8    | unknown           | -          | lemke     | basic 
 lemke_z            | f8    | unknown           | N s        | lemke     | the LCP's answer z
 lemke_w            | f8    | unknown           | m/s        | lemke     | w = M z + q
 lemke_rows         | i8    | unknown           | -          | lemke     | candidate rows of the ratio test
-lemke_lu           | f8    | unknown x unknown | -          | lemke     | basis refinement's LU factors
+lemke_lu           | f8    | dense x dense     | -          | lemke     | basis refinement's LU factors
 lemke_rhs          | f8    | unknown           | -          | lemke     | basis refinement's right-hand side
 lemke_perm         | i8    | unknown           | -          | lemke     | basis refinement's row permutation
 lemke_basic        | i8    | unknown           | -          | lemke     | indices of the basic z
@@ -142,6 +144,25 @@ con_cn             | f8    | contact           | N s        | solvers   | normal
 con_ft             | f8    | contact           | N s        | solvers   | tangential impulse along t = (-n_y, n_x)
 con_vt             | f8    | contact           | m/s        | solvers   | post-solve tangential velocity, A minus B
 con_mode           | i8    | contact           | -          | solvers   | MODE_*
+sparse_fric        | i8    | contact           | -          | sparse    | island contact a's friction index (-1: none)
+sparse_mode        | i8    | contact           | -          | sparse    | island contact a's guessed mode (SPARSE_*)
+sparse_unknown     | i8    | contact           | -          | sparse    | its first reduced unknown (-1: separated)
+sparse_order       | i8    | contact           | -          | sparse    | the island's contacts in band order
+sparse_key         | i8    | contact           | -          | sparse    | each contact's band-order key
+sparse_vt          | f8    | contact           | m/s        | sparse    | tangential velocity of the mode's solution
+sparse_rank        | i8    | dyn               | -          | sparse    | breadth-first rank of each body (-1: none)
+sparse_queue       | i8    | dyn               | -          | sparse    | breadth-first queue
+sparse_body_start  | i8    | dyn1              | -          | sparse    | each body's first entry in sparse_body_con
+sparse_body_con    | i8    | contact2          | -          | sparse    | the island contacts of each body
+sparse_body_lo     | i8    | dyn               | -          | sparse    | lowest reduced unknown on each body
+sparse_body_hi     | i8    | dyn               | -          | sparse    | highest reduced unknown on each body
+sparse_band        | f8    | band              | -          | sparse    | the reduced matrix W, band storage
+sparse_lu          | f8    | band              | -          | sparse    | its regularized LU factors
+sparse_rhs         | f8    | reduced           | m/s        | sparse    | the reduced system's right-hand side
+sparse_x           | f8    | reduced           | N s        | sparse    | its solution
+sparse_r           | f8    | reduced           | m/s        | sparse    | refinement residual, then correction
+sparse_dv          | f8    | dyn x 3           | m/s, rad/s | sparse    | M^-1 G z of the candidate answer
+dense_needed       | i8    | 1                 | -          | solvers   | dense size a step asked for (NEEDS_SPACE)
 warm_size          | i8    | dyn               | -          | lemke     | per island: last LCP's size (-1: none)
 warm_basic_z       | bool  | dyn x unknown     | -          | lemke     | per island: which z were basic in it
 warm_size_saved    | i8    | dyn               | -          | step      | warm_size before a step
@@ -163,6 +184,7 @@ res_tol      | float | -     | -      | sim    | certification: residual toleran
 slip_tol     | float | -     | m/s    | sim    | a loaded contact slipping faster is sliding
 impulse_tol  | float | -     | N s    | sim    | a contact with a smaller normal impulse is separated
 warm_start   | bool  | -     | -      | sim    | try each island's previous basis first
+sparse_min   | int   | -     | -      | sim    | a larger island without table friction: sparse solver first (0: never)
 """)
 
 #: A step's diagnostics, one float64 entry each in the stats vector (the kernels' `stats`, `Simulator.stats`, a
@@ -183,6 +205,8 @@ STATS = (
     ("penetration", False, "m: deepest penetration at the end of the step (>= 0)"),
     ("lemke_retries", True, "Lemke tries after the first one of each island"),
     ("warm_starts", True, "island LCPs solved by the previous step's basis"),
+    ("solved_sparse", True, "island LCPs solved by the sparse solver (large islands)"),
+    ("sparse_fallbacks", True, "large islands the sparse solver left to dense Lemke"),
     ("solved_lemke", True, "island LCPs solved by Lemke as assembled"),
     ("solved_equilibrated", True, "island LCPs solved by Lemke on the equilibrated problem"),
     ("solved_strict", True, "island LCPs solved by Lemke with stricter pivot tolerances"),
@@ -208,21 +232,44 @@ def numba_type(field):
     return types.Array(_DTYPES[field.dtype][0], len(field.shape.split(" x ")), "C")
 
 
-def work_sizes(model):
+#: The dense buffers' first capacity (LCP unknowns): an island's dense LCP, tableau and LU take O(n^2) memory, and
+#: `Model.max_unknowns` bounds n by every shape pair in contact at once (16640 for a tower of 64 boxes: 9 GB). They
+#: start at this size (8 MB) and grow when a step needs more (`Simulator`, STEP_NEEDS_SPACE).
+DENSE_CAPACITY = 512
+
+
+def work_sizes(model, dense_capacity=None):
     """The sizes WORK_LAYOUT's shapes name, for `model` (each at least 1: numba needs no empty-array special cases).
-    unknown is the LCP size bound `Model.max_unknowns`, contact the contact capacity (2 per shape pair)."""
+    unknown is the LCP size bound `Model.max_unknowns`, contact the contact capacity (2 per shape pair), dense the
+    capacity of the dense buffers (default min(unknown, DENSE_CAPACITY))."""
     a = model.arrays
     U = max(1, model.max_unknowns())
+    D = min(U, int(dense_capacity or DENSE_CAPACITY))
+    contact = max(1, 2 * a.pair_a.shape[0])
+    dyn = max(1, model.ndyn)
+    reduced = min(2 * contact, SPARSE_UNKNOWNS_PER_BODY * dyn)
     return dict(body=a.body_kind.shape[0], vert=max(1, a.vert_local.shape[0]), pair=max(1, a.pair_a.shape[0]),
-                contact=max(1, 2 * a.pair_a.shape[0]), dyn=max(1, model.ndyn), support=max(1, a.sup_dyn.shape[0]),
-                unknown=U, unknown2=U * U, tableau=U * (2 * U + 2), tableau_row=2 * U + 2)
+                contact=contact, contact2=2 * contact, dyn=dyn, dyn1=dyn + 1, support=max(1, a.sup_dyn.shape[0]),
+                unknown=U, dense=D, dense2=D * D, tableau=D * (2 * D + 2), tableau_row=2 * D + 2, reduced=reduced,
+                band=reduced * (2 * SPARSE_MAX_BAND + 1))
 
 
-def make_step_work(model):
-    """Allocate every buffer a step needs, sized from the model (no allocation happens inside the kernels)."""
-    sizes = work_sizes(model)
-    return StepWork(*(np.full(tuple(int(d) if d.isdigit() else sizes[d] for d in f.shape.split(" x ")), f.init,
-                              _DTYPES[f.dtype][1]) for f in WORK_LAYOUT))
+def _work_shapes(model, dense_capacity=None):
+    sizes = work_sizes(model, dense_capacity)
+    return [tuple(int(d) if d.isdigit() else sizes[d] for d in f.shape.split(" x ")) for f in WORK_LAYOUT]
+
+
+def make_step_work(model, dense_capacity=None):
+    """Allocate every buffer a step needs, sized from the model (no allocation happens inside the kernels); the dense
+    buffers for islands of up to `dense_capacity` unknowns (`work_sizes`)."""
+    shapes = _work_shapes(model, dense_capacity)
+    return StepWork(*(np.full(shape, f.init, _DTYPES[f.dtype][1]) for f, shape in zip(WORK_LAYOUT, shapes)))
+
+
+def step_work_bytes(model, dense_capacity=None):
+    """What `make_step_work(model, dense_capacity)` allocates, in bytes, without allocating it."""
+    return sum(int(np.prod(shape)) * np.dtype(_DTYPES[f.dtype][1]).itemsize
+               for f, shape in zip(WORK_LAYOUT, _work_shapes(model, dense_capacity)))
 
 
 @structref.register

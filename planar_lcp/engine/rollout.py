@@ -10,7 +10,7 @@ from collections import namedtuple
 from numba import njit
 
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.step import STEP_NEEDS_FALLBACK, STEP_OK, step_lemke, step_lemke_full, step_pgs
+from planar_lcp.engine.step import STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE, STEP_OK, step_lemke, step_lemke_full, step_pgs
 
 #: A rollout's output buffers. States q, v (nsteps + 1, ndyn, 3) and qk (nsteps + 1, nkin, 3), row 0 the initial
 #: state; per step: stats (nsteps, NSTAT), status (nsteps,) STEP_* codes, and the contacts of the step's active set
@@ -78,7 +78,7 @@ def rollout_loop(step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, st
     -------
     int
         The steps done: nsteps, or fewer when stop_on_failure and a step failed (that step included), or when a step
-        returned STEP_NEEDS_FALLBACK (that step excluded: nothing of it was written but its status).
+        returned STEP_NEEDS_FALLBACK or STEP_NEEDS_SPACE (that step excluded: nothing of it was written but its status).
     """
     start_rollout(w, q0, v0, qk0, rec, reset_warm_start)
     nvk = vk_seq.shape[0]
@@ -87,7 +87,7 @@ def rollout_loop(step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, st
         st = step(m, rec.q[i], rec.v[i], rec.qk[i], vk, h, opt, w, rec.q[i + 1], rec.v[i + 1], rec.qk[i + 1],
                   rec.stats[i])
         rec.status[i] = st
-        if st == STEP_NEEDS_FALLBACK:
+        if st == STEP_NEEDS_FALLBACK or st == STEP_NEEDS_SPACE:
             return i
         record_contacts(w, i, int(rec.stats[i, Stat.N_CONTACTS]), rec)
         if st != STEP_OK and stop_on_failure:

@@ -20,7 +20,7 @@ from planar_lcp.engine.constants import SUPPORT_LIMIT_SURFACE
 from planar_lcp.engine.contacts import body_poses, find_contacts, world_vertices
 from planar_lcp.engine.islands import find_islands, island_members
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.solvers.lemke import STATUS_SOLVED, lemke_in_work, solve_island_lemke
+from planar_lcp.engine.solvers.lemke import STATUS_NEEDS_SPACE, STATUS_SOLVED, lemke_in_work, solve_island_lemke
 from planar_lcp.engine.solvers.pgs import solve_island_pgs
 
 # The stages are inline='always' (and so are the island solvers, through the pipeline's arguments): every separately
@@ -35,6 +35,8 @@ STEP_OK = 0
 STEP_LCP_FAILED = 1      # no method gave a certified answer for an island; the fallback's uncertified answer was used
 STEP_NONFINITE = 2       # the new state is not finite
 STEP_NEEDS_FALLBACK = 3  # a variant without fallback: an island had no certified answer; nothing was written
+STEP_NEEDS_SPACE = 4     # an island's dense problem is larger than the dense buffers (w.dense_needed); nothing was
+                         # written: the caller grows them and runs the step again
 
 
 @njit(cache=True, inline='always')
@@ -63,18 +65,22 @@ def check_end_configuration(m, w, opt, qk_new, stats):
 @njit(cache=True, inline='always')
 def project_positions(m, w, opt, qk_new, stats):
     """The velocity form's last stage: the drift correction (`project_out_of_penetration`), then the penetration at
-    the end of the step measured again (stats[Stat.PENETRATION]; no pair is added: the step is done)."""
-    project_out_of_penetration(m, w, opt, qk_new, stats)
+    the end of the step measured again (stats[Stat.PENETRATION]; no pair is added: the step is done). Returns False
+    when the dense buffers are too small for the projection."""
+    if not project_out_of_penetration(m, w, opt, qk_new, stats):
+        return False
     for p in range(w.pair_set_count.shape[0]):
         w.pair_set_count[p] = 2
     check_end_configuration(m, w, opt, qk_new, stats)
+    return True
 
 
 @njit(cache=True, inline='always')
 def project_out_of_penetration(m, w, opt, qk_new, stats):
     """Velocity form's drift correction: move q+ (positions only) out of penetration by the smallest
     mass-weighted displacement, dq = M^-1 N y with 0 <= y _|_ phi(q+) + N^T M^-1 N y >= 0 (normal rows only).
-    Velocities are not touched, so no kinetic energy is added."""
+    Velocities are not touched, so no kinetic energy is added. Returns False when the dense buffers are too small
+    (w.dense_needed says how large they must be; q+ is then unchanged)."""
     body_poses(m, w.q_new, qk_new, w.body_pose)
     world_vertices(m, w.body_pose, w.vert_world)
     # Every contact within the margin is a constraint of the projection, not only the penetrating ones: lifting one
@@ -85,7 +91,10 @@ def project_out_of_penetration(m, w, opt, qk_new, stats):
     for j in range(n):
         deepest = max(deepest, -w.check_phi[j])
     if deepest <= opt.pen_tol:
-        return
+        return True
+    if n > w.lemke_lu.shape[0]:
+        w.dense_needed[0] = max(w.dense_needed[0], n)
+        return False
     for j in range(n):
         contact_column(m, w.body_pose, w.check_pair, w.check_p, j, w.check_n[j, 0], w.check_n[j, 1], w.column_slot,
                        w.column_g, j)
@@ -96,7 +105,7 @@ def project_out_of_penetration(m, w, opt, qk_new, stats):
     st, piv, res = lemke_in_work(w, A, w.lcp_vector[:n], n, opt, opt.piv_tol, True)
     if st != STATUS_SOLVED:
         stats[Stat.LEMKE_STATUS] = max(stats[Stat.LEMKE_STATUS], st)
-        return
+        return True
     # dq = M^-1 G y (reuse the impulse application on a zeroed buffer)
     ndyn = w.q_new.shape[0]
     for d in range(ndyn):
@@ -106,6 +115,7 @@ def project_out_of_penetration(m, w, opt, qk_new, stats):
     for d in range(ndyn):
         for c in range(3):
             w.q_new[d, c] += w.v_hat[d, c]
+    return True
 
 
 @njit(cache=True, inline='always')
@@ -129,6 +139,7 @@ def begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats):
             qk_out[kk, c] = qk[kk, c] + h * vk[kk, c]
     for p in range(w.pair_forced.shape[0]):
         w.pair_forced[p] = False
+    w.dense_needed[0] = 0
 
 
 @njit(cache=True, inline='always')
@@ -214,6 +225,16 @@ def copy_warm_start(size_from, basic_z_from, size_to, basic_z_to):
 
 
 @njit(cache=True, inline='always')
+def save_warm_start(w):
+    copy_warm_start(w.warm_size, w.warm_basic_z, w.warm_size_saved, w.warm_basic_z_saved)
+
+
+@njit(cache=True, inline='always')
+def restore_warm_start(w):
+    copy_warm_start(w.warm_size_saved, w.warm_basic_z_saved, w.warm_size, w.warm_basic_z)
+
+
+@njit(cache=True, inline='always')
 def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     """THE step: advance (q, v, qk) by one step of size h with kinematic velocities vk.
 
@@ -260,9 +281,9 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
     if project is None:
         if velocity_form:
             return STEP_NEEDS_FALLBACK
-    if fallback is None:
-        if opt.warm_start:
-            copy_warm_start(w.warm_size, w.warm_basic_z, w.warm_size_saved, w.warm_basic_z_saved)
+    if opt.warm_start:
+        # kept in case the step is handed back (STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE): its re-run starts from it
+        save_warm_start(w)
     begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats)
     # the velocity form evaluates contacts at the current configuration, the position forms at the end of the step
     qk_lin = qk if velocity_form else qk_out
@@ -277,13 +298,20 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
             if nci == 0 and nsi == 0:
                 continue
             st = solve(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
+            if st == STATUS_NEEDS_SPACE:
+                if opt.warm_start:
+                    restore_warm_start(w)
+                return STEP_NEEDS_SPACE
             if st != STATUS_SOLVED:
                 if fallback is None:
                     if opt.warm_start:
-                        copy_warm_start(w.warm_size_saved, w.warm_basic_z_saved, w.warm_size, w.warm_basic_z)
+                        restore_warm_start(w)
                     return STEP_NEEDS_FALLBACK
                 stats[Stat.PGS_UNCERTIFIED] += 1
-                fallback(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
+                if fallback(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats) == STATUS_NEEDS_SPACE:
+                    if opt.warm_start:
+                        restore_warm_start(w)
+                    return STEP_NEEDS_SPACE
                 worst = st
         integrate_positions(q, h, w)
         again, it = needs_another_solve(m, w, opt, q, h, qk_out, fp_iter, stats)
@@ -293,7 +321,10 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
             break
     if project is not None:
         if velocity_form:
-            project(m, w, opt, qk_out, stats)
+            if not project(m, w, opt, qk_out, stats):
+                if opt.warm_start:
+                    restore_warm_start(w)
+                return STEP_NEEDS_SPACE
     return write_outputs(w, ncon, q_out, v_out, stats, fp_iter, worst)
 
 

@@ -439,12 +439,155 @@ def format_scaling_table(rows, fits, fit_spread=None):
     return "\n".join(lines)
 
 
+#: `bench pile`: the scenes (name, generator), steps per run (2 s at h = 1/60 s), Box2D substeps tried for the tower
+PILE_SCENES = (("tower_16", lambda: _piles().tower(16)), ("tower_64", lambda: _piles().tower(64)),
+               ("bin_40", lambda: _piles().bin_scene(40)))
+PILE_STEPS = 120
+PILE_SUBSTEPS = (4, 8, 16, 32, 64)
+PILE_ROUNDS = 7
+#: a tower "stands" when its top box moves less than this over the run (m)
+STAND_TOL = 1e-3
+
+
+def _piles():
+    from planar_lcp.spec import piles
+    return piles
+
+
+def _penetration(model, q):
+    """Deepest penetration (m, >= 0) of the dynamic bodies at poses q, by our collision detection."""
+    from planar_lcp.engine.contacts import contacts_at
+    _, phi, _, _ = contacts_at(model.arrays, q, model.qk0, 0.0, all_pairs=True)
+    return float(max(0.0, -phi.min())) if phi.size else 0.0
+
+
+def _box2d_run(model, substeps, steps, h):
+    """Box2D's whole run: (top-box drift (m), deepest penetration over the run, sampled every 10 steps)."""
+    from planar_lcp.experiments.box2d_bridge import box2d_poses, box2d_world
+    world, bodies = box2d_world(model)
+    q0 = box2d_poses(bodies)
+    pen = 0.0
+    for i in range(steps):
+        world.step(h, substeps)
+        if i % 10 == 9:
+            pen = max(pen, _penetration(model, box2d_poses(bodies)))
+    q = box2d_poses(bodies)
+    return float(np.abs(q[-1, :2] - q0[-1, :2]).max()), pen
+
+
+class _Box2dRunner:
+    """One unit: a whole Box2D run of `steps` steps; its worlds are built by `prepare`, outside the clock."""
+
+    def __init__(self, model, substeps, steps, h):
+        self.model, self.substeps, self.steps, self.h = model, substeps, steps, h
+        self.worlds = []
+
+    def prepare(self, k):
+        from planar_lcp.experiments.box2d_bridge import box2d_world
+        self.worlds = [box2d_world(self.model)[0] for _ in range(k)]
+
+    def __call__(self):
+        world = self.worlds.pop()     # alternate_rounds prepares as many as it calls
+        for _ in range(self.steps):
+            world.step(self.h, self.substeps)
+
+
+def bench_pile(scenes=PILE_SCENES, steps=PILE_STEPS, rounds=PILE_ROUNDS, min_round_s=MIN_ROUND_S):
+    """Per step, ours (the defaults: the sparse solver on large islands) against Box2D v3 on the same scenes in the
+    same process, alternating rounds of thread CPU time; Box2D at its default 4 substeps and at the fewest of
+    PILE_SUBSTEPS that keep the tower of the same scene family standing (towers: their own; the bin: the 64-box
+    tower's). Each row: us/step median [min-max], the ratio ours / Box2D per round (median [min-max]), and for each
+    simulator whether the tower stood (top box moved < STAND_TOL) and the deepest penetration over the run."""
+    from planar_lcp.engine.layout import Stat
+    from planar_lcp.model import compile_scene
+    from planar_lcp.sim import SimOptions, Simulator
+    from planar_lcp.spec.scene import parse_scene
+    rows, tuned_for_bin = [], None
+    for name, make in scenes:
+        scene = parse_scene(make())
+        model = compile_scene(scene)
+        h = scene.sim.h
+        sim = Simulator(model, SimOptions(h=h))
+        q, v, qk, vk = sim.initial_state()
+        out = sim.rollout(q, v, qk, vk[None], steps)
+        ours_drift = float(np.abs(out["q"][-1, -1, :2] - out["q"][0, -1, :2]).max())
+        ours_pen = float(out["stats"][:, Stat.PENETRATION].max())
+        tower = name.startswith("tower")
+        tried = {}
+        if tower:
+            for sub in PILE_SUBSTEPS:
+                tried[sub] = _box2d_run(model, sub, steps, h)
+                if tried[sub][0] < STAND_TOL:
+                    break
+            stood = [sub for sub, (drift, _) in tried.items() if drift < STAND_TOL]
+            tuned = stood[0] if stood else max(tried)
+            tuned_for_bin = tuned
+            label = "fewest that stand" if stood else "most tried: none stands"
+        else:
+            tuned = tuned_for_bin or 4
+            label = "the last tower's"
+        for sub in {4, tuned}:
+            if sub not in tried:
+                tried[sub] = _box2d_run(model, sub, steps, h)
+        runners = {"ours": lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], steps)}
+        for sub in sorted({4, tuned}):
+            runners[f"box2d_{sub}"] = _Box2dRunner(model, sub, steps, h)
+        m = alternate_rounds(runners, rounds=rounds, min_round_s=min_round_s)
+        ours = m["per_unit"]["ours"] / steps
+        for sub in sorted({4, tuned}):
+            peer = m["per_unit"][f"box2d_{sub}"] / steps
+            ratio = _spread(ours / peer)
+            drift, pen = tried[sub]
+            rows.append(dict(scene=name, bodies=model.ndyn, box2d_substeps=sub,
+                             box2d_setting="defaults" if sub == 4 else label,
+                             ours_us=float(np.median(ours)) * 1e6, ours_us_min=float(ours.min()) * 1e6,
+                             ours_us_max=float(ours.max()) * 1e6, box2d_us=float(np.median(peer)) * 1e6,
+                             box2d_us_min=float(peer.min()) * 1e6, box2d_us_max=float(peer.max()) * 1e6,
+                             ratio=ratio["median"], ratio_min=ratio["min"], ratio_max=ratio["max"],
+                             ours_top_drift=ours_drift if tower else None, ours_penetration=ours_pen,
+                             box2d_top_drift=drift if tower else None, box2d_penetration=pen,
+                             solved_sparse=int(out["stats"][:, Stat.SOLVED_SPARSE].sum()),
+                             sparse_fallbacks=int(out["stats"][:, Stat.SPARSE_FALLBACKS].sum()),
+                             rounds=rounds, steps=steps, h=h))
+    return rows
+
+
+def format_pile_table(rows):
+    lines = ["| scene | bodies | Box2D substeps | ours µs/step | Box2D µs/step | ratio ours/Box2D | ours: top drift, "
+             "penetration (m) | Box2D: top drift, penetration (m) | sparse solves / fallbacks |",
+             "|---|---:|---|---:|---:|---:|---|---|---|"]
+
+    def state(drift, pen):
+        return (f"{drift:.1e} ({'stands' if drift < STAND_TOL else 'falls'}), {pen:.1e}" if drift is not None
+                else f"-, {pen:.1e}")
+    for r in rows:
+        lines.append(f"| {r['scene']} | {r['bodies']} | {r['box2d_substeps']} ({r['box2d_setting']}) | "
+                     f"{r['ours_us']:.0f} [{r['ours_us_min']:.0f}-{r['ours_us_max']:.0f}] | "
+                     f"{r['box2d_us']:.0f} [{r['box2d_us_min']:.0f}-{r['box2d_us_max']:.0f}] | "
+                     f"{r['ratio']:.2f} [{r['ratio_min']:.2f}-{r['ratio_max']:.2f}] | "
+                     f"{state(r['ours_top_drift'], r['ours_penetration'])} | "
+                     f"{state(r['box2d_top_drift'], r['box2d_penetration'])} | "
+                     f"{r['solved_sparse']} / {r['sparse_fallbacks']} |")
+    if rows:
+        lines.append("")
+        lines.append(f"times: thread CPU time per step of a whole {rows[0]['steps']}-step run (h = 1/60 s) from the "
+                     f"scene's initial state, median over {rows[0]['rounds']} alternating rounds in one process "
+                     "[min-max]; ratio: median of the per-round ratios [min-max]; Box2D v3 (pyb2d3) with sleeping "
+                     "off, its worlds built outside the clock; penetration by our collision detection on each "
+                     "simulator's poses (Box2D: every 10 steps); a tower stands when its top box moves < 1 mm")
+    return "\n".join(lines)
+
+
 def run_bench(which, json_path=None):
     report = {}
     if which in ("scaling", "all"):
         rows, fits, fit_spread = bench_scaling()
         print(format_scaling_table(rows, fits, fit_spread))
         report["scaling"] = dict(rows=rows, fits=fits, fit_spread=fit_spread, clock="thread_time")
+    if which == "pile":
+        rows = bench_pile()
+        print(format_pile_table(rows))
+        report["pile"] = dict(rows=rows, clock="thread_time")
     if which in ("step", "all"):
         compile_times = measure_step_compile_time()
         rows = bench_step()

@@ -24,14 +24,16 @@ from numba import njit
 from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, contact_velocities, island_is_elastic,
                                         island_problem_size, record_impulses, support_column_count)
 from planar_lcp.engine.layout import Stat
+from planar_lcp.engine.solvers.sparse import solve_island_sparse
 
 STATUS_SOLVED = 0
 STATUS_RAY = 1
 STATUS_MAX_PIVOTS = 2
 STATUS_INVALID = 3
 STATUS_INACCURATE = 4
+STATUS_NEEDS_SPACE = 5   # the island solvers only: the island's dense problem is larger than the dense buffers
 
-STATUS_NAMES = ("solved", "ray_termination", "max_pivots", "invalid_input", "inaccurate")
+STATUS_NAMES = ("solved", "ray_termination", "max_pivots", "invalid_input", "inaccurate", "needs_space")
 
 
 @njit(cache=True)
@@ -543,6 +545,24 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     status (a failure leaves w.v_new unchanged and forgets the island's warm-start basis)."""
     n, nf, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
     k = support_column_count(m)
+    if opt.sparse_min > 0 and n >= opt.sparse_min and nsi == 0:
+        # a large island: its sparse reduced system first (engine/solvers/sparse.py), dense Lemke if not certified
+        solved, its, res = solve_island_sparse(m, w, opt, vk, nci, nsi, h, velocity_form)
+        if solved:
+            stats[Stat.SOLVED_SPARSE] += 1
+            stats[Stat.LCP_SIZE] += n
+            stats[Stat.LCP_MAX] = max(stats[Stat.LCP_MAX], n)
+            stats[Stat.RESIDUAL] = max(stats[Stat.RESIDUAL], res)
+            w.warm_size[isl] = -1
+            apply_impulses(nci + 2 * nf, w.column_slot, w.column_g, w.lemke_z, m, w.v_new)
+            record_impulses(m, w, nci, w.lemke_z, False, nci)
+            contact_velocities(m, w, opt, vk, nci)
+            return STATUS_SOLVED
+        stats[Stat.SPARSE_FALLBACKS] += 1
+    if n > w.lemke_lu.shape[0]:
+        # the dense buffers are too small: the step is handed back, to be run again with larger ones
+        w.dense_needed[0] = max(w.dense_needed[0], n)
+        return STATUS_NEEDS_SPACE
     A = w.lcp_matrix[:n * n].reshape((n, n))
     b = w.lcp_vector[:n]
     assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector)

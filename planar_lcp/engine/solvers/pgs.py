@@ -15,7 +15,7 @@ from planar_lcp.engine.assemble import (apply_impulses, column_dot, contact_velo
                                         table_column)
 from planar_lcp.engine.constants import SUPPORT_POINTS
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.solvers.lemke import STATUS_SOLVED
+from planar_lcp.engine.solvers.lemke import STATUS_NEEDS_SPACE, STATUS_SOLVED
 
 
 @njit(cache=True)
@@ -153,8 +153,12 @@ def _limit_surface_block(m, s, u, n, h, W, b, x):
 @njit(cache=True, inline='always')
 def solve_island_pgs(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     """Island solver (signature: engine/step.py): the island's impulses by opt.pgs_iters projected Gauss-Seidel
-    sweeps, added to w.v_new and recorded in w.con_*. Uncertified, and never fails: returns STATUS_SOLVED."""
+    sweeps, added to w.v_new and recorded in w.con_*. Uncertified, and never fails: returns STATUS_SOLVED
+    (STATUS_NEEDS_SPACE when the dense buffers are too small)."""
     _, _, n = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
+    if n > w.lemke_lu.shape[0]:
+        w.dense_needed[0] = max(w.dense_needed[0], n)
+        return STATUS_NEEDS_SPACE
     W = w.lcp_matrix[:n * n].reshape((n, n))
     assemble_pgs(m, w, vk, nci, nsi, h, velocity_form, W, w.lcp_vector)
     upd = solve_pgs(m, w, nci, nsi, n, h, W, w.lcp_vector, w.pgs_impulse, opt.pgs_iters)

@@ -1,0 +1,217 @@
+"""Large contact islands: the pile scenes, and the sparse island solver (engine/solvers/sparse.py) against dense
+Lemke and against its own certificate recomputed densely.
+
+Oracles: for seeded random piles (towers, pyramids, walls, bins; planar_lcp.spec.piles.random_pile) each large
+island's LCP is assembled densely (`assemble_lcp`, itself tested against a numpy build in test_assembly_oracle.py)
+and the sparse answer is checked on it with numpy: certified by the residual test, and with the same velocity rows
+as dense Lemke's answer (the motion is unique where the impulses are not). Whole trajectories of towers and pyramids
+equal the dense path's.
+"""
+
+import numpy as np
+import pytest
+from numba import njit
+
+import planar_lcp.engine.step as S
+from planar_lcp.engine.assemble import assemble_lcp, island_problem_size
+from planar_lcp.engine.islands import island_members
+from planar_lcp.engine.layout import NSTAT, make_step_work, work_struct
+from planar_lcp.engine.solvers.sparse import solve_island_sparse
+from planar_lcp.lcp import lemke
+from planar_lcp.model import compile_scene
+from planar_lcp.sim import SimOptions, Simulator, simulate
+from planar_lcp.spec import piles
+from planar_lcp.spec.random_scenes import scene_to_toml
+from planar_lcp.spec.scene import load_scene, parse_scene, scene_path
+
+
+@pytest.mark.parametrize("name, made", [("tower", lambda: piles.tower(16)), ("pyramid", lambda: piles.pyramid(6))])
+def test_the_shipped_piles_are_the_generators_output(name, made):
+    text = scene_path(name).read_text()
+    body = "\n".join(line for line in text.splitlines() if not line.startswith("#")) + "\n"
+    assert body == scene_to_toml(made()), f"scenes/{name}.toml is not what planar_lcp.spec.piles writes"
+    load_scene(name)
+
+
+@njit
+def _largest_island(m, q, v, qk, vk, h, opt, w, qko, st, out):
+    """The step's first solve up to the island solvers: the largest island's contacts in w.island_con."""
+    S.begin_step(m, q, v, qk, vk, h, opt, w, qko, st)
+    ncon, nisl = S.prepare_contacts(m, w, opt, qko, st)
+    best, size = -1, -1
+    for isl in range(nisl):
+        nci, nsi = island_members(m, w, isl, ncon)
+        n, _, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
+        if n > size:
+            best, size = isl, n
+    nci, nsi = island_members(m, w, best, ncon)
+    out[0], out[1] = nci, nsi
+
+
+@njit
+def _sparse_then_dense(m, w, opt, vk, nci, nsi, h, z_out, A_out, b_out):
+    ok, its, res = solve_island_sparse(m, w, opt, vk, nci, nsi, h, False)
+    n, nf, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
+    for i in range(n):
+        z_out[i] = w.lemke_z[i]
+    A = A_out[:n * n].reshape((n, n))
+    assemble_lcp(m, w, vk, nci, nsi, h, False, A, b_out)
+    return ok, its, n, nf
+
+
+def island_problems(scene_dict, steps, every):
+    """(sparse certified?, iterations, z, A, b, nci, nf) of the largest island at every `every`-th state of a dense
+    run of the scene."""
+    sc = parse_scene(scene_dict)
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, sparse_min_unknowns=0))
+    q, v, qk, vk = sim.initial_state()
+    run = sim.rollout(q, v, qk, vk[None], steps)
+    out = []
+    U = sim.work.lcp_vector.shape[0]
+    for s in range(every, steps + 1, every):
+        qs, vs, qks = (np.ascontiguousarray(run[k][s]) for k in ("q", "v", "qk"))
+        sizes = np.zeros(2, np.int64)
+        _largest_island(sim.kmodel, qs, vs, qks, vk, sim.h, sim.kopt, sim.kwork, np.empty_like(qks), np.zeros(NSTAT),
+                        sizes)
+        nci, nsi = int(sizes[0]), int(sizes[1])
+        z, A, b = np.zeros(U), np.zeros(U * U if U * U < 4e7 else 1), np.zeros(U)
+        ok, its, n, nf = _sparse_then_dense(sim.kmodel, sim.kwork, sim.kopt, vk, nci, nsi, sim.h, z,
+                                            sim.work.lcp_matrix, b)
+        A = sim.work.lcp_matrix[:n * n].reshape(n, n).copy()
+        out.append((bool(ok), int(its), z[:n].copy(), A, b[:n].copy(), nci, nf))
+    return out
+
+
+def _residual(A, b, z):
+    w = A @ z + b
+    return np.abs(np.minimum(z, w)).max() + max(0.0, -z.min()) + max(0.0, -w.min()), w
+
+
+#: (generator, size, steps, every): a few states of each pile, at rest and moving
+PILES = [(piles.tower, 12, 30, 10), (piles.tower, 24, 20, 10), (piles.pyramid, 4, 30, 10), (piles.pyramid, 6, 20, 10),
+         (lambda n: piles.wall(3, n), 4, 30, 10), (lambda n: piles.bin_scene(n, seed=3), 16, 60, 20)]
+
+
+@pytest.mark.parametrize("make, size, steps, every", PILES)
+def test_sparse_answers_are_certified_and_move_as_dense_lemke(make, size, steps, every):
+    solved = 0
+    for ok, its, z, A, b, nci, nf in island_problems(make(size), steps, every):
+        scale = max(1.0, np.abs(A).max(), np.abs(b).max())
+        ref = lemke(A, b)
+        assert ref.status == "solved"
+        if not ok:
+            continue
+        solved += 1
+        res, w = _residual(A, b, z)
+        assert res <= 1e-9 * scale, f"the sparse answer fails the certificate on the dense LCP ({res:.3g})"
+        _, w_ref = _residual(A, b, ref.z)
+        nforce = nci + 2 * nf
+        # the velocity rows (normal and friction rows without lambda): the motion
+        vel = w[:nforce] - np.concatenate([np.zeros(nci), np.repeat(z[nforce:nforce + nf], 2)])
+        vel_ref = w_ref[:nforce] - np.concatenate([np.zeros(nci), np.repeat(ref.z[nforce:nforce + nf], 2)])
+        np.testing.assert_allclose(vel, vel_ref, rtol=0, atol=1e-9 * scale)
+    name = make(size)["name"]
+    if "bin" not in name:
+        assert solved > 0, f"the sparse solver certified none of {name}'s islands"
+
+
+@pytest.mark.parametrize("make", [lambda: piles.tower(16), lambda: piles.pyramid(5)])
+def test_tower_and_pyramid_trajectories_equal_the_dense_paths(make):
+    scene = parse_scene(make())
+    dense = simulate(scene, t_end=1.0, sparse_min_unknowns=0)
+    sparse = simulate(scene, t_end=1.0)
+    assert dense.stats["solved_sparse"].sum() == 0
+    assert sparse.stats["solved_sparse"].sum() == len(sparse.t) - 1, "every step of the pile went to the sparse path"
+    assert sparse.stats["sparse_fallbacks"].sum() == 0
+    np.testing.assert_allclose(sparse.q, dense.q, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sparse.v, dense.v, rtol=0, atol=1e-9)
+    # the tower stands: its top box moves less than a micrometre
+    assert np.abs(sparse.q[-1] - sparse.q[0]).max() < 1e-6
+
+
+def test_small_islands_keep_the_dense_path():
+    """Below the threshold nothing changes: box_stack's island (24 unknowns) never goes to the sparse solver."""
+    tr = simulate("box_stack")
+    assert tr.stats["lcp_max"].max() < SimOptions(h=0.01).sparse_min_unknowns
+    assert tr.stats["solved_sparse"].sum() == 0 and tr.stats["sparse_fallbacks"].sum() == 0
+
+
+def test_sparse_min_unknowns_is_checked():
+    with pytest.raises(ValueError, match="sparse_min_unknowns must be >= 0, got -1"):
+        SimOptions(h=0.01, sparse_min_unknowns=-1).kernel_options()
+
+
+def test_the_box2d_world_is_the_scene():
+    """The Box2D peer (experiments/box2d_bridge.py) starts where our run starts: the same poses (to float32), masses,
+    moments of inertia and friction, and falls as it should in free flight."""
+    pytest.importorskip("pyb2d3")
+    from planar_lcp.experiments.box2d_bridge import box2d_poses, box2d_world
+    model = compile_scene(parse_scene(piles.pyramid(3)))
+    world, bodies = box2d_world(model)
+    np.testing.assert_allclose(box2d_poses(bodies), model.q0, rtol=0, atol=1e-6)
+    for i, b in enumerate(bodies):
+        assert b.mass == pytest.approx(model.arrays.dyn_mass[i], rel=1e-6)
+        assert b.rotational_inertia() == pytest.approx(model.arrays.dyn_inertia[i], rel=1e-6)
+        assert b.shapes[0].friction == pytest.approx(0.5)
+    # a box dropped from 1 m in free flight: y(t) = 1 - g t^2 / 2 (Box2D integrates semi-implicitly: O(h) off)
+    scene = parse_scene({"name": "drop", "world": {"plane": "vertical", "gravity": [0.0, -9.81]},
+                         "bodies": [{"name": "b", "type": "dynamic", "mass": 2.0, "position": [0.0, 1.0],
+                                     "shapes": [{"type": "box", "width": 0.2, "height": 0.1}]}]})
+    world, bodies = box2d_world(compile_scene(scene))
+    for _ in range(12):
+        world.step(1.0 / 60.0, 4)
+    assert box2d_poses(bodies)[0, 1] == pytest.approx(1.0 - 0.5 * 9.81 * 0.2 ** 2, abs=0.02)
+
+
+def test_dense_buffers_grow_when_an_island_needs_them():
+    """The dense buffers start small (engine/layout.py DENSE_CAPACITY) and grow when a step's island needs more
+    (STEP_NEEDS_SPACE, the step run again): the run equals one made with buffers large enough from the start, bit for
+    bit, in `rollout` and in a loop of `step`, warm start on and off."""
+    scene = parse_scene(piles.tower(12))          # one island of 96 unknowns
+    model = compile_scene(scene)
+    for warm in (False, True):
+        runs = []
+        for capacity in (8, None):
+            # the dense path (sparse solver off) so the island needs the dense buffers
+            sim = Simulator(model, SimOptions(h=scene.sim.h, sparse_min_unknowns=0, warm_start=warm))
+            if capacity:
+                sim.work = make_step_work(model, capacity)
+                sim.kwork = work_struct(sim.work)
+            q, v, qk, vk = sim.initial_state()
+            out = sim.rollout(q, v, qk, vk[None], 20)
+            assert sim.work.lemke_lu.shape[0] >= 96
+            steps = [(q, v, qk)]
+            for _ in range(20):
+                steps.append(sim.step(*steps[-1], vk)[:3])
+            runs.append((out, steps))
+        (small, small_steps), (big, big_steps) = runs
+        for key in ("q", "v", "stats"):
+            assert np.array_equal(small[key], big[key]), key
+        assert all(np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1]) for a, b in zip(small_steps, big_steps))
+        assert np.array_equal(np.stack([s[0] for s in small_steps]), small["q"])
+
+
+def test_a_tower_of_64_runs_in_little_memory():
+    """Its contact capacity bounds its LCP at 16640 unknowns (9 GB of dense buffers); the work allocated is what
+    its sparse path uses."""
+    from planar_lcp.engine.layout import step_work_bytes
+    model = compile_scene(parse_scene(piles.tower(64)))
+    assert model.max_unknowns() == 16640
+    assert step_work_bytes(model) < 200e6
+    tr = simulate(parse_scene(piles.tower(64)), t_end=0.1)
+    assert tr.stats["solved_sparse"].sum() == len(tr.t) - 1
+
+
+def test_bench_pile_measures_both_simulators():
+    """`planar-lcp bench pile` (experiments/bench.py `bench_pile`) on a small tower: each row has both simulators'
+    times, the per-round ratio, and whether each tower stood."""
+    pytest.importorskip("pyb2d3")
+    from planar_lcp.experiments.bench import bench_pile, format_pile_table
+    rows = bench_pile(scenes=(("tower_4", lambda: piles.tower(4)),), steps=10, rounds=2)
+    assert {r["box2d_substeps"] for r in rows} >= {4}
+    for r in rows:
+        assert r["ours_us"] > 0 and r["box2d_us"] > 0 and r["ratio_min"] <= r["ratio"] <= r["ratio_max"]
+        assert r["ours_top_drift"] < 1e-6           # ours stands
+        assert r["solved_sparse"] == 0               # 32 unknowns: the dense path
+    table = format_pile_table(rows)
+    assert table.startswith("| scene | bodies | Box2D substeps |") and "tower_4" in table
