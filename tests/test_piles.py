@@ -215,3 +215,21 @@ def test_bench_pile_measures_both_simulators():
         assert r["solved_sparse"] == 0               # 32 unknowns: the dense path
     table = format_pile_table(rows)
     assert table.startswith("| scene | bodies | Box2D substeps |") and "tower_4" in table
+
+
+@pytest.mark.slow
+def test_the_sparse_vs_dense_example_runs():
+    """docs/performance.md's table of the two paths: `python examples/sparse_vs_dense.py` end to end."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    run = subprocess.run([sys.executable, str(root / "examples" / "sparse_vs_dense.py")], capture_output=True,
+                         text=True, timeout=900, cwd=root)
+    assert run.returncode == 0, run.stderr
+    rows = [line for line in run.stdout.splitlines() if line.startswith("| ") and "scene" not in line]
+    assert [r.split(" | ")[0] for r in rows] == ["| tower", "| tower_64", "| pyramid"]
+    for r in rows:
+        cells = [c.strip() for c in r.strip("|").split("|")]
+        assert cells[5].endswith("/ 0"), r                  # no fallback
+        assert float(cells[6]) < 1e-9, r                     # the two trajectories agree

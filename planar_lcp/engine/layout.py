@@ -149,6 +149,7 @@ sparse_mode        | i8    | contact           | -          | sparse    | island
 sparse_unknown     | i8    | contact           | -          | sparse    | its first reduced unknown (-1: separated)
 sparse_order       | i8    | contact           | -          | sparse    | the island's contacts in band order
 sparse_key         | i8    | contact           | -          | sparse    | each contact's band-order key
+sparse_mu          | f8    | contact           | -          | sparse    | +-mu for a contact sliding along +-t, else 0
 sparse_vt          | f8    | contact           | m/s        | sparse    | tangential velocity of the mode's solution
 sparse_rank        | i8    | dyn               | -          | sparse    | breadth-first rank of each body (-1: none)
 sparse_queue       | i8    | dyn               | -          | sparse    | breadth-first queue

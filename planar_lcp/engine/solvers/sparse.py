@@ -44,16 +44,6 @@ SPARSE_REFINE = 8
 
 
 @njit(cache=True)
-def _side(w, u, d):
-    """Which side (0, 1) of generalized column u is dynamic slot d (-1: neither)."""
-    if w.column_slot[u, 0] == d:
-        return 0
-    if w.column_slot[u, 1] == d:
-        return 1
-    return -1
-
-
-@njit(cache=True)
 def _band_order(m, w, nci):
     """The island's contacts in band order (w.sparse_order[:nci]) and each body's contact lists.
 
@@ -155,28 +145,6 @@ def _stable_sort_by_key(order, key, n, tmp):
         width *= 2
 
 
-@njit(cache=True, inline='always')
-def _row_g(w, nci, a, kind, side, c):
-    """Component c of reduced unknown (contact a, kind 0: normal, 1: tangent)'s ROW vector on the given side."""
-    if kind == 0:
-        return w.column_g[a, side, c]
-    return w.column_g[nci + 2 * w.sparse_fric[a], side, c]
-
-
-@njit(cache=True, inline='always')
-def _col_g(m, w, nci, a, kind, side, c):
-    """Component c of its COLUMN vector: the normal column, with +-mu times the tangent column when sliding."""
-    if kind == 1:
-        return w.column_g[nci + 2 * w.sparse_fric[a], side, c]
-    g = w.column_g[a, side, c]
-    md = w.sparse_mode[a]
-    if md == SPARSE_SLIDE_POS or md == SPARSE_SLIDE_NEG:
-        mu = m.pair_mu[w.con_pair[w.island_con[a]]]
-        gt = w.column_g[nci + 2 * w.sparse_fric[a], side, c]
-        g = g + mu * gt if md == SPARSE_SLIDE_POS else g - mu * gt
-    return g
-
-
 @njit(cache=True)
 def _number_unknowns(m, w, nci):
     """Reduced unknowns of the current modes in band order; returns (count, half-bandwidth)."""
@@ -210,48 +178,84 @@ def _number_unknowns(m, w, nci):
 @njit(cache=True)
 def _build_band(m, w, nci, p, bw):
     """W = R^T M^-1 C of the current modes, band storage (row i, column j at i * (2 bw + 1) + j - i + bw), and the
-    right-hand side -(row constants)."""
+    right-hand side -(row constants). A reduced unknown's row vector is its normal column (kind 0) or its +t
+    friction column (kind 1); its column vector the same, plus or minus mu times the +t column for a sliding
+    contact's normal unknown. (Struct fields are read into locals once: each field access in a loop costs a
+    reference count.)"""
     ld = 2 * bw + 1
     W = w.sparse_band
     for i in range(p * ld):
         W[i] = 0.0
+    g = w.column_g
+    slot = w.column_slot
+    fric = w.sparse_fric
+    mode = w.sparse_mode
+    unk = w.sparse_unknown
+    start = w.sparse_body_start
+    bcon = w.sparse_body_con
+    mu_c = w.sparse_mu
+    pair_mu = m.pair_mu
+    con_pair = w.con_pair
+    isl = w.island_con
+    for a in range(nci):
+        md = mode[a]
+        mu = pair_mu[con_pair[isl[a]]]
+        mu_c[a] = mu if md == SPARSE_SLIDE_POS else (-mu if md == SPARSE_SLIDE_NEG else 0.0)
     ndyn = w.sparse_rank.shape[0]
+    inv_mass = m.dyn_inv_mass
+    inertia = m.dyn_inertia
     for d in range(ndyn):
-        im = m.dyn_inv_mass[d]
-        J = m.dyn_inertia[d]
-        for e in range(w.sparse_body_start[d], w.sparse_body_start[d + 1]):
-            a = w.sparse_body_con[e]
-            ua = w.sparse_unknown[a]
+        im = inv_mass[d]
+        J = inertia[d]
+        for e in range(start[d], start[d + 1]):
+            a = bcon[e]
+            ua = unk[a]
             if ua < 0:
                 continue
-            sa = _side(w, a, d)
-            na = 2 if (w.sparse_mode[a] == SPARSE_STICK and w.sparse_fric[a] >= 0) else 1
-            for e2 in range(w.sparse_body_start[d], w.sparse_body_start[d + 1]):
-                b = w.sparse_body_con[e2]
-                ub = w.sparse_unknown[b]
+            sa = 0 if slot[a, 0] == d else 1
+            na = 2 if (mode[a] == SPARSE_STICK and fric[a] >= 0) else 1
+            ta = nci + 2 * fric[a]
+            for e2 in range(start[d], start[d + 1]):
+                b = bcon[e2]
+                ub = unk[b]
                 if ub < 0:
                     continue
-                sb = _side(w, b, d)
-                nb = 2 if (w.sparse_mode[b] == SPARSE_STICK and w.sparse_fric[b] >= 0) else 1
+                sb = 0 if slot[b, 0] == d else 1
+                nb = 2 if (mode[b] == SPARSE_STICK and fric[b] >= 0) else 1
+                tb = nci + 2 * fric[b]
                 for ka in range(na):
-                    r0 = _row_g(w, nci, a, ka, sa, 0)
-                    r1 = _row_g(w, nci, a, ka, sa, 1)
-                    r2 = _row_g(w, nci, a, ka, sa, 2)
+                    ra = a if ka == 0 else ta
+                    r0 = g[ra, sa, 0]
+                    r1 = g[ra, sa, 1]
+                    r2 = g[ra, sa, 2]
                     i = ua + ka
                     for kb in range(nb):
-                        c0 = _col_g(m, w, nci, b, kb, sb, 0)
-                        c1 = _col_g(m, w, nci, b, kb, sb, 1)
-                        c2 = _col_g(m, w, nci, b, kb, sb, 2)
+                        if kb == 0:
+                            c0 = g[b, sb, 0]
+                            c1 = g[b, sb, 1]
+                            c2 = g[b, sb, 2]
+                            mc = mu_c[b]
+                            if mc != 0.0:
+                                c0 += mc * g[tb, sb, 0]
+                                c1 += mc * g[tb, sb, 1]
+                                c2 += mc * g[tb, sb, 2]
+                        else:
+                            c0 = g[tb, sb, 0]
+                            c1 = g[tb, sb, 1]
+                            c2 = g[tb, sb, 2]
                         j = ub + kb
                         W[i * ld + j - i + bw] += (r0 * c0 + r1 * c1) * im + r2 * c2 / J
+    rhs = w.sparse_rhs
+    b_lcp = w.lcp_vector
+    order = w.sparse_order
     for i in range(nci):
-        a = w.sparse_order[i]
-        u = w.sparse_unknown[a]
+        a = order[i]
+        u = unk[a]
         if u < 0:
             continue
-        w.sparse_rhs[u] = -w.lcp_vector[a]
-        if w.sparse_mode[a] == SPARSE_STICK and w.sparse_fric[a] >= 0:
-            w.sparse_rhs[u + 1] = -w.lcp_vector[nci + 2 * w.sparse_fric[a]]
+        rhs[u] = -b_lcp[a]
+        if mode[a] == SPARSE_STICK and fric[a] >= 0:
+            rhs[u + 1] = -b_lcp[nci + 2 * fric[a]]
 
 
 @njit(cache=True)
@@ -311,15 +315,16 @@ def _solve_reduced(w, p, bw):
     W = w.sparse_band
     x = w.sparse_x
     r = w.sparse_r
+    rhs = w.sparse_rhs
     rmax = 0.0
     for i in range(p):
         x[i] = 0.0
-        rmax = max(rmax, abs(w.sparse_rhs[i]))
+        rmax = max(rmax, abs(rhs[i]))
     big = rmax
     for _ in range(SPARSE_REFINE):
         big = 0.0
         for i in range(p):
-            s = w.sparse_rhs[i]
+            s = rhs[i]
             for j in range(max(0, i - bw), min(p, i + bw + 1)):
                 s -= W[i * ld + j - i + bw] * x[j]
             r[i] = s
