@@ -155,8 +155,7 @@ sparse_rank        | i8    | dyn               | -          | sparse    | breadt
 sparse_queue       | i8    | dyn               | -          | sparse    | breadth-first queue
 sparse_body_start  | i8    | dyn1              | -          | sparse    | each body's first entry in sparse_body_con
 sparse_body_con    | i8    | contact2          | -          | sparse    | the island contacts of each body
-sparse_body_lo     | i8    | dyn               | -          | sparse    | lowest reduced unknown on each body
-sparse_body_hi     | i8    | dyn               | -          | sparse    | highest reduced unknown on each body
+sparse_cursor      | i8    | dyn               | -          | sparse    | fill cursor of sparse_body_con per body
 sparse_band        | f8    | band              | -          | sparse    | the reduced matrix W, band storage
 sparse_lu          | f8    | band              | -          | sparse    | its regularized LU factors
 sparse_rhs         | f8    | reduced           | m/s        | sparse    | the reduced system's right-hand side

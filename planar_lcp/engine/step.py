@@ -275,7 +275,8 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
     only the stages the variant calls. The same Python function (`step_pipeline.py_func`) is the osqp solver's
     step, whose island solver is Python. A step handed back (STEP_NEEDS_FALLBACK) is run again by a variant with a
     fallback: every variant computes the same thing up to the failure, so the stitched result is that variant's
-    bit for bit.
+    bit for bit. A step whose island needs larger dense buffers returns STEP_NEEDS_SPACE the same way (nothing
+    written, the warm-start memory as before the step; `Simulator` grows them and runs it again).
     """
     velocity_form = opt.formulation == FORM_VELOCITY
     if project is None:

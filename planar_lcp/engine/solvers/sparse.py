@@ -61,8 +61,7 @@ def _band_order(m, w, nci):
                 start[d + 1] += 1
     for d in range(ndyn):
         start[d + 1] += start[d]
-    # fill (sparse_body_lo as the cursor)
-    cur = w.sparse_body_lo
+    cur = w.sparse_cursor
     for d in range(ndyn):
         cur[d] = start[d]
         w.sparse_rank[d] = -1
