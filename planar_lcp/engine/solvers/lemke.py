@@ -545,67 +545,66 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     status (a failure leaves w.v_new unchanged and forgets the island's warm-start basis)."""
     n, nf, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
     k = support_column_count(m)
+    status = STATUS_RAY
+    piv = 0
+    res = np.inf
+    warm = False
+    sparse = False
     if opt.sparse_min > 0 and n >= opt.sparse_min and nsi == 0:
         # a large island: its sparse reduced system first (engine/solvers/sparse.py), dense Lemke if not certified
-        solved, its, res = solve_island_sparse(m, w, opt, vk, nci, nsi, h, velocity_form)
-        if solved:
+        sparse, _, res = solve_island_sparse(m, w, opt, vk, nci, nsi, h, velocity_form)
+        if sparse:
+            status = STATUS_SOLVED
             stats[Stat.SOLVED_SPARSE] += 1
-            stats[Stat.LCP_SIZE] += n
-            stats[Stat.LCP_MAX] = max(stats[Stat.LCP_MAX], n)
-            stats[Stat.RESIDUAL] = max(stats[Stat.RESIDUAL], res)
-            w.warm_size[isl] = -1
-            apply_impulses(nci + 2 * nf, w.column_slot, w.column_g, w.lemke_z, m, w.v_new)
-            record_impulses(m, w, nci, w.lemke_z, False, nci)
-            contact_velocities(m, w, opt, vk, nci)
-            return STATUS_SOLVED
-        stats[Stat.SPARSE_FALLBACKS] += 1
-    if n > w.lemke_lu.shape[0]:
-        # the dense buffers are too small: the step is handed back, to be run again with larger ones
-        w.dense_needed[0] = max(w.dense_needed[0], n)
-        return STATUS_NEEDS_SPACE
-    A = w.lcp_matrix[:n * n].reshape((n, n))
-    b = w.lcp_vector[:n]
-    assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector)
-    warm = False
-    if opt.warm_start and w.warm_size[isl] == n:
-        # the previous step's basis for this island: contact modes rarely change from one step to the next
-        warm, res = lemke_from_basis(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu,
-                                     w.lemke_rhs, w.lemke_perm, w.lemke_basic)
-    piv = 0
-    if warm:
-        status = STATUS_SOLVED
-        stats[Stat.WARM_STARTS] += 1
-    else:
-        # One call site for the whole chain: each inlined call of lemke_kernel costs compile time
-        status = STATUS_RAY
-        method = LEMKE_CHAIN[0][0]
-        rows_velocity = velocity_form       # the rows (A, b) now hold
-        rows_elastic = True
-        elastic_island = island_is_elastic(m, w.island_con, nci, w.con_pair)
-        for attempt in range(len(LEMKE_CHAIN)):
-            method, piv_tol, equilibrate, in_velocity_form, elastic = LEMKE_CHAIN[attempt]
-            if piv_tol < 0.0:
-                piv_tol = opt.piv_tol
-            elif piv_tol <= opt.piv_tol:
-                continue                     # not stricter than the first try
-            if not elastic and not elastic_island:
-                break                        # without restitution the inelastic rows were tried already
-            want_velocity = in_velocity_form or velocity_form
-            if in_velocity_form and velocity_form:
-                continue                     # the velocity form's rows were the first try's (inelastic: the try before)
-            if want_velocity != rows_velocity or elastic != rows_elastic:
-                # the island's LCP over the same contacts: only the normal rows' constants change
-                assemble_lcp(m, w, vk, nci, nsi, h, want_velocity, A, w.lcp_vector, elastic)
-                rows_velocity = want_velocity
-                rows_elastic = elastic
-            if attempt > 0:
-                stats[Stat.LEMKE_RETRIES] += 1
-            status, p, res = lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate)
-            piv += p
+        else:
+            stats[Stat.SPARSE_FALLBACKS] += 1
+    if not sparse:
+        if n > w.lemke_lu.shape[0]:
+            # the dense buffers are too small: the step is handed back, to be run again with larger ones
+            w.dense_needed[0] = max(w.dense_needed[0], n)
+            return STATUS_NEEDS_SPACE
+        A = w.lcp_matrix[:n * n].reshape((n, n))
+        b = w.lcp_vector[:n]
+        assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector)
+        if opt.warm_start and w.warm_size[isl] == n:
+            # the previous step's basis for this island: contact modes rarely change from one step to the next
+            warm, res = lemke_from_basis(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu,
+                                         w.lemke_rhs, w.lemke_perm, w.lemke_basic)
+        if warm:
+            status = STATUS_SOLVED
+            stats[Stat.WARM_STARTS] += 1
+        else:
+            # One call site for the whole chain: each inlined call of lemke_kernel costs compile time
+            status = STATUS_RAY
+            method = LEMKE_CHAIN[0][0]
+            rows_velocity = velocity_form       # the rows (A, b) now hold
+            rows_elastic = True
+            elastic_island = island_is_elastic(m, w.island_con, nci, w.con_pair)
+            for attempt in range(len(LEMKE_CHAIN)):
+                method, piv_tol, equilibrate, in_velocity_form, elastic = LEMKE_CHAIN[attempt]
+                if piv_tol < 0.0:
+                    piv_tol = opt.piv_tol
+                elif piv_tol <= opt.piv_tol:
+                    continue                     # not stricter than the first try
+                if not elastic and not elastic_island:
+                    break                        # without restitution the inelastic rows were tried already
+                want_velocity = in_velocity_form or velocity_form
+                if in_velocity_form and velocity_form:
+                    # the velocity form's rows were the first try's (inelastic: the try before)
+                    continue
+                if want_velocity != rows_velocity or elastic != rows_elastic:
+                    # the island's LCP over the same contacts: only the normal rows' constants change
+                    assemble_lcp(m, w, vk, nci, nsi, h, want_velocity, A, w.lcp_vector, elastic)
+                    rows_velocity = want_velocity
+                    rows_elastic = elastic
+                if attempt > 0:
+                    stats[Stat.LEMKE_RETRIES] += 1
+                status, p, res = lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate)
+                piv += p
+                if status == STATUS_SOLVED:
+                    break
             if status == STATUS_SOLVED:
-                break
-        if status == STATUS_SOLVED:
-            stats[method] += 1
+                stats[method] += 1
     stats[Stat.LCP_SIZE] += n
     stats[Stat.LCP_MAX] = max(stats[Stat.LCP_MAX], n)
     stats[Stat.PIVOTS] += piv
@@ -614,7 +613,9 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
         stats[Stat.LEMKE_STATUS] = max(stats[Stat.LEMKE_STATUS], status)
         w.warm_size[isl] = -1
         return status
-    if not warm:
+    if sparse:
+        w.warm_size[isl] = -1                # no basis to keep
+    elif not warm:
         # remember the final basis (z_i basic) for the next step's warm start
         w.warm_size[isl] = n
         for i in range(n):

@@ -23,9 +23,8 @@ consistent system; the iteration then switches unloaded redundant contacts to se
 
 Every answer is certified by the SAME test as dense Lemke's (`lemke.lcp_residual` <= res_tol * `lemke.lcp_scale`),
 evaluated on the LCP as assembled -- its w = M z + q from the force columns (M z = G^T M^-1 G z plus the identity
-and mu entries), its scale from the Delassus diagonal (the largest entry of a positive semidefinite matrix is on
-its diagonal), the mu entries and q. An island it does not certify goes to the dense chain (engine/solvers/lemke.py)
-unchanged; `Stat.SOLVED_SPARSE` and `Stat.SPARSE_FALLBACKS` count both outcomes.
+and mu entries), its scale once per island (`_lcp_scale`). An island it does not certify goes to the dense chain
+(engine/solvers/lemke.py) unchanged; `Stat.SOLVED_SPARSE` and `Stat.SPARSE_FALLBACKS` count both outcomes.
 """
 
 import numpy as np
@@ -144,6 +143,13 @@ def _stable_sort_by_key(order, key, n, tmp):
         width *= 2
 
 
+@njit(cache=True, inline='always')
+def _unknowns_of(mode, fric, a):
+    """Reduced unknowns of contact a: c_n and f_t sticking with friction, c_n alone loaded otherwise (0 if
+    separated: not asked)."""
+    return 2 if (mode[a] == SPARSE_STICK and fric[a] >= 0) else 1
+
+
 @njit(cache=True)
 def _number_unknowns(m, w, nci):
     """Reduced unknowns of the current modes in band order; returns (count, half-bandwidth)."""
@@ -155,7 +161,7 @@ def _number_unknowns(m, w, nci):
             w.sparse_unknown[a] = -1
             continue
         w.sparse_unknown[a] = p
-        p += 2 if (md == SPARSE_STICK and w.sparse_fric[a] >= 0) else 1
+        p += _unknowns_of(w.sparse_mode, w.sparse_fric, a)
     ndyn = w.sparse_rank.shape[0]
     bw = 0
     for d in range(ndyn):
@@ -166,7 +172,7 @@ def _number_unknowns(m, w, nci):
             u = w.sparse_unknown[a]
             if u < 0:
                 continue
-            last = u + (1 if (w.sparse_mode[a] == SPARSE_STICK and w.sparse_fric[a] >= 0) else 0)
+            last = u + _unknowns_of(w.sparse_mode, w.sparse_fric, a) - 1
             lo = min(lo, u)
             hi = max(hi, last)
         if hi >= 0:
@@ -212,7 +218,7 @@ def _build_band(m, w, nci, p, bw):
             if ua < 0:
                 continue
             sa = 0 if slot[a, 0] == d else 1
-            na = 2 if (mode[a] == SPARSE_STICK and fric[a] >= 0) else 1
+            na = _unknowns_of(mode, fric, a)
             ta = nci + 2 * fric[a]
             for e2 in range(start[d], start[d + 1]):
                 b = bcon[e2]
@@ -220,7 +226,7 @@ def _build_band(m, w, nci, p, bw):
                 if ub < 0:
                     continue
                 sb = 0 if slot[b, 0] == d else 1
-                nb = 2 if (mode[b] == SPARSE_STICK and fric[b] >= 0) else 1
+                nb = _unknowns_of(mode, fric, b)
                 tb = nci + 2 * fric[b]
                 for ka in range(na):
                     ra = a if ka == 0 else ta
@@ -342,10 +348,32 @@ def _solve_reduced(w, p, bw):
 
 
 @njit(cache=True)
+def _lcp_scale(m, w, nci, n, nf):
+    """`lemke.lcp_scale` of the LCP as assembled, without its matrix: 1, |q|, mu and the Delassus diagonal (the
+    largest entry of a positive semidefinite matrix lies on its diagonal)."""
+    b = w.lcp_vector
+    scale = 1.0
+    for i in range(n):
+        scale = max(scale, abs(b[i]))
+    for u in range(nci + 2 * nf):
+        s = 0.0
+        for side in range(2):
+            d = w.column_slot[u, side]
+            if d >= 0:
+                g = w.column_g[u, side]
+                s += (g[0] * g[0] + g[1] * g[1]) * m.dyn_inv_mass[d] + g[2] * g[2] / m.dyn_inertia[d]
+        scale = max(scale, s)
+    for a in range(nci):
+        if w.sparse_fric[a] >= 0:
+            scale = max(scale, m.pair_mu[w.con_pair[w.island_con[a]]])
+    return scale
+
+
+@njit(cache=True)
 def _answer(m, w, nci, n, nf):
     """The LCP's z and w = M z + q (w.lemke_z, w.lemke_w) of the current modes' reduced solution, each contact's
-    tangential velocity w.sparse_vt; returns (residual, scale) of `lemke.lcp_residual` / `lemke.lcp_scale` on the LCP
-    as assembled (its matrix never formed: module docstring)."""
+    tangential velocity w.sparse_vt; returns `lemke.lcp_residual` of it on the LCP as assembled (its matrix never
+    formed: module docstring)."""
     z = w.lemke_z
     wv = w.lemke_w
     o_lc = nci + 2 * nf
@@ -376,25 +404,13 @@ def _answer(m, w, nci, n, nf):
             dv[d, c] = 0.0
     apply_impulses(o_lc, w.column_slot, w.column_g, z, m, dv)
     b = w.lcp_vector
-    # the scale: 1, |q|, mu and the Delassus diagonal
-    scale = 1.0
-    for i in range(n):
-        scale = max(scale, abs(b[i]))
     for u in range(o_lc):
-        s = 0.0
-        for side in range(2):
-            d = w.column_slot[u, side]
-            if d >= 0:
-                g = w.column_g[u, side]
-                s += (g[0] * g[0] + g[1] * g[1]) * m.dyn_inv_mass[d] + g[2] * g[2] / m.dyn_inertia[d]
-        scale = max(scale, s)
         wv[u] = b[u] + column_dot(w.column_slot, w.column_g, u, dv)
     for a in range(nci):
         f = w.sparse_fric[a]
         if f < 0:
             continue
         mu = m.pair_mu[w.con_pair[w.island_con[a]]]
-        scale = max(scale, mu)
         up = nci + 2 * f
         vt = wv[up]
         w.sparse_vt[a] = vt
@@ -421,7 +437,7 @@ def _answer(m, w, nci, n, nf):
         comp = max(comp, abs(mn))
         zneg = max(zneg, -z[i])
         wneg = max(wneg, -wv[i])
-    return comp + zneg + wneg, scale
+    return comp + zneg + wneg
 
 
 @njit(cache=True)
@@ -480,6 +496,7 @@ def solve_island_sparse(m, w, opt, vk, nci, nsi, h, velocity_form):
     for a in range(nci):
         w.sparse_mode[a] = SPARSE_STICK if w.lcp_vector[a] <= opt.res_tol * scale0 else SPARSE_SEP
     res = np.inf
+    scale = _lcp_scale(m, w, nci, n, nf)
     cap = w.sparse_rhs.shape[0]
     for it in range(SPARSE_ITERATIONS):
         p, bw = _number_unknowns(m, w, nci)
@@ -489,7 +506,7 @@ def solve_island_sparse(m, w, opt, vk, nci, nsi, h, velocity_form):
             _build_band(m, w, nci, p, bw)
             if not _solve_reduced(w, p, bw):
                 return False, it + 1, res
-        res, scale = _answer(m, w, nci, n, nf)
+        res = _answer(m, w, nci, n, nf)
         if res <= opt.res_tol * scale:
             return True, it + 1, res
         if _switch_modes(m, w, nci, 1e-3 * opt.res_tol * scale) == 0:
