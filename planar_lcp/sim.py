@@ -164,8 +164,9 @@ class Simulator:
                 return st
 
     def reset_warm_start(self):
-        """Forget the LCP bases kept for warm starts: the next `step` starts cold."""
+        """Forget the LCP bases kept for warm starts and the sparse solver's modes: the next `step` starts cold."""
         self.work.warm_size[:] = -1
+        self.work.sparse_pair_mode[:] = -1
         self._last_step_out = None
 
     def step(self, q, v, qk, vk):
@@ -173,12 +174,14 @@ class Simulator:
 
         Warm start (SimOptions.warm_start): when (q, v, qk) is bitwise the state the previous `step` returned, each
         island's LCP is first tried on that step's final basis, kept only if certified as accurate as a cold solve;
-        any other state starts cold, as every `rollout` does. So a loop of `step` started on a fresh simulator, after
-        a rollout or after `reset_warm_start()`, equals `rollout` bit for bit."""
+        any other state starts cold, as every `rollout` does. The sparse solver's first guess of the contact modes
+        (the previous step's, on large islands) follows the same rule. So a loop of `step` started on a fresh
+        simulator, after a rollout or after `reset_warm_start()`, equals `rollout` bit for bit."""
         last = self._last_step_out
         if last is None or not (np.array_equal(q, last[0]) and np.array_equal(v, last[1])
                                 and np.array_equal(qk, last[2])):
             self.work.warm_size[:] = -1
+            self.work.sparse_pair_mode[:] = -1
         q_out, v_out, qk_out = np.empty_like(q), np.empty_like(v), np.empty_like(qk)
         st = self._step_into(q, v, qk, vk, q_out, v_out, qk_out, self.stats)
         self._last_step_out = (q_out.copy(), v_out.copy(), qk_out.copy())

@@ -12,5 +12,5 @@ SUPPORT_LIMIT_SURFACE, SUPPORT_POINTS = 0, 1
 
 #: The sparse island solver (engine/solvers/sparse.py): the widest band of its reduced system it factors (larger
 #: islands' bands go to dense Lemke), and the reduced unknowns per dynamic body its buffers hold.
-SPARSE_MAX_BAND = 64
+SPARSE_MAX_BAND = 256
 SPARSE_UNKNOWNS_PER_BODY = 16

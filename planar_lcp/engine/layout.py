@@ -166,8 +166,10 @@ dense_needed       | i8    | 1                 | -          | solvers   | dense 
 warm_size          | i8    | dyn               | -          | lemke     | per island: last LCP's size (-1: none)
 warm_basic_z       | bool  | dyn x unknown     | -          | lemke     | per island: which z were basic in it
 warm_size_saved    | i8    | dyn               | -          | step      | warm_size before a step
+sparse_pair_mode   | i8    | pair x 2          | -          | sparse    | its contacts' modes in the last sparse answer
+sparse_pair_saved  | i8    | pair x 2          | -          | step      | sparse_pair_mode before a step
 warm_basic_z_saved | bool  | dyn x unknown     | -          | step      | warm_basic_z before a step
-""", init={'warm_size': -1, 'warm_size_saved': -1})
+""", init={'warm_size': -1, 'warm_size_saved': -1, 'sparse_pair_mode': -1, 'sparse_pair_saved': -1})
 
 OPTIONS_LAYOUT = _table("""
 name         | dtype | shape | unit   | writer | meaning

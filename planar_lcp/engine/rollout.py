@@ -46,6 +46,9 @@ def start_rollout(w, q0, v0, qk0, rec, reset_warm_start):
     if reset_warm_start:
         for i in range(w.warm_size.shape[0]):
             w.warm_size[i] = -1
+        for p in range(w.sparse_pair_mode.shape[0]):
+            w.sparse_pair_mode[p, 0] = -1
+            w.sparse_pair_mode[p, 1] = -1
     for d in range(q0.shape[0]):
         for c in range(3):
             rec.q[0, d, c] = q0[d, c]

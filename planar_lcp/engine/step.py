@@ -225,13 +225,28 @@ def copy_warm_start(size_from, basic_z_from, size_to, basic_z_to):
 
 
 @njit(cache=True, inline='always')
-def save_warm_start(w):
-    copy_warm_start(w.warm_size, w.warm_basic_z, w.warm_size_saved, w.warm_basic_z_saved)
+def save_warm_start(w, opt):
+    """Keep the memories a step reads and writes (the dense warm start's bases with opt.warm_start, the sparse
+    solver's modes per pair for islands it takes), for a step that is handed back to be run again."""
+    if opt.warm_start:
+        copy_warm_start(w.warm_size, w.warm_basic_z, w.warm_size_saved, w.warm_basic_z_saved)
+    if opt.sparse_min > 0:
+        copy_pair_modes(w.sparse_pair_mode, w.sparse_pair_saved)
 
 
 @njit(cache=True, inline='always')
-def restore_warm_start(w):
-    copy_warm_start(w.warm_size_saved, w.warm_basic_z_saved, w.warm_size, w.warm_basic_z)
+def restore_warm_start(w, opt):
+    if opt.warm_start:
+        copy_warm_start(w.warm_size_saved, w.warm_basic_z_saved, w.warm_size, w.warm_basic_z)
+    if opt.sparse_min > 0:
+        copy_pair_modes(w.sparse_pair_saved, w.sparse_pair_mode)
+
+
+@njit(cache=True, inline='always')
+def copy_pair_modes(src, dst):
+    for p in range(src.shape[0]):
+        dst[p, 0] = src[p, 0]
+        dst[p, 1] = src[p, 1]
 
 
 @njit(cache=True, inline='always')
@@ -282,9 +297,8 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
     if project is None:
         if velocity_form:
             return STEP_NEEDS_FALLBACK
-    if opt.warm_start:
-        # kept in case the step is handed back (STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE): its re-run starts from it
-        save_warm_start(w)
+    # kept in case the step is handed back (STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE): its re-run starts from it
+    save_warm_start(w, opt)
     begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats)
     # the velocity form evaluates contacts at the current configuration, the position forms at the end of the step
     qk_lin = qk if velocity_form else qk_out
@@ -300,18 +314,15 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
                 continue
             st = solve(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
             if st == STATUS_NEEDS_SPACE:
-                if opt.warm_start:
-                    restore_warm_start(w)
+                restore_warm_start(w, opt)
                 return STEP_NEEDS_SPACE
             if st != STATUS_SOLVED:
                 if fallback is None:
-                    if opt.warm_start:
-                        restore_warm_start(w)
+                    restore_warm_start(w, opt)
                     return STEP_NEEDS_FALLBACK
                 stats[Stat.PGS_UNCERTIFIED] += 1
                 if fallback(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats) == STATUS_NEEDS_SPACE:
-                    if opt.warm_start:
-                        restore_warm_start(w)
+                    restore_warm_start(w, opt)
                     return STEP_NEEDS_SPACE
                 worst = st
         integrate_positions(q, h, w)
@@ -323,8 +334,7 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
     if project is not None:
         if velocity_form:
             if not project(m, w, opt, qk_out, stats):
-                if opt.warm_start:
-                    restore_warm_start(w)
+                restore_warm_start(w, opt)
                 return STEP_NEEDS_SPACE
     return write_outputs(w, ncon, q_out, v_out, stats, fp_iter, worst)
 

@@ -12,9 +12,15 @@ the island's bodies (Cuthill-McKee), a tower's is a band of width ~8 whatever it
     sliding +-   c_n (f_t = +-mu c_n)  n.v+ = 0            c_n >= 0, t.v+ on the side opposite the friction
 
 (n.v+ and t.v+ stand for the LCP's normal and friction rows, constants included.) The iteration (block principal
-pivoting on modes, Kostreva; Judice & Pires 1994) starts from the free motion's guess (a contact free motion would
-close is sticking, the others separated), solves, and switches every contact whose answer is inconsistent; it stops
-when the answer passes the certificate, or when no contact switches, or after SPARSE_ITERATIONS.
+pivoting on modes, Kostreva; Judice & Pires 1994) starts from a guess (the memory below, else the free motion's: a
+contact it would close is sticking, the others separated), solves, and switches every contact whose answer is
+inconsistent; it stops when the answer passes the certificate, or when no contact switches, or after
+SPARSE_ITERATIONS.
+
+The memory: a certified answer's modes are kept per shape pair (w.sparse_pair_mode) and are the next solve's first
+guess for the same pairs' contacts, so a pile at rest is solved in one iteration whatever its mode iteration took
+the first time. It is forgotten where the dense warm start's bases are (a rollout from scratch, a `step` from a
+state that is not the last one's output), so a result depends on the run's inputs only.
 
 Statically indeterminate islands (a box on two boxes, the two corners of one face) make the reduced matrix
 singular: the impulses are not unique, the motion is. The factorization is regularized (SPARSE_REGULARIZATION of
@@ -472,6 +478,16 @@ def _switch_modes(m, w, nci, tol):
     return changed
 
 
+@njit(cache=True, inline='always')
+def _pair_place(w, a):
+    """(pair, place) of island contact a: a pair's contacts are consecutive in the active set (engine/contacts.py
+    `find_contacts`), the place 0 or 1 in that order. A guess's key only: if a pair's two contacts trade places
+    between steps, the guess is wrong and the iteration corrects it."""
+    c = w.island_con[a]
+    p = w.con_pair[c]
+    return p, (1 if c > 0 and w.con_pair[c - 1] == p else 0)
+
+
 @njit(cache=True)
 def solve_island_sparse(m, w, opt, vk, nci, nsi, h, velocity_form):
     """The island's LCP (its rows as the formulation assembles them, restitution's included) by the mode iteration on
@@ -489,12 +505,17 @@ def solve_island_sparse(m, w, opt, vk, nci, nsi, h, velocity_form):
         else:
             w.sparse_fric[a] = -1
     _band_order(m, w, nci)
-    # the free motion's guess: a contact it closes (or keeps closed) is loaded
+    # the first guess: the contact's mode in the last sparse answer (w.sparse_pair_mode, by pair and its contact's
+    # place in the pair), else the free motion's (a contact it closes, or keeps closed, is loaded)
     scale0 = 1.0
     for i in range(n):
         scale0 = max(scale0, abs(w.lcp_vector[i]))
     for a in range(nci):
-        w.sparse_mode[a] = SPARSE_STICK if w.lcp_vector[a] <= opt.res_tol * scale0 else SPARSE_SEP
+        p, k = _pair_place(w, a)
+        md = w.sparse_pair_mode[p, k]
+        if md < 0:
+            md = SPARSE_STICK if w.lcp_vector[a] <= opt.res_tol * scale0 else SPARSE_SEP
+        w.sparse_mode[a] = md
     res = np.inf
     scale = _lcp_scale(m, w, nci, n, nf)
     cap = w.sparse_rhs.shape[0]
@@ -508,6 +529,9 @@ def solve_island_sparse(m, w, opt, vk, nci, nsi, h, velocity_form):
                 return False, it + 1, res
         res = _answer(m, w, nci, n, nf)
         if res <= opt.res_tol * scale:
+            for a in range(nci):
+                p, k = _pair_place(w, a)
+                w.sparse_pair_mode[p, k] = w.sparse_mode[a]
             return True, it + 1, res
         if _switch_modes(m, w, nci, 1e-3 * opt.res_tol * scale) == 0:
             return False, it + 1, res
