@@ -138,10 +138,42 @@ def demo_plan(out, written):
     return 1
 
 
+#: `bench` options -> the benchmarks they apply to
+BENCH_OPTION_USERS = {"kinds": ("scaling",), "sizes": ("scaling",), "step_budget": ("scaling",),
+                      "settle_budget": ("scaling",), "steps": ("scaling", "pile"), "scenes": ("pile",)}
+
+
 def cmd_bench(args):
+    try:
+        options = _bench_options(args)
+    except InputError as e:
+        print(f"planar-lcp bench: error: {e}", file=sys.stderr)
+        return 2
     from planar_lcp.experiments.bench import run_bench
-    run_bench(args.what, json_path=args.json)
+    run_bench(args.what, json_path=args.json, **options)
     return 0
+
+
+def _bench_options(args):
+    """Before any work: each option given applies to the benchmark chosen, the sizes are distinct and at most
+    MAX_SCALING_SIZE, the JSON file can be written. Returns run_bench's keyword arguments."""
+    from planar_lcp.experiments.bench import MAX_SCALING_SIZE, SETTLE_BUDGET_S, STEP_BUDGET_S
+    for dest, users in BENCH_OPTION_USERS.items():
+        if getattr(args, dest) is not None and args.what not in users:
+            flag = "--" + dest.replace("_", "-")
+            raise InputError(f"{flag} applies to bench {' and '.join(users)} only, got bench {args.what}")
+    if args.kinds is not None and len(set(args.kinds)) != len(args.kinds):
+        raise InputError(f"--kinds must be distinct, got {' '.join(args.kinds)}")
+    if args.sizes is not None:
+        if len(set(args.sizes)) != len(args.sizes):
+            raise InputError(f"--sizes must be distinct body counts, got {' '.join(map(str, args.sizes))}")
+        if max(args.sizes) > MAX_SCALING_SIZE:
+            raise InputError(f"--sizes must be body counts from 1 to {MAX_SCALING_SIZE}, got {max(args.sizes)}")
+    if args.json is not None:
+        check_output_file(args.json, "--json", (".json",))
+    return dict(kinds=args.kinds, sizes=args.sizes, steps=args.steps, rounds=args.rounds, scenes=args.scenes,
+                step_budget_s=STEP_BUDGET_S if args.step_budget is None else args.step_budget,
+                settle_budget_s=SETTLE_BUDGET_S if args.settle_budget is None else args.settle_budget)
 
 
 class InputError(Exception):
@@ -357,12 +389,38 @@ def build_parser():
                    help="where to write the demo's files (default ./planar_lcp_demo)")
     d.set_defaults(func=cmd_demo)
 
-    b = sub.add_parser("bench", help="benchmarks against peers measured in the same run")
+    from planar_lcp.experiments.bench import (PILE_SCALING_SIZES, PILE_SCENES, SCALING_KINDS, SCALING_SIZES,
+                                              SETTLE_BUDGET_S, STEP_BUDGET_S)
+    b = one_line_errors(sub.add_parser(
+        "bench", help="benchmarks against peers measured in the same run",
+        description="Benchmarks in alternating rounds of thread CPU time (docs/performance.md, Method)."))
     b.add_argument("what", choices=["step", "lcp", "scaling", "pile", "all"],
                    help="step: microseconds per step and compile time; lcp: our Lemke vs QuantEcon's lcp_lemke; "
-                        "scaling: cost per step against the number of bodies; pile: towers and a bin against "
-                        "Box2D v3 (not part of all)")
+                        "scaling: cost per step against the number of bodies (the small layouts pile and islands, "
+                        "and the large piles tower, pyramid, bin with the sparse solver and the dense path); pile: "
+                        "towers and a bin against Box2D v3; all: step, lcp and scaling's pile and islands (the "
+                        "large piles and pile are runs of their own)")
     b.add_argument("--json", metavar="FILE", help="also write the measurements as JSON")
+    b.add_argument("--rounds", type=finite_number(int, 1, False), metavar="N",
+                   help="alternating rounds (default 15; 7 for scaling and pile)")
+    b.add_argument("--kinds", nargs="+", choices=SCALING_KINDS, metavar="KIND",
+                   help=f"scaling: the layouts and piles to time, of {', '.join(SCALING_KINDS)} (default all)")
+    b.add_argument("--sizes", nargs="+", type=finite_number(int, 1, False), metavar="N",
+                   help=f"scaling: body counts (default {' '.join(map(str, SCALING_SIZES))} for pile and islands, "
+                        f"{' '.join(map(str, PILE_SCALING_SIZES))} for the large piles; pyramids: the row count with "
+                        "the nearest number of boxes)")
+    b.add_argument("--steps", type=finite_number(int, 1, False), metavar="N",
+                   help="scaling and pile: steps per timed run (default 20 for the layouts pile and islands, 10 for "
+                        "the large piles, 120 for bench pile)")
+    b.add_argument("--step-budget", type=finite_number(float, 0, True), metavar="S",
+                   help="scaling: a large pile's path whose steps take more thread CPU seconds than this each (run "
+                        "once before its rounds, stopped when over) is reported from those steps alone and its "
+                        f"larger sizes are skipped (default {STEP_BUDGET_S:g})")
+    b.add_argument("--settle-budget", type=finite_number(float, 0, True), metavar="S",
+                   help=f"scaling: a bin whose settling takes more thread CPU seconds than this is skipped, as are "
+                        f"the larger bins (default {SETTLE_BUDGET_S:g})")
+    b.add_argument("--scenes", nargs="+", choices=[name for name, _ in PILE_SCENES], metavar="SCENE",
+                   help=f"pile: the scenes to run, of {', '.join(name for name, _ in PILE_SCENES)} (default all)")
     b.set_defaults(func=cmd_bench)
 
     s = one_line_errors(sub.add_parser(

@@ -5,6 +5,7 @@ Functional checks only, never timing assertions: speed targets live in the bench
 statistics are checked with a fake clock whose readings are known; the real runs are checked for completeness."""
 
 import functools
+import itertools
 import json
 import math
 
@@ -12,8 +13,9 @@ import numpy as np
 import pytest
 
 from planar_lcp.experiments import bench
-from planar_lcp.experiments.bench import (alternate_rounds, ratio_stats, bench_lcp, bench_scaling, bench_step,
-                                          format_lcp_table, format_scaling_table, format_step_table)
+from planar_lcp.experiments.bench import (alternate_rounds, ratio_stats, bench_lcp, bench_scaling, bench_scaling_piles,
+                                          bench_step, fit_exponent, format_lcp_table, format_scaling_piles_table,
+                                          format_scaling_table, format_step_table, pyramid_rows)
 
 # the real runs time compiled code; without the JIT QuantEcon's Lemke alone runs for hours on the cycling instances
 needs_jit = pytest.mark.needs_jit
@@ -191,11 +193,12 @@ def test_bench_step_json_keeps_the_old_fields_and_adds_the_spread(monkeypatch, t
 
 @needs_jit
 def test_bench_scaling_fits_an_exponent_per_round(monkeypatch, tmp_path):
-    rows, fits, fit_spread = bench_scaling(sizes=(1, 4, 8), steps=2, rounds=3)
+    rows, fits, fit_spread = bench_scaling(sizes=(1, 4, 16), steps=2, rounds=3)
     assert {r["kind"] for r in rows} == {"pile", "islands"}
     # n separate boxes are n islands of one 8-unknown LCP each; a tower is one island of 8 n unknowns
     assert all(r["lcp_max"] == 8 for r in rows if r["kind"] == "islands")
-    assert [r["lcp_max"] for r in rows if r["kind"] == "pile"] == [8, 32, 64]
+    assert [r["lcp_max"] for r in rows if r["kind"] == "pile"] == [8, 32, 128]
+    assert all(r["solved_sparse"] == 0 for r in rows)       # the dense path, even at 128 unknowns
     for r in rows:
         assert 0 < r["us_min"] <= r["us_per_step"] <= r["us_max"]
     for kind in ("pile", "islands"):
@@ -203,6 +206,160 @@ def test_bench_scaling_fits_an_exponent_per_round(monkeypatch, tmp_path):
         assert all(np.isfinite([s["min"], s["q1"], fits[kind], s["q3"], s["max"]]))
         assert s["min"] <= s["q1"] <= fits[kind] <= s["q3"] <= s["max"]
     assert "fitted growth exponent" in format_scaling_table(rows, fits, fit_spread)
+
+
+@needs_jit
+def test_bench_scaling_of_one_layout_without_enough_sizes_is_not_fitted():
+    rows, fits, fit_spread = bench_scaling(sizes=(1, 4), steps=1, rounds=2, kinds=("islands",))
+    assert [(r["kind"], r["bodies"]) for r in rows] == [("islands", 1), ("islands", 4)]
+    assert fits == {"islands": None} and fit_spread == {"islands": None}     # one size >= 4: no line to fit
+    assert "islands p = not fitted" in format_scaling_table(rows, fits, fit_spread)
+
+
+# --- the large piles: tower, pyramid, bin with the sparse solver and the dense path ------------------------------
+
+
+def test_fit_exponent_recovers_a_known_power_in_every_round():
+    bodies = np.array([16, 32, 64, 128])
+    scale = np.array([1.0, 1.3, 0.8])                    # three rounds, each its own machine speed
+    per_step = 1e-6 * bodies[:, None] ** 1.25 * scale[None, :]
+    sp = fit_exponent(bodies, per_step)
+    assert sp["median"] == pytest.approx(1.25) and sp["min"] == pytest.approx(1.25) and sp["max"] == pytest.approx(1.25)
+    # one round twice as dear at the largest size only: that round's exponent alone moves, the median does not
+    per_step[-1, 2] *= 2.0
+    sp = fit_exponent(bodies, per_step)
+    assert sp["median"] == pytest.approx(1.25) and sp["max"] > 1.4 and sp["min"] == pytest.approx(1.25)
+    assert fit_exponent([16, 16], per_step[:2]) is None     # one distinct size: no fit
+
+
+def test_pyramid_rows_give_the_nearest_body_count():
+    assert [pyramid_rows(n) for n in (1, 16, 32, 64, 128, 256)] == [1, 5, 8, 11, 16, 22]
+    for n in (16, 64, 256):
+        r = pyramid_rows(n)
+        count = r * (r + 1) // 2
+        assert all(abs(count - n) <= abs(k * (k + 1) // 2 - n) for k in range(1, 40))
+
+
+class PowerCosts(dict):
+    """Fake per-run costs of bench_scaling_piles' runners, named KIND_BODIES_PATH: c * bodies^p per path."""
+
+    def __init__(self, powers):
+        super().__init__()
+        self.powers = powers
+
+    def __missing__(self, name):
+        kind, bodies, path = name.rsplit("_", 2)
+        return 1e-4 * int(bodies) ** self.powers[path]
+
+
+@needs_jit
+def test_bench_scaling_piles_rows_fits_and_table(monkeypatch):
+    log = spy_alternate(monkeypatch, PowerCosts(dict(defaults=1.1, dense=2.5)))
+    rows, fits, fit_spread, fit_bodies = bench_scaling_piles(kinds=("tower", "bin"), sizes=(4, 16, 8), steps=2,
+                                                             rounds=3)
+    assert [(r["kind"], r["bodies"]) for r in rows] == [(k, n) for k in ("tower", "bin") for n in (4, 8, 16)]
+    # every size and both paths of one kind alternate in one call (after two calibration calls each): round after
+    # round, each runner's fixed number of runs in turn
+    tower = [name for name, _ in itertools.groupby(n for n in log[12:] if n.startswith("tower"))]
+    assert tower == [f"tower_{n}_{p}" for n in (4, 8, 16) for p in ("defaults", "dense")] * 3
+    for r in rows:
+        assert r["timing"] == r["dense_timing"] == "rounds" and r["note"] == r["dense_note"] == ""
+        assert r["us_per_step"] == pytest.approx(1e-4 * r["bodies"] ** 1.1 / 2 * 1e6)
+        assert r["dense_us_per_step"] == pytest.approx(1e-4 * r["bodies"] ** 2.5 / 2 * 1e6)
+        assert r["speedup"] == pytest.approx(r["bodies"] ** 1.4) and r["speedup_min"] <= r["speedup_max"]
+        assert r["failed_steps"] == r["dense_failed_steps"] == 0
+        assert r["dense_solved_sparse"] == 0 and r["dense_sparse_share"] is None
+        json.dumps(r)                                         # every field is JSON
+    for kind in ("tower", "bin"):
+        assert fits[kind]["defaults"] == pytest.approx(1.1) and fits[kind]["dense"] == pytest.approx(2.5)
+        assert fit_bodies[kind] == {"defaults": [4, 8, 16], "dense": [4, 8, 16]}
+        assert fit_spread[kind]["defaults"]["min"] == pytest.approx(1.1)
+    by = {(r["kind"], r["bodies"]): r for r in rows}
+    # a tower of 16 is an LCP of 128 unknowns: the sparse solver's; of 8, 64 unknowns: dense Lemke's in both paths
+    assert by["tower", 16]["lcp_max"] == 128 and by["tower", 16]["solved_sparse"] == 2
+    assert by["tower", 16]["sparse_share"] == 1.0 and by["tower", 16]["dense_pivots_per_step"] > 0
+    assert by["tower", 8]["sparse_share"] is None and by["tower", 8]["pivots_per_step"] > 0
+    # towers are timed from rest; bins after they have landed, from the state the settle run reached
+    assert by["tower", 4]["settle_steps"] == 0
+    for n in (4, 8, 16):
+        b = by["bin", n]
+        assert b["settle_steps"] > 60 and b["settle_max_speed"] < 0.5 and b["scene"] == f"bin_scene({n}, seed=0)"
+    table = format_scaling_piles_table(rows, fits, fit_spread, fit_bodies)
+    lines = table.splitlines()
+    assert lines[0].startswith("| kind | bodies | scene | timed from |")
+    assert len([line for line in lines if line.startswith("| tower |") or line.startswith("| bin |")]) == 6
+    assert "| tower | 16 | tower(16) | t = 0 | 128 | 1.0 |" in table and "2 / 0 (100 %)" in table
+    assert ("fitted growth exponent of tower (cost ~ bodies^p, fitted per round, median [min-max]): defaults p = "
+            "1.10 [1.10-1.10] over 4-16 bodies; dense p = 2.50 [2.50-2.50] over 4-16 bodies") in table
+
+
+@needs_jit
+def test_bench_scaling_piles_budgets_report_what_they_left_out():
+    """Over the step budget: that one step is reported, the larger sizes are skipped on that path, and nothing of
+    it is fitted; a bin over the settle budget is skipped with the larger bins, each row saying why."""
+    rows, fits, fit_spread, fit_bodies = bench_scaling_piles(kinds=("tower",), sizes=(2, 4, 8), steps=1, rounds=1,
+                                                             step_budget_s=1e-9)
+    first, *larger = rows
+    assert first["timing"] == first["dense_timing"] == "once" and first["us_per_step"] > 0
+    assert first["note"] == "timed once, 1 of 1 steps: over the 1e-09 s per step budget"
+    assert first["pivots_per_step"] > 0 and first["lcp_max"] == 16      # the stats of the step it ran
+    for r in larger:
+        assert r["timing"] == r["dense_timing"] == "skipped" and r["us_per_step"] is None
+        assert r["note"] == "skipped: the 2-body tower was over the step budget"
+    assert fits["tower"] == {"defaults": None, "dense": None} and fit_bodies["tower"]["defaults"] == []
+    table = format_scaling_piles_table(rows, fits, fit_spread, fit_bodies)
+    assert "(timed once) |" in table and "| skipped |" in table and "not fitted" in table
+    assert "tower(4) dense: skipped: the 2-body tower was over the step budget" in table
+
+    rows, fits, _, _ = bench_scaling_piles(kinds=("bin",), sizes=(8, 16), steps=1, rounds=1, settle_budget_s=1e-9)
+    assert [r["timing"] for r in rows] == ["skipped", "skipped"]
+    assert rows[0]["note"].startswith("skipped: settling took more than the 1e-09 s budget (")
+    assert rows[1]["dense_note"] == "skipped: the bin of 8 did not settle within the budget"
+    assert fits["bin"] == {"defaults": None, "dense": None}
+
+
+@needs_jit
+def test_bench_json_writes_the_large_piles_beside_the_layouts(tmp_path):
+    path = tmp_path / "bench.json"
+    bench.run_bench("scaling", json_path=str(path), kinds=("islands", "tower"), sizes=(2, 4), steps=1, rounds=2)
+    d = json.loads(path.read_text())
+    assert set(d) == {"scaling", "scaling_piles"}
+    assert {r["kind"] for r in d["scaling"]["rows"]} == {"islands"}
+    sp = d["scaling_piles"]
+    assert sp["clock"] == "thread_time" and sp["step_budget_s"] == bench.STEP_BUDGET_S
+    assert set(sp["fits"]) == set(sp["fit_spread"]) == set(sp["fit_bodies"]) == {"tower"}
+    assert [r["bodies"] for r in sp["rows"]] == [2, 4]
+
+
+@pytest.mark.parametrize("argv, flag, expected", [
+    (["scaling", "--sizes", "0"], "--sizes", ">= 1, got '0'"),
+    (["scaling", "--sizes", "16", "x"], "--sizes", "must be an integer, got 'x'"),
+    (["scaling", "--sizes", "16", "16"], "--sizes", "distinct body counts, got 16 16"),
+    (["scaling", "--sizes", "16", "5000"], "--sizes", "from 1 to 1024, got 5000"),
+    (["scaling", "--kinds", "heap"], "--kinds", "invalid choice: 'heap'"),
+    (["scaling", "--kinds", "bin", "bin"], "--kinds", "distinct, got bin bin"),
+    (["scaling", "--steps", "0"], "--steps", ">= 1, got '0'"),
+    (["scaling", "--rounds", "-3"], "--rounds", ">= 1, got '-3'"),
+    (["scaling", "--step-budget", "0"], "--step-budget", "> 0, got '0'"),
+    (["scaling", "--settle-budget", "nan"], "--settle-budget", "finite number, got 'nan'"),
+    (["step", "--sizes", "16", "32"], "--sizes", "applies to bench scaling only, got bench step"),
+    (["lcp", "--steps", "5"], "--steps", "applies to bench scaling and pile only, got bench lcp"),
+    (["scaling", "--scenes", "tower_16"], "--scenes", "applies to bench pile only, got bench scaling"),
+    (["pile", "--scenes", "tower_3"], "--scenes", "invalid choice: 'tower_3'"),
+    (["scaling", "--json", "out.txt"], "--json", "must end in .json, got '.txt'"),
+])
+def test_bench_bad_options_exit_2_with_one_line(capsys, monkeypatch, argv, flag, expected):
+    from planar_lcp import cli
+    monkeypatch.setattr(bench, "run_bench", lambda *a, **k: pytest.fail("ran with a bad option"))
+    try:
+        rc = cli.main(["bench", *argv])
+    except SystemExit as e:
+        rc = e.code
+    err = capsys.readouterr().err
+    assert rc == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("planar-lcp bench: error: "), err
+    assert flag in lines[0] and expected in lines[0], lines[0]
 
 
 @pytest.mark.slow    # every corpus instance against QuantEcon in rounds: 20 s

@@ -65,8 +65,8 @@ def _check_scene_listing(out):
     for name, description, has_task in listed:
         mark = r"\[task\]" if has_task else ""
         assert re.search(rf"^\s+{re.escape(name)}\s+{mark}\s*{re.escape(description)}$", out, re.M), (name, out)
-    # the scenes that carry a [task] table are marked: the four shipped planning tasks at least
-    assert {"push_box", "push_t", "tip_box", "push_clutter"} <= {n for n, _, t in listed if t}
+    # the scenes that carry a [task] table are marked: the five shipped planning tasks at least
+    assert {"push_box", "push_t", "tip_box", "push_clutter", "push_table"} <= {n for n, _, t in listed if t}
 
 
 def test_scenes_lists_the_eight_shipped_scenes_with_descriptions(capsys):

@@ -391,3 +391,21 @@ def test_the_sparse_memory_keeps_runs_reproducible():
     again = sim.step(*small_steps[0], vk)
     first = fresh.step(*small_steps[0], vk)
     assert all(np.array_equal(a, b) for a, b in zip(again[:3], first[:3]))
+
+
+@pytest.mark.slow
+def test_the_bin_penetration_example_runs():
+    """docs/performance.md's bin penetration table: `python examples/bin_penetration.py` end to end; at h = 1/240 s
+    no step penetrates by 1 mm and the settled bin is exact."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    run = subprocess.run([sys.executable, str(root / "examples" / "bin_penetration.py")], capture_output=True,
+                         text=True, timeout=900, cwd=root)
+    assert run.returncode == 0, run.stderr
+    rows = [[c.strip() for c in r.strip("|").split("|")] for r in run.stdout.splitlines()
+            if r.startswith("| 1/")]
+    assert [r[:2] for r in rows] == [["1/60", "position"], ["1/60", "fixed_point"], ["1/240", "position"]]
+    fine = rows[2]
+    assert float(fine[2]) < 1e-3 and fine[3].startswith("0 of") and float(fine[4]) < 1e-9 and fine[5] == "0"

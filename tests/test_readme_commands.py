@@ -345,10 +345,10 @@ def test_tradeoff_quick(tmp_path):
 
 @covers("bench")
 def test_bench_scaling_json(tmp_path):
-    """`bench scaling`, the cheapest sub-command (about 10 s of CPU; `step` and `lcp` also time cold-cache
-    compiles in child processes)."""
+    """`bench scaling` of the small layouts, docs/performance.md's Scaling table, the cheapest sub-command (about 10 s
+    of CPU; `step` and `lcp` also time cold-cache compiles in child processes)."""
     path = tmp_path / "bench.json"
-    r = run_cli("bench", "scaling", "--json", path, cwd=tmp_path)
+    r = run_cli("bench", "scaling", "--kinds", "pile", "islands", "--json", path, cwd=tmp_path)
     ok(r)
     assert "thread CPU time" in r.stdout and "fitted growth exponent" in r.stdout
     d = check_json(path, ["scaling"])["scaling"]
@@ -357,3 +357,54 @@ def test_bench_scaling_json(tmp_path):
                                                                   for n in (1, 2, 4, 8, 16, 32, 64)}
     for row in d["rows"]:
         assert 0 < row["us_min"] <= row["us_per_step"] <= row["us_max"] and math.isfinite(row["us_max"])
+        assert row["solved_sparse"] == 0        # the dense path, as the table of record (a tower of 64: 512 unknowns)
+
+
+PILE_ROW_FIELDS = {"kind", "scene", "bodies", "h", "steps", "rounds", "settle_steps", "settle_max_speed", "lcp_max",
+                   "islands", "solved_sparse", "sparse_fallbacks", "sparse_share", "failed_steps", "speedup",
+                   "speedup_min", "speedup_max"} | {p + f for p in ("", "dense_") for f in (
+                       "timing", "us_per_step", "us_min", "us_max", "pivots_per_step", "runs_per_round", "note")}
+
+
+@covers("bench")
+def test_bench_scaling_large_piles_json(tmp_path):
+    """`bench scaling` of the large piles at small sizes: a tower of 16 (128 unknowns: the sparse solver's) beside
+    the dense path, a pyramid and a settled bin, each with its exponent per path."""
+    path = tmp_path / "piles.json"
+    r = run_cli("bench", "scaling", "--kinds", "tower", "pyramid", "bin", "--sizes", "8", "16", "--steps", "2",
+                "--rounds", "3", "--json", path, cwd=tmp_path)
+    ok(r)
+    assert "thread CPU time" in r.stdout and "fitted growth exponent of tower" in r.stdout
+    d = check_json(path, ["scaling_piles"])["scaling_piles"]
+    assert d["clock"] == "thread_time" and set(d["fits"]) == {"tower", "pyramid", "bin"}
+    assert [(row["kind"], row["bodies"]) for row in d["rows"]] == [("tower", 8), ("tower", 16), ("pyramid", 10),
+                                                                  ("pyramid", 15), ("bin", 8), ("bin", 16)]
+    for row in d["rows"]:
+        assert PILE_ROW_FIELDS <= set(row), PILE_ROW_FIELDS - set(row)
+        assert row["timing"] == row["dense_timing"] == "rounds"
+        for pre in ("", "dense_"):
+            assert 0 < row[pre + "us_min"] <= row[pre + "us_per_step"] <= row[pre + "us_max"]
+    tower16 = d["rows"][1]
+    assert tower16["solved_sparse"] == 2 and tower16["sparse_share"] == 1.0 and tower16["dense_solved_sparse"] == 0
+    for kind in d["fits"]:
+        for path in ("defaults", "dense"):
+            assert math.isfinite(d["fits"][kind][path]) and len(d["fit_bodies"][kind][path]) == 2
+
+
+@covers("bench")
+def test_bench_pile_json(tmp_path):
+    """`bench pile` (ours against Box2D v3) on its smallest scene and a short run."""
+    pytest.importorskip("pyb2d3")
+    path = tmp_path / "pile.json"
+    r = run_cli("bench", "pile", "--scenes", "tower_16", "--steps", "10", "--rounds", "2", "--json", path,
+                cwd=tmp_path)
+    ok(r)
+    assert r.stdout.startswith("| scene | bodies | Box2D substeps |") and "thread CPU time" in r.stdout
+    d = check_json(path, ["pile"])["pile"]
+    assert d["clock"] == "thread_time" and {row["scene"] for row in d["rows"]} == {"tower_16"}
+    assert 4 in {row["box2d_substeps"] for row in d["rows"]}
+    for row in d["rows"]:
+        assert row["steps"] == 10 and row["rounds"] == 2 and row["bodies"] == 16
+        assert 0 < row["ours_us_min"] <= row["ours_us"] <= row["ours_us_max"] and row["box2d_us"] > 0
+        assert row["solved_sparse"] == 10 and row["sparse_fallbacks"] == 0    # 128 unknowns: the sparse solver's
+        assert row["ours_top_drift"] < 1e-6

@@ -63,7 +63,7 @@ def test_a_minimal_task_is_three_lines_and_gets_every_default():
 
 def test_the_shipped_tasks_are_files_and_keep_their_tuned_limits():
     from planners.tasks import TaskModel
-    for name in ("push_box", "push_t", "tip_box", "push_clutter"):
+    for name in ("push_box", "push_t", "tip_box", "push_clutter", "push_table"):
         t = load_task(name)
         assert t.source == f"scenes/{name}.toml" and t.name == name
         assert t.document == read_document(scenes_dir() / f"{name}.toml")[0]
@@ -243,7 +243,7 @@ def test_a_scene_without_a_task_and_an_unknown_name_are_named():
                                         r"has none"):
         load_task("falling_rod")
     with pytest.raises(TaskError, match=r"unknown task 'push_sofa': not a shipped task \(shipped tasks: push_box, "
-                                        r"push_clutter, push_t, tip_box\)"):
+                                        r"push_clutter, push_t, push_table, tip_box\)"):
         load_task("push_sofa")
     with pytest.raises(TaskError, match=r"<string>: invalid TOML"):
         load_task("[task\nobject = 1\n")

@@ -359,9 +359,30 @@ def format_step_table(rows, compile_times=None):
     return "\n".join(lines)
 
 
+#: `bench scaling`'s two families: the small layouts of one box size at h = 0.005 s on the dense path (the table of
+#: record from before the sparse solver) and the large piles of planar_lcp.spec.piles at h = 1/60 s, each timed with
+#: the defaults (the sparse solver on large islands) and on the dense path beside it
+SCALING_LAYOUTS = ("pile", "islands")
+SCALING_PILES = ("tower", "pyramid", "bin")
+SCALING_KINDS = SCALING_LAYOUTS + SCALING_PILES
 SCALING_SIZES = (1, 2, 4, 8, 16, 32, 64)
 #: Fewer rounds than the others: one 20-step rollout of the 64-box tower is about a second of CPU time.
 SCALING_ROUNDS = 7
+#: The large piles: body counts (pyramids: the row count whose rows (rows + 1) / 2 boxes is nearest), steps per
+#: timed run, and the largest size `--sizes` accepts
+PILE_SCALING_SIZES = (16, 32, 64, 128, 256)
+PILE_SCALING_STEPS = 10
+MAX_SCALING_SIZE = 1024
+#: A path whose steps from the timed state take more thread CPU time than this (s) each, run once before the rounds
+#: and stopped when over, is reported by their mean and not timed in rounds nor fitted, and its larger sizes of the
+#: kind are not run: the budget that caps the dense path (a dense tower of 256 boxes is an LCP of 2048 unknowns,
+#: 1.7 s per step) and the sparse solver's fallbacks to dense Lemke
+STEP_BUDGET_S = 0.5
+#: Bins are timed from the state where they have landed: after the top row's free-fall time plus SETTLE_EXTRA_S (s)
+#: of simulated time with the defaults; a bin whose settling takes more thread CPU time than SETTLE_BUDGET_S (s) is
+#: not timed, nor are the larger bins
+SETTLE_EXTRA_S = 1.0
+SETTLE_BUDGET_S = 60.0
 
 
 def scaling_scene(n, kind):
@@ -380,22 +401,38 @@ def scaling_scene(n, kind):
                         "sim": {"h": 0.005, "t_end": 0.1}, "bodies": bodies}, source=f"<{kind} of {n}>")
 
 
-def bench_scaling(sizes=SCALING_SIZES, steps=20, rounds=SCALING_ROUNDS, min_round_s=MIN_ROUND_S):
-    """Cost per step of a tower of n boxes (one island, LCP of 8 n unknowns) and of n separate boxes (n islands of
-    8 unknowns), with the growth exponent fitted on log(cost) against log(n) over n >= 4.
+def fit_exponent(bodies, per_step):
+    """The growth exponent p of cost ~ bodies^p, a least-squares line through (log bodies, log cost) in every round.
+
+    bodies: (k,) body counts, at least two distinct; per_step: (k, rounds) seconds per step of each size in each
+    round. Returns `_spread` of the per-round exponents (median, min, q1, q3, max), or None with fewer than two
+    distinct body counts."""
+    bodies = np.asarray(bodies, dtype=float)
+    if len(set(bodies.tolist())) < 2:
+        return None
+    per_step = np.asarray(per_step, dtype=float)
+    return _spread([float(np.polyfit(np.log(bodies), np.log(per_step[:, r]), 1)[0]) for r in range(per_step.shape[1])])
+
+
+def bench_scaling(sizes=SCALING_SIZES, steps=20, rounds=SCALING_ROUNDS, min_round_s=MIN_ROUND_S,
+                  kinds=SCALING_LAYOUTS):
+    """Cost per step of a tower of n boxes (kind "pile": one island, LCP of 8 n unknowns) and of n separate boxes
+    ("islands": n islands of 8 unknowns) on the dense path (SimOptions.sparse_min_unknowns=0: dense Lemke on every
+    island, as before the sparse solver; `bench_scaling_piles` times both paths), with the growth exponent fitted on
+    log(cost) against log(n) over n >= 4.
 
     There is no peer: the sizes of one layout are timed in `rounds` alternating rounds of thread CPU time (n = 1, 2,
     4, ..., 1, 2, 4, ...; each round a fixed number of `steps`-step rollouts), the exponent is fitted in every round
-    and `fits` is its median over rounds, `fit_spread` its min, q1, q3 and max. Each row's us_per_step is the
-    median over rounds, with us_min and us_max."""
+    and `fits` is its median over rounds, `fit_spread` its min, q1, q3 and max (None for a layout with fewer than two
+    sizes >= 4). Each row's us_per_step is the median over rounds, with us_min and us_max."""
     from planar_lcp.model import compile_scene
     from planar_lcp.engine.layout import Stat
     from planar_lcp.sim import SimOptions, Simulator
     rows, fits, fit_spread = [], {}, {}
-    for kind in ("pile", "islands"):
+    for kind in kinds:
         runners, outs = {}, {}
         for n in sizes:
-            sim = Simulator(compile_scene(scaling_scene(n, kind)), SimOptions(h=0.005))
+            sim = Simulator(compile_scene(scaling_scene(n, kind)), SimOptions(h=0.005, sparse_min_unknowns=0))
             q, v, qk, vk = sim.initial_state()
             outs[n] = sim.rollout(q, v, qk, vk[None], steps)
             runners[n] = lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], steps)
@@ -406,15 +443,22 @@ def bench_scaling(sizes=SCALING_SIZES, steps=20, rounds=SCALING_ROUNDS, min_roun
             us = per_step[n] * 1e6
             rows.append(dict(kind=kind, bodies=n, us_per_step=float(np.median(us)), us_min=float(us.min()),
                              us_max=float(us.max()), lcp_max=int(st[:, Stat.LCP_MAX].max()),
-                             pivots_per_step=float(st[:, Stat.PIVOTS].mean()), rounds=rounds,
+                             pivots_per_step=float(st[:, Stat.PIVOTS].mean()),
+                             solved_sparse=int(st[:, Stat.SOLVED_SPARSE].sum()), rounds=rounds,
                              runs_per_round=int(m["reps"][n])))
         fit_n = [n for n in sizes if n >= 4]
-        x = np.log(fit_n)
-        per_round = [float(np.polyfit(x, np.log([per_step[n][r] for n in fit_n]), 1)[0]) for r in range(rounds)]
-        sp = _spread(per_round)
-        fits[kind] = sp["median"]
-        fit_spread[kind] = dict(min=sp["min"], q1=sp["q1"], q3=sp["q3"], max=sp["max"])
+        sp = fit_exponent(fit_n, [per_step[n] for n in fit_n])
+        fits[kind] = sp and sp["median"]
+        fit_spread[kind] = sp and dict(min=sp["min"], q1=sp["q1"], q3=sp["q3"], max=sp["max"])
     return rows, fits, fit_spread
+
+
+def _fmt_fit(fits, fit_spread, kind):
+    if fits.get(kind) is None:
+        return "not fitted (fewer than two sizes >= 4)"
+    if not fit_spread:
+        return f"{fits[kind]:.2f}"
+    return f"{fits[kind]:.2f} [{fit_spread[kind]['min']:.2f}-{fit_spread[kind]['max']:.2f}]"
 
 
 def format_scaling_table(rows, fits, fit_spread=None):
@@ -428,14 +472,298 @@ def format_scaling_table(rows, fits, fit_spread=None):
     lines.append("")
     if rows and "rounds" in rows[0]:
         lines.append(f"times: thread CPU time (time.thread_time) per step, median over {rows[0]['rounds']} rounds "
-                     "alternating over the sizes of a layout in one process, [min-max] over rounds")
+                     "alternating over the sizes of a layout in one process, [min-max] over rounds; the dense path "
+                     "(sparse_min_unknowns=0)")
+    what = {"pile": "one island: Lemke on a dense tableau", "islands": "n islands of 8 unknowns"}
+    fitted = ", ".join(f"{k} p = {_fmt_fit(fits, fit_spread, k)} ({what[k]})" for k in SCALING_LAYOUTS if k in fits)
+    lines.append(f"fitted growth exponent (cost ~ n^p over n >= 4, fitted per round, median [min-max]): {fitted}")
+    return "\n".join(lines)
 
-    def fit(kind):
-        if not fit_spread:
-            return f"{fits[kind]:.2f}"
-        return f"{fits[kind]:.2f} [{fit_spread[kind]['min']:.2f}-{fit_spread[kind]['max']:.2f}]"
-    lines.append(f"fitted growth exponent (cost ~ n^p over n >= 4, fitted per round, median [min-max]): pile p = "
-                 f"{fit('pile')} (one island: Lemke on a dense tableau), islands p = {fit('islands')}")
+
+def pyramid_rows(bodies):
+    """The row count of the pyramid whose rows (rows + 1) / 2 boxes is nearest to `bodies` (at least one row)."""
+    return max(1, int(round((math.sqrt(1.0 + 8.0 * bodies) - 1.0) / 2.0)))
+
+
+def scaling_pile_scene(kind, size):
+    """The scene dict of a large pile of about `size` bodies and the generator call that made it: a tower of `size`
+    boxes, a pyramid of `pyramid_rows(size)` rows, or a bin of `size` mixed shapes (seed 0)."""
+    piles = _piles()
+    if kind == "tower":
+        return piles.tower(size), f"tower({size})"
+    if kind == "pyramid":
+        rows = pyramid_rows(size)
+        return piles.pyramid(rows), f"pyramid({rows})"
+    if kind == "bin":
+        return piles.bin_scene(size, seed=0), f"bin_scene({size}, seed=0)"
+    raise ValueError(f"kind must be one of {', '.join(SCALING_PILES)}, got {kind!r}")
+
+
+def settle_steps(scene, q0, extra_s=SETTLE_EXTRA_S):
+    """Steps until dropped bodies have landed: the free-fall time of the highest centre of mass from its height
+    above y = 0 (the floor of the piles), plus `extra_s` of simulated time."""
+    g = math.hypot(*scene.world.gravity)
+    top = float(max(0.0, q0[:, 1].max())) if len(q0) else 0.0
+    return int(math.ceil((math.sqrt(2.0 * top / g) + extra_s) / scene.sim.h))
+
+
+def _settle(sim, state, steps, budget_s, chunk=5):
+    """Run `steps` steps from state (q, v, qk, vk) with `sim`, in chunks of `chunk`, stopping once the run has taken
+    more than `budget_s` of thread CPU time. Returns (state after the steps done, steps done, CPU s, failed steps)."""
+    q, v, qk, vk = state
+    done, failed, t0 = 0, 0, _clock()
+    while done < steps and _clock() - t0 <= budget_s:
+        k = min(chunk, steps - done)
+        out = sim.rollout(q, v, qk, vk[None], k, stop_on_failure=False)
+        q, v, qk = out["q"][-1].copy(), out["v"][-1].copy(), out["qk"][-1].copy()
+        failed += int(np.count_nonzero(out["status"][:out["steps_done"]]))
+        done += k
+    return (q, v, qk, vk), done, _clock() - t0, failed
+
+
+def _probe(sim, state, steps, budget_s):
+    """A unit's `steps` steps from `state`, one rollout step at a time (the same trajectory as one rollout), stopped
+    once they have taken more than steps * budget_s of thread CPU time (at least one step). Returns (steps done,
+    their thread CPU time (s), their output as a rollout's: stats, status, steps_done)."""
+    q, v, qk, vk = state
+    stats, status, t0 = [], [], _clock()
+    while len(status) < steps and (not status or _clock() - t0 <= steps * budget_s):
+        out = sim.rollout(q, v, qk, vk[None], 1, stop_on_failure=False)
+        q, v, qk = out["q"][-1], out["v"][-1], out["qk"][-1]
+        stats.append(out["stats"][0])
+        status.append(out["status"][0])
+    cpu = _clock() - t0
+    return len(status), cpu, dict(stats=np.array(stats), status=np.array(status), steps_done=len(status))
+
+
+class _PileRun:
+    """One unit: a `steps`-step rollout from `state` (failed steps do not stop it: they are counted); the last
+    output is kept for its stats."""
+
+    def __init__(self, sim, state, steps):
+        self.sim, self.state, self.steps = sim, state, steps
+        self.out = None
+
+    def __call__(self):
+        q, v, qk, vk = self.state
+        self.out = self.sim.rollout(q, v, qk, vk[None], self.steps, stop_on_failure=False)
+
+
+def _run_fields(out):
+    """Stats of a run: pivots per step, sparse solves and fallbacks, the sparse share, failed steps, largest LCP,
+    islands per step."""
+    from planar_lcp.engine.layout import Stat
+    n = int(out["steps_done"])
+    st = out["stats"][:n]
+    sparse, fallbacks = int(st[:, Stat.SOLVED_SPARSE].sum()), int(st[:, Stat.SPARSE_FALLBACKS].sum())
+    return dict(pivots_per_step=float(st[:, Stat.PIVOTS].mean()), solved_sparse=sparse, sparse_fallbacks=fallbacks,
+                sparse_share=sparse / (sparse + fallbacks) if sparse + fallbacks else None,
+                failed_steps=int(np.count_nonzero(out["status"][:n])), lcp_max=int(st[:, Stat.LCP_MAX].max()),
+                islands=float(st[:, Stat.N_ISLANDS].mean()))
+
+
+_RUN_FIELDS = ("pivots_per_step", "solved_sparse", "sparse_fallbacks", "sparse_share", "failed_steps", "lcp_max",
+               "islands")
+#: the two paths of a large pile: (name, JSON field prefix, sparse_min_unknowns: None for the default)
+_PATHS = (("defaults", "", None), ("dense", "dense_", 0))
+
+
+def bench_scaling_piles(kinds=SCALING_PILES, sizes=PILE_SCALING_SIZES, steps=PILE_SCALING_STEPS,
+                        rounds=SCALING_ROUNDS, min_round_s=MIN_ROUND_S, step_budget_s=STEP_BUDGET_S,
+                        settle_budget_s=SETTLE_BUDGET_S, settle_extra_s=SETTLE_EXTRA_S, progress=None):
+    """Cost per step of towers, pyramids and bins (planar_lcp.spec.piles, h = 1/60 s) against their number of
+    bodies, with the defaults (the sparse solver on islands of >= SimOptions.sparse_min_unknowns unknowns, dense
+    Lemke where it leaves an island) and on the dense path (sparse_min_unknowns=0), and the growth exponent of each
+    path fitted per round.
+
+    What is timed: towers and pyramids from their initial state (every box resting on its neighbours); bins from the
+    state after `settle_steps` (the top row's fall plus `settle_extra_s`), run with the defaults, untimed. Each unit
+    is one `steps`-step rollout from that state. Per kind every size and both paths are timed in `rounds`
+    alternating rounds of thread CPU time (`alternate_rounds`), so `speedup` (dense / defaults) is the median of
+    per-round ratios, and the exponent p of cost ~ bodies^p is fitted in every round over the sizes timed in rounds.
+
+    The budgets: each path first runs its unit's steps once, one by one (`_probe`; also the untimed warm-up), and
+    stops when they have taken more than `step_budget_s` of thread CPU time per step; such a path has timing "once"
+    (the mean of the steps it ran, not fitted: the cost of a step varies where the sparse solver certifies some steps
+    and leaves others to dense Lemke) and the kind's larger sizes have timing "skipped" on that path; a bin whose
+    settling took more than `settle_budget_s` is "skipped" on both paths, as are the larger bins. Every size has its
+    row, with the reason in `note` / `dense_note`.
+
+    Returns (rows, fits, fit_spread, fit_bodies): rows as dicts (one per kind and size, the dense path's fields
+    prefixed dense_); fits[kind][path] the median exponent (None: fewer than two sizes timed in rounds),
+    fit_spread[kind][path] its min, q1, q3, max, fit_bodies[kind][path] the body counts of the fit. `progress`: a
+    callable given one line per size as it is prepared."""
+    from planar_lcp.model import compile_scene
+    from planar_lcp.sim import SimOptions, Simulator
+    from planar_lcp.spec.scene import parse_scene
+    say = progress or (lambda line: None)
+    rows, fits, fit_spread, fit_bodies = [], {}, {}, {}
+    for kind in kinds:
+        params, runners, kind_rows = [], {}, []
+        for size in sorted(set(sizes)):
+            d, call = scaling_pile_scene(kind, size)
+            if call not in params:     # pyramids: two sizes can give the same row count
+                params.append(call)
+                kind_rows.append((d, call))
+        over = {path: None for path, _, _ in _PATHS}     # the first size over the budget, per path
+        settle_over = None
+        for d, call in kind_rows:
+            scene = parse_scene(d)
+            model = compile_scene(scene)
+            h = scene.sim.h
+            row = dict(kind=kind, scene=call, bodies=model.ndyn, h=h, steps=steps, rounds=rounds,
+                       step_budget_s=step_budget_s, settle_budget_s=settle_budget_s, settle_extra_s=settle_extra_s,
+                       settle_steps=0, settle_cpu_s=0.0, settle_failed_steps=0, settle_max_speed=0.0)
+            # a path's simulator is made when it runs: a large skipped one would hold its work buffers for nothing
+            options = {path: SimOptions(h=h) if smin is None else SimOptions(h=h, sparse_min_unknowns=smin)
+                       for path, _, smin in _PATHS}
+            defaults = Simulator(model, options["defaults"])
+            state = defaults.initial_state()
+            settled = True
+            if kind == "bin":
+                want = settle_steps(scene, state[0], settle_extra_s)
+                if settle_over is None:
+                    state, done, cpu, failed = _settle(defaults, state, want, settle_budget_s)
+                    settled = done == want
+                    row.update(settle_steps=done, settle_cpu_s=cpu, settle_failed_steps=failed,
+                               settle_max_speed=float(np.hypot(state[1][:, 0], state[1][:, 1]).max()))
+                    if not settled:
+                        settle_over = model.ndyn
+                        reason = (f"skipped: settling took more than the {settle_budget_s:g} s budget ({done} of "
+                                  f"{want} steps in {cpu:.0f} s)")
+                else:
+                    settled = False
+                    reason = f"skipped: the bin of {settle_over} did not settle within the budget"
+                say(f"{call}: {model.ndyn} bodies, " + (reason if not settled else
+                    f"settled in {want} steps ({row['settle_cpu_s']:.1f} s CPU)"))
+            else:
+                say(f"{call}: {model.ndyn} bodies")
+            for path, pre, _ in _PATHS:
+                row.update({pre + "timing": "skipped", pre + "us_per_step": None, pre + "us_min": None,
+                            pre + "us_max": None, pre + "runs_per_round": 0, pre + "note": ""})
+                row.update({pre + k: None for k in _RUN_FIELDS})
+                if not settled:
+                    row[pre + "note"] = reason
+                    continue
+                if over[path] is not None:
+                    row[pre + "note"] = f"skipped: the {over[path]}-body {kind} was over the step budget"
+                    continue
+                sim = defaults if path == "defaults" else Simulator(model, options[path])
+                done, cpu, out = _probe(sim, state, steps, step_budget_s)
+                if cpu > steps * step_budget_s:
+                    over[path] = model.ndyn
+                    us = cpu / done * 1e6
+                    row.update({pre + "timing": "once", pre + "us_per_step": us, pre + "us_min": us,
+                                pre + "us_max": us, pre + "note": f"timed once, {done} of {steps} steps: over the "
+                                                                  f"{step_budget_s:g} s per step budget"})
+                    row.update({pre + k: x for k, x in _run_fields(out).items()})
+                    continue
+                row[pre + "timing"] = "rounds"
+                runners[(model.ndyn, path)] = _PileRun(sim, state, steps)
+            rows.append(row)
+        if runners:
+            names = {key: f"{kind}_{key[0]}_{key[1]}" for key in runners}
+            m = alternate_rounds({names[k]: r for k, r in runners.items()}, rounds=rounds, min_round_s=min_round_s)
+        per_step = {}
+        for row in (r for r in rows if r["kind"] == kind):
+            for path, pre, _ in _PATHS:
+                key = (row["bodies"], path)
+                if key not in runners:
+                    continue
+                per_step[key] = m["per_unit"][names[key]] / steps
+                us = per_step[key] * 1e6
+                row.update({pre + "us_per_step": float(np.median(us)), pre + "us_min": float(us.min()),
+                            pre + "us_max": float(us.max()), pre + "runs_per_round": int(m["reps"][names[key]])})
+                row.update({pre + k: x for k, x in _run_fields(runners[key].out).items()})
+            both = [(row["bodies"], p) in per_step for p, _, _ in _PATHS]
+            sp = ratio_stats(per_step[(row["bodies"], "dense")], per_step[(row["bodies"], "defaults")]) if all(both) \
+                else None
+            row.update(speedup=sp and sp["median"], speedup_min=sp and sp["min"], speedup_max=sp and sp["max"])
+        fits[kind], fit_spread[kind], fit_bodies[kind] = {}, {}, {}
+        for path, _, _ in _PATHS:
+            bodies = sorted(n for n, p in per_step if p == path)
+            sp = fit_exponent(bodies, [per_step[(n, path)] for n in bodies])
+            fits[kind][path] = sp and sp["median"]
+            fit_spread[kind][path] = sp and dict(min=sp["min"], q1=sp["q1"], q3=sp["q3"], max=sp["max"])
+            fit_bodies[kind][path] = bodies
+    return rows, fits, fit_spread, fit_bodies
+
+
+def _fmt_us(x):
+    return f"{x:.1f}" if x < 100 else f"{x:.0f}"
+
+
+def _fmt_path(r, pre):
+    """A path's cell: median [min-max] when timed in rounds, the one step's time when over the budget, or
+    'skipped'; failed steps appended."""
+    timing = r[pre + "timing"]
+    if timing == "skipped":
+        return "skipped"
+    if timing == "once":
+        cell = f"{_fmt_us(r[pre + 'us_per_step'])} (timed once)"
+    else:
+        cell = f"{_fmt_us(r[pre + 'us_per_step'])} [{_fmt_us(r[pre + 'us_min'])}-{_fmt_us(r[pre + 'us_max'])}]"
+    failed = r.get(pre + "failed_steps", 0)
+    return cell + (f", {failed} failed" if failed else "")
+
+
+def _fmt_sparse(r):
+    if r["timing"] == "skipped":
+        return "-"
+    share = r["sparse_share"]
+    return f"{r['solved_sparse']} / {r['sparse_fallbacks']} ({'-' if share is None else f'{100 * share:.0f} %'})"
+
+
+def format_scaling_piles_table(rows, fits, fit_spread, fit_bodies):
+    from planar_lcp.sim import SimOptions
+    smin = SimOptions.sparse_min_unknowns      # the dataclass field's default
+    lines = ["| kind | bodies | scene | timed from | largest LCP | islands | defaults µs / step median [min-max] | "
+             "sparse solves / fallbacks (share) | pivots / step | dense µs / step median [min-max] | pivots / step | "
+             "dense / defaults median [min-max] |",
+             "|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---:|"]
+    for r in rows:
+        ran = [pre for _, pre, _ in _PATHS if r[pre + "timing"] != "skipped"]
+        timed = "t = 0" if r["kind"] != "bin" else (f"step {r['settle_steps']} ({r['settle_max_speed']:.2f} m/s)"
+                                                     if ran else "-")
+        lcp = f"{r[ran[0] + 'lcp_max']}" if ran else "-"
+        isl = f"{r[ran[0] + 'islands']:.1f}" if ran else "-"
+        piv = {pre: f"{r[pre + 'pivots_per_step']:.0f}" if pre in ran else "-" for _, pre, _ in _PATHS}
+        speed = (f"{r['speedup']:.1f} [{r['speedup_min']:.1f}-{r['speedup_max']:.1f}]" if r["speedup"] is not None
+                 else "-")
+        lines.append(f"| {r['kind']} | {r['bodies']} | {r['scene']} | {timed} | {lcp} | {isl} | {_fmt_path(r, '')} | "
+                     f"{_fmt_sparse(r)} | {piv['']} | {_fmt_path(r, 'dense_')} | {piv['dense_']} | {speed} |")
+    lines.append("")
+    if rows:
+        r0 = rows[0]
+        lines.append(f"times: thread CPU time (time.thread_time) per step of a {r0['steps']}-step run (h = 1/60 s), "
+                     f"median over {r0['rounds']} rounds alternating over the sizes and both paths of a kind in one "
+                     f"process, [min-max] over rounds; defaults: the sparse solver on islands of >= {smin} "
+                     "unknowns; dense: sparse_min_unknowns=0; dense / defaults: median of the per-round ratios")
+        lines.append(f"timed from: towers and pyramids their initial state at rest; bins the state after their top "
+                     f"row's fall plus {r0['settle_extra_s']:g} s (the step, and the largest body speed there), run "
+                     "with the defaults")
+        lines.append(f"budgets: before its rounds each path runs its steps once, one by one, and stops when they pass "
+                     f"{r0['step_budget_s']:g} s of thread CPU time per step; then it shows their mean ('timed once'), "
+                     "is not fitted, and its larger sizes are skipped; a bin whose settling takes more than "
+                     f"{r0['settle_budget_s']:g} s is skipped, as are larger bins; sparse share '-': no island reached "
+                     f"{smin} unknowns")
+        for r in rows:
+            for _, pre, _ in _PATHS:
+                if r[pre + "timing"] == "skipped" and r[pre + "note"]:
+                    lines.append(f"  {r['scene']} {'dense' if pre else 'defaults'}: {r[pre + 'note']}")
+    for kind in fits:
+        parts = []
+        for path, _, _ in _PATHS:
+            p, b = fits[kind][path], fit_bodies[kind][path]
+            if p is None:
+                parts.append(f"{path} not fitted (fewer than two sizes timed in rounds)")
+            else:
+                s = fit_spread[kind][path]
+                parts.append(f"{path} p = {p:.2f} [{s['min']:.2f}-{s['max']:.2f}] over {b[0]}-{b[-1]} bodies")
+        lines.append(f"fitted growth exponent of {kind} (cost ~ bodies^p, fitted per round, median [min-max]): "
+                     + "; ".join(parts))
+    if fits:
+        lines.append("target (issue L): p <= 1.3 over 16 to 256 bodies for towers and bins with the defaults")
     return "\n".join(lines)
 
 
@@ -462,15 +790,15 @@ def _penetration(model, q):
 
 
 def _box2d_run(model, substeps, steps, h):
-    """Box2D's whole run: (top-box drift (m), deepest penetration over the run, sampled every 10 steps)."""
+    """Box2D's whole run: (top-box drift (m), deepest penetration over the run at the end of every step, as ours is
+    measured: Stat.PENETRATION, the deepest at each step's q+)."""
     from planar_lcp.experiments.box2d_bridge import box2d_poses, box2d_world
     world, bodies = box2d_world(model)
     q0 = box2d_poses(bodies)
     pen = 0.0
     for i in range(steps):
         world.step(h, substeps)
-        if i % 10 == 9:
-            pen = max(pen, _penetration(model, box2d_poses(bodies)))
+        pen = max(pen, _penetration(model, box2d_poses(bodies)))
     q = box2d_poses(bodies)
     return float(np.abs(q[-1, :2] - q0[-1, :2]).max()), pen
 
@@ -574,28 +902,53 @@ def format_pile_table(rows):
                      f"scene's initial state, median over {rows[0]['rounds']} alternating rounds in one process "
                      "[min-max]; ratio: median of the per-round ratios [min-max]; Box2D v3 (pyb2d3) with sleeping "
                      "off, its worlds built outside the clock; penetration by our collision detection on each "
-                     "simulator's poses (Box2D: every 10 steps); a tower stands when its top box moves < 1 mm")
+                     "simulator's poses at the end of every step; a tower stands when its top box moves < 1 mm")
     return "\n".join(lines)
 
 
-def run_bench(which, json_path=None):
+def run_bench(which, json_path=None, kinds=None, sizes=None, steps=None, rounds=None, scenes=None,
+              step_budget_s=STEP_BUDGET_S, settle_budget_s=SETTLE_BUDGET_S):
+    """Run the benchmark `which` (step, lcp, scaling, pile or all), print its tables and optionally write the JSON.
+
+    `all` is step, lcp and scaling's small layouts (pile, islands): the run of record docs/figures/performance/
+    bench.json; the large piles and `pile` are runs of their own. kinds, sizes, steps: scaling's kinds (default all
+    of SCALING_KINDS), body counts (default SCALING_SIZES for the layouts, PILE_SCALING_SIZES for the piles) and
+    steps per timed run; steps and scenes (names of PILE_SCENES) for pile; rounds for any (default: each
+    benchmark's own)."""
     report = {}
     if which in ("scaling", "all"):
-        rows, fits, fit_spread = bench_scaling()
-        print(format_scaling_table(rows, fits, fit_spread))
-        report["scaling"] = dict(rows=rows, fits=fits, fit_spread=fit_spread, clock="thread_time")
+        kinds = kinds or (SCALING_KINDS if which == "scaling" else SCALING_LAYOUTS)
+        layouts = [k for k in kinds if k in SCALING_LAYOUTS]
+        pile_kinds = [k for k in kinds if k in SCALING_PILES]
+        if layouts:
+            rows, fits, fit_spread = bench_scaling(sizes=sizes or SCALING_SIZES, steps=steps or 20,
+                                                   rounds=rounds or SCALING_ROUNDS, kinds=layouts)
+            print(format_scaling_table(rows, fits, fit_spread))
+            report["scaling"] = dict(rows=rows, fits=fits, fit_spread=fit_spread, clock="thread_time")
+        if pile_kinds:
+            if layouts:
+                print("")
+            rows, fits, fit_spread, fit_bodies = bench_scaling_piles(
+                kinds=pile_kinds, sizes=sizes or PILE_SCALING_SIZES, steps=steps or PILE_SCALING_STEPS,
+                rounds=rounds or SCALING_ROUNDS, step_budget_s=step_budget_s, settle_budget_s=settle_budget_s,
+                progress=lambda line: print(f"bench scaling: {line}", file=sys.stderr, flush=True))
+            print(format_scaling_piles_table(rows, fits, fit_spread, fit_bodies))
+            report["scaling_piles"] = dict(rows=rows, fits=fits, fit_spread=fit_spread, fit_bodies=fit_bodies,
+                                           clock="thread_time", step_budget_s=step_budget_s,
+                                           settle_budget_s=settle_budget_s, settle_extra_s=SETTLE_EXTRA_S)
     if which == "pile":
-        rows = bench_pile()
+        chosen = tuple(sc for sc in PILE_SCENES if sc[0] in scenes) if scenes else PILE_SCENES
+        rows = bench_pile(scenes=chosen, steps=steps or PILE_STEPS, rounds=rounds or PILE_ROUNDS)
         print(format_pile_table(rows))
         report["pile"] = dict(rows=rows, clock="thread_time")
     if which in ("step", "all"):
         compile_times = measure_step_compile_time()
-        rows = bench_step()
+        rows = bench_step(rounds=rounds or ROUNDS)
         print(format_step_table(rows, compile_times))
         report["step"] = dict(rows=rows, compile=compile_times, clock="thread_time")
     if which in ("lcp", "all"):
         compile_times = measure_compile_time()
-        rows = bench_lcp()
+        rows = bench_lcp(rounds=rounds or ROUNDS)
         if not rows:
             raise SystemExit("bench lcp: the LCP corpus ../shared/data/lcp was not found (set PLANAR_LCP_CORPUS)")
         print(format_lcp_table(rows, compile_times))
