@@ -260,3 +260,20 @@ def test_a_rollout_in_chunks_equals_one_kernel_call(name, opts):
     assert a["steps_done"] == b["steps_done"] == 300
     for k in a:
         assert np.array_equal(a[k], b[k]), k
+
+
+@pytest.mark.slow
+def test_the_scaling_warm_start_example_runs():
+    """docs/performance.md ("Scaling", the warm start): `python examples/scaling_warm_start.py` end to end, on the
+    dense path; every step but the first is warm-started on towers of 1 to 32 boxes."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    run = subprocess.run([sys.executable, str(root / "examples" / "scaling_warm_start.py")], capture_output=True,
+                         text=True, timeout=900, cwd=root)
+    assert run.returncode == 0, run.stderr
+    rows = {int(c[0]): [float(x) for x in c[1:]] for c in
+            ([x.strip() for x in r.strip("|").split("|")] for r in run.stdout.splitlines()[2:] if r.startswith("|"))}
+    assert sorted(rows) == [1, 2, 4, 8, 16, 32]
+    assert all(rows[n][2] == 0.95 for n in rows), rows          # 19 of 20 steps (the rollout starts cold)

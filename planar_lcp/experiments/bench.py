@@ -522,9 +522,11 @@ def _settle(sim, state, steps, budget_s, chunk=5):
 
 
 def _probe(sim, state, steps, budget_s):
-    """A unit's `steps` steps from `state`, one rollout step at a time (the same trajectory as one rollout), stopped
-    once they have taken more than steps * budget_s of thread CPU time (at least one step). Returns (steps done,
-    their thread CPU time (s), their output as a rollout's: stats, status, steps_done)."""
+    """A unit's `steps` steps from `state`, one rollout step at a time, stopped once they have taken more than
+    steps * budget_s of thread CPU time (at least one step). Each one-step rollout starts cold (the sparse solver's
+    mode memory is not carried from step to step, as it is in one rollout), so the probe can cost more than the unit
+    it stands for. Returns (steps done, their thread CPU time (s), their output as a rollout's: stats,
+    status, steps_done)."""
     q, v, qk, vk = state
     stats, status, t0 = [], [], _clock()
     while len(status) < steps and (not status or _clock() - t0 <= steps * budget_s):
