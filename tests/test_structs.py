@@ -85,3 +85,37 @@ def test_trajectory_stats_keys_are_the_contract():
         "penetration", "lemke_retries", "warm_starts", "solved_sparse", "sparse_fallbacks", "solved_lemke",
         "solved_equilibrated", "solved_strict", "solved_velocity", "solved_inelastic", "pgs_uncertified", "fp_change", "pgs_update", "status", "energy"])
     assert tr.stats["pivots"].dtype.kind == "i" and tr.stats["residual"].dtype.kind == "f"
+
+
+def _variants(v):
+    """v and values that differ from it in one of the properties that make its numba type."""
+    if not isinstance(v, np.ndarray):
+        return [v, int(v), float(v), bool(v), np.int64(v), np.float64(v), np.bool_(v), np.int32(v), np.float32(v)]
+    ro = v.copy()
+    ro.flags.writeable = False
+    out = [v, ro, v.astype(np.float32), v.astype(np.int32), v.astype(np.float64), v.astype(np.int64),
+           v.astype(np.bool_), v.astype(v.dtype.newbyteorder()), v[None], np.asfortranarray(v)]
+    if v.size > 1:
+        out.append(v.reshape(-1)[::2] if v.ndim == 1 else v[:, ::2] if v.shape[1] > 1 else v[::2])
+    return out
+
+
+@pytest.mark.parametrize("name", ["box_push", "tower"])
+def test_the_fast_field_check_never_accepts_what_numba_types_differently(name):
+    """`_struct` checks each field with numpy's attributes (`_has_field_type`) and asks numba.typeof only when that
+    says no: the fast check must never say yes where numba's type is not the field's (a struct of a wrong type would
+    compile the kernels again, or fail inside them). Every field of both structs, and variants of each that differ
+    in dtype, byte order, ndim, layout, writeability or scalar type."""
+    from planar_lcp.engine.layout import OPTIONS_LAYOUT, _has_field_type, numba_type
+    model = compile_scene(load_scene(name))
+    opts = SimOptions(h=0.01).kernel_options()
+    checked = accepted = 0
+    for layout, view in ((MODEL_LAYOUT, model.arrays), (WORK_LAYOUT, make_step_work(model)), (OPTIONS_LAYOUT, opts)):
+        for f, v in zip(layout, view):
+            assert _has_field_type(f, v), f.name            # the arrays as made: the fast path
+            for x in _variants(v):
+                checked += 1
+                if _has_field_type(f, x):
+                    accepted += 1
+                    assert numba.typeof(x) == numba_type(f), (f.name, x.dtype if hasattr(x, "dtype") else type(x))
+    assert accepted < checked

@@ -332,6 +332,21 @@ def _new_struct(struct_type, values):
     return _struct_from_tuple(struct_type, values)
 
 
+#: Python types whose numba type is each scalar field's (`numba_type`)
+_SCALAR_TYPES = {"int": (int, np.int64), "float": (float, np.float64), "bool": (bool, np.bool_)}
+
+
+def _has_field_type(field, v):
+    """True only if numba.typeof(v) is `numba_type(field)`, from numpy's attributes: typeof costs microseconds an
+    array and a Simulator's structs have about 190 (issue M). An array's numba type is its dtype, ndim, layout ('C'
+    when C-contiguous), readonly (not writeable) and aligned flags. False means: ask numba.typeof."""
+    if not field.shape:
+        return type(v) in _SCALAR_TYPES[field.dtype]
+    fl = v.flags if type(v) is np.ndarray else None
+    return (fl is not None and v.dtype == _DTYPES[field.dtype][1] and v.ndim == field.shape.count(" x ") + 1
+            and fl.c_contiguous and fl.writeable and fl.aligned)
+
+
 def _struct(view, struct_type, layout):
     """The struct of `struct_type` over the buffers of the namedtuple `view` (checked against `layout`), with the
     view attached; with NUMBA_DISABLE_JIT, the view itself."""
@@ -342,9 +357,10 @@ def _struct(view, struct_type, layout):
     if tuple(view._fields) != names:
         raise TypeError(f"{what}: fields {view._fields} do not match the struct's {names}")
     for f, v in zip(layout, view):
-        got, want = numba.typeof(v), numba_type(f)
-        if got != want:
-            raise TypeError(f"{what}.{f.name}: expected {want}, got {got}")
+        if not _has_field_type(f, v):
+            got, want = numba.typeof(v), numba_type(f)
+            if got != want:
+                raise TypeError(f"{what}.{f.name}: expected {want}, got {got}")
     s = _new_struct(struct_type, view)
     s.view = view
     return s
