@@ -11,6 +11,7 @@ import math
 import numpy as np
 import pytest
 from cli_helpers import run_cli
+from task_geometry import placed, straight_sweep
 
 pytest.importorskip("ompl")
 pytest.importorskip("shapely")
@@ -33,16 +34,7 @@ def clutter_plan(tmp_path_factory):
     return r, out
 
 
-def _placed(body):
-    from shapely.ops import unary_union
-
-    from planar_lcp.geometry import shape_geometry
-    from planners.tasks import _place
-    return _place(unary_union([shape_geometry(s, quad_segs=8) for s in body.shapes]), body.position, body.angle)
-
-
 def test_four_obstacles_of_different_shapes_and_masses_block_the_straight_way(tm):
-    from shapely.ops import unary_union
     sc = tm.scene
     names = tm.task.obstacles
     assert len(names) >= 4
@@ -50,15 +42,14 @@ def test_four_obstacles_of_different_shapes_and_masses_block_the_straight_way(tm
     assert len({b.shapes[0].type for b in bodies}) == len(bodies)            # disk, box, capsule, polygon
     assert len({b.mass for b in bodies}) == len(bodies)
     # the region the box sweeps moving straight (no turn) from its start to the goal
-    start = _placed(sc.body(tm.task.object))
-    sweep = unary_union([start, tm.goal_poly]).convex_hull
+    sweep = straight_sweep(tm)
     for b in bodies:
-        g = _placed(b)
+        g = placed(b)
         assert g.intersection(sweep).area > 0.25 * g.area, b.name
     # and they do not overlap at the start (a scene error the simulator would resolve with a jump)
     for i, a in enumerate(bodies):
         for b in bodies[i + 1:] + [sc.body(tm.task.object)]:
-            assert _placed(a).distance(_placed(b)) > 1e-3, (a.name, b.name)
+            assert placed(a).distance(placed(b)) > 1e-3, (a.name, b.name)
 
 
 def test_the_ompl_state_holds_every_object(tm):

@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pytest
 from cli_helpers import run_cli
+from task_geometry import placed, straight_sweep
 
 pytest.importorskip("ompl")
 pytest.importorskip("shapely")
@@ -36,20 +37,6 @@ def table_plan(tmp_path_factory):
     return r, out
 
 
-def _placed(body):
-    from shapely.ops import unary_union
-
-    from planar_lcp.geometry import shape_geometry
-    from planners.tasks import _place
-    return _place(unary_union([shape_geometry(s, quad_segs=8) for s in body.shapes]), body.position, body.angle)
-
-
-def _sweep(tm):
-    """The region the box sweeps moving straight (no turn) from its start to the goal."""
-    from shapely.ops import unary_union
-    return unary_union([_placed(tm.scene.body(tm.task.object)), tm.goal_poly]).convex_hull
-
-
 def test_twelve_obstacles_of_four_kinds_of_shape_and_twelve_masses(tm):
     sc = tm.scene
     bodies = [sc.body(n) for n in tm.task.obstacles]
@@ -66,21 +53,21 @@ def test_twelve_obstacles_of_four_kinds_of_shape_and_twelve_masses(tm):
 
 def test_five_obstacles_block_the_straight_way_and_one_stands_on_the_goal(tm):
     sc = tm.scene
-    sweep = _sweep(tm)
+    sweep = straight_sweep(tm)
     # the box spans x in [-0.36, -0.28] at the start, and its straight way sweeps y in [-0.04, 0.04]
-    assert _placed(sc.body(tm.task.object)).bounds == pytest.approx((-0.36, -0.04, -0.28, 0.04), abs=1e-12)
+    assert placed(sc.body(tm.task.object)).bounds == pytest.approx((-0.36, -0.04, -0.28, 0.04), abs=1e-12)
     assert sweep.bounds == pytest.approx((-0.36, -0.04, 0.34, 0.04), abs=1e-12)
     for name in tm.task.obstacles:
-        g = _placed(sc.body(name))
+        g = placed(sc.body(name))
         share = g.intersection(sweep).area / g.area
         if name in IN_THE_WAY:
             assert share > 0.25, name
         else:                                     # beside the way: out of it, but where the others are pushed
             assert share == 0 and g.distance(sweep) < 0.08, (name, g.distance(sweep))
     # the block lies wholly inside the goal's footprint: the box cannot reach the goal unless the block moves
-    block = _placed(sc.body("block"))
+    block = placed(sc.body("block"))
     assert block.difference(tm.goal_poly).area < 1e-12 * block.area
-    assert all(_placed(sc.body(n)).intersection(tm.goal_poly).area == 0 for n in tm.task.obstacles if n != "block")
+    assert all(placed(sc.body(n)).intersection(tm.goal_poly).area == 0 for n in tm.task.obstacles if n != "block")
 
 
 def test_no_two_bodies_are_closer_than_2_cm_and_all_stand_on_the_table(tm):
@@ -89,7 +76,7 @@ def test_no_two_bodies_are_closer_than_2_cm_and_all_stand_on_the_table(tm):
     assert len(names) == len(sc.bodies)
     for i, a in enumerate(names):
         for b in names[i + 1:]:
-            assert _placed(sc.body(a)).distance(_placed(sc.body(b))) > 0.02, (a, b)
+            assert placed(sc.body(a)).distance(placed(sc.body(b))) > 0.02, (a, b)
     x = tm.initial_state()
     assert tm.in_bounds(x) and tm.valid(x)
     assert all(tm.inside_workspace(x, i) for i in range(tm.nobj))
