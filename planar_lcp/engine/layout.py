@@ -162,6 +162,15 @@ sparse_rhs         | f8    | reduced           | m/s        | sparse    | the re
 sparse_x           | f8    | reduced           | N s        | sparse    | its solution
 sparse_r           | f8    | reduced           | m/s        | sparse    | refinement residual, then correction
 sparse_dv          | f8    | dyn x 3           | m/s, rad/s | sparse    | M^-1 G z of the candidate answer
+block_cols         | i8    | unknown           | -          | block     | the basic z (and z0) of block Lemke, by position
+block_rows         | i8    | unknown           | -          | block     | the rows whose w is not basic, by position
+block_col_pos      | i8    | unknown           | -          | block     | each z's position in block_cols (-1: not basic)
+block_row_pos      | i8    | unknown           | -          | block     | each row's position in block_rows (-1: w basic)
+block_xz           | f8    | unknown           | N s        | block     | the basic z's values
+block_xw           | f8    | unknown           | m/s        | block     | the basic w's values
+block_dz           | f8    | unknown           | -          | block     | their rates along the entering variable
+block_dw           | f8    | unknown           | -          | block     | the w's rates
+block_y            | f8    | unknown           | -          | block     | a row of the Schur complement's inverse update
 dense_needed       | i8    | 1                 | -          | solvers   | dense size a step asked for (NEEDS_SPACE)
 warm_size          | i8    | dyn               | -          | lemke     | per island: last LCP's size (-1: none)
 warm_basic_z       | bool  | dyn x unknown     | -          | lemke     | per island: which z were basic in it
@@ -209,6 +218,7 @@ STATS = (
     ("warm_starts", True, "island LCPs solved by the previous step's basis"),
     ("solved_sparse", True, "island LCPs solved by the sparse solver (large islands)"),
     ("sparse_fallbacks", True, "large islands the sparse solver left to dense Lemke"),
+    ("solved_block", True, "island LCPs solved by Lemke on the Schur complement of its basis (large islands)"),
     ("solved_lemke", True, "island LCPs solved by Lemke as assembled"),
     ("solved_equilibrated", True, "island LCPs solved by Lemke on the equilibrated problem"),
     ("solved_strict", True, "island LCPs solved by Lemke with stricter pivot tolerances"),

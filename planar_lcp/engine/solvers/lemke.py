@@ -488,6 +488,10 @@ def lemke_solve(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate):
     return z, w, status, pivots, res
 
 
+# block_lemke.py pivots with this module's certificate and basis solve: imported once they are defined
+from planar_lcp.engine.solvers.block_lemke import block_lemke  # noqa: E402
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # The island solver
 # ---------------------------------------------------------------------------------------------------------------
@@ -514,6 +518,9 @@ def lemke_solve(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate):
 # When none is certified the step pipeline hands the island to its fallback (PGS: uncertified, the step is reported
 # as failed) or, in the variant without one, hands the step back to the caller.
 RETRY_PIV_TOLS = (1e-6, 1e-4)
+#: block Lemke's pivot cap per unknown: Lemke's path on a contact island takes about one pivot per unknown (the bin
+#: of 40: 250 for 360), a cycle without the lexicographic rule would take the whole 50 n of the tableau's cap
+BLOCK_PIVOTS_PER_UNKNOWN = 2
 # The chain, in order: (stats counter, pivot tolerance (-1: the options'), equilibrate, velocity-form normal rows,
 # the impact law of restitution)
 LEMKE_CHAIN = ((int(Stat.SOLVED_LEMKE), -1.0, False, False, True),
@@ -539,6 +546,20 @@ def lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate):
 
 
 @njit(cache=True, inline='always')
+def block_lemke_in_work(w, A, b, n, opt):
+    """`block_lemke` on the LCP (A, b) of size n in the step's work buffers (answer in w.lemke_z): K^-1 and M^T in
+    the tableau's buffer, which it is at least twice as large as. At most BLOCK_PIVOTS_PER_UNKNOWN pivots per
+    unknown: a cycle costs little before the tableau takes over."""
+    T = w.lemke_tableau
+    Kinv = T[:n * n].reshape((n, n))
+    Mt = T[n * n:2 * n * n].reshape((n, n))
+    return block_lemke(A, b, BLOCK_PIVOTS_PER_UNKNOWN * n + 100, opt.piv_tol, opt.ratio_tol, opt.res_tol, Kinv, Mt,
+                       w.block_cols, w.block_rows, w.block_col_pos, w.block_row_pos, w.block_xz, w.block_xw,
+                       w.block_dz, w.block_dw, w.block_y, w.lemke_z, w.lemke_w, w.lemke_lu, w.lemke_rhs,
+                       w.lemke_perm, w.lemke_basic, w.lemke_z_refined, w.lemke_w_refined)
+
+
+@njit(cache=True, inline='always')
 def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     """Island solver (signature: engine/step.py): the island's LCP by the warm start (opt.warm_start), then the
     certified LEMKE_CHAIN. When solved, its impulses are added to w.v_new and recorded in w.con_*; returns the Lemke
@@ -550,6 +571,7 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     res = np.inf
     warm = False
     sparse = False
+    block = False
     if opt.sparse_min > 0 and n >= opt.sparse_min and nsi == 0:
         # a large island: its sparse reduced system first (engine/solvers/sparse.py), dense Lemke if not certified
         sparse, _, res = solve_island_sparse(m, w, opt, vk, nci, nsi, h, velocity_form)
@@ -573,7 +595,15 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
         if warm:
             status = STATUS_SOLVED
             stats[Stat.WARM_STARTS] += 1
-        else:
+        elif opt.sparse_min > 0 and n >= opt.sparse_min and nsi == 0:
+            # a large island: Lemke's path pivoted on its basis's Schur complement (block_lemke.py), O(k^2) a pivot
+            # where the tableau's costs O(n^2); the tableau if it is not certified (a cycle on a degenerate tie)
+            status, p, res = block_lemke_in_work(w, A, b, n, opt)
+            piv += p
+            if status == STATUS_SOLVED:
+                block = True
+                stats[Stat.SOLVED_BLOCK] += 1
+        if not warm and not block:
             # One call site for the whole chain: each inlined call of lemke_kernel costs compile time
             status = STATUS_RAY
             method = LEMKE_CHAIN[0][0]

@@ -1,0 +1,493 @@
+"""Lemke's method on the basis's Schur complement: the pivots of `lemke_kernel`, each O(k^2), not O(n^2).
+
+Problem: find z >= 0 with w = M z + q >= 0 and z.w = 0, M (n x n) dense, as `lemke_kernel` (lemke.py) solves it with
+covering vector e. Along Lemke's path every basic variable is a w_i or a z_j (or the artificial z0). Write C for the
+rows whose w_i is NOT basic (w_i = 0 there) and S for the basic z_j, z0 included (its column is e): then the basic
+z solve the k x k system
+
+    K z_S = -q_C,    K = M[C, S],    k = |C| = |S|,
+
+and every basic w_i follows as w_i = q_i + M[i, S] z_S. So a pivot needs K^-1, not the n x n basis inverse the
+tableau keeps: this kernel keeps K^-1 explicitly and changes it by one row and/or column per pivot (a bordered
+inverse when K grows, its Schur downdate when it shrinks, Sherman-Morrison when a row or a column is replaced), each
+O(k^2). The tableau's pivot costs O(n^2) whatever k is; a large contact island's LCP (n = 4 per contact) has k about
+half of n and Lemke starts from k = 0, so the pivots cost several times less.
+
+The path is the tableau's: the same entering variables and the same ratio test (minimum ratio, ties relative to the
+problem's scale, the artificial variable first among tied rows, then the lexicographic rule on the rows of B^-1,
+built from K^-1 for the tied rows only), so in exact arithmetic it is `lemke_kernel`'s pivot for pivot; round-off
+can split a tie differently. Round-off also accumulates in K^-1 and in the basic values over the pivots; the answer
+is taken from them only if it already passes, else recomputed from (M, q) for the final basis
+(`lemke._solve_basic_z`), and certified by the residual test of `lemke_kernel` (`lcp_residual` within res_tol of
+`lcp_scale`). A problem it does not certify goes on to the tableau (lemke.py `solve_island_lemke`).
+
+Numba kernels, no allocation: the caller passes the work arrays (engine/layout.py `block_*`; `Kinv` borrows the
+tableau's buffer).
+"""
+
+import numpy as np
+from numba import njit
+
+from planar_lcp.engine.solvers.lemke import (STATUS_INACCURATE, STATUS_INVALID, STATUS_MAX_PIVOTS, STATUS_RAY,
+                                             STATUS_SOLVED, _solve_basic_z, lcp_residual, lcp_scale)
+
+
+#: K^-1 is made anew (`_refactor`) when a direction's equations are off by more than this, relative to the scale
+DRIFT_TOL = 1e-10
+#: an elimination pivot of K below this fraction of its largest entry: K is singular to working precision
+SINGULAR_TOL = 1e-13
+
+
+@njit(cache=True, inline='always')
+def _column(M, n, i, s):
+    """Entry i of column s of [M | e]: s == n is the artificial variable's column."""
+    return 1.0 if s == n else M[i, s]
+
+
+@njit(cache=True)
+def _direction(M, Mt, n, k, Kinv, cols, rows, row_pos, entering, dz, dw):
+    """How the basic variables change when `entering` rises at unit rate (variable codes: z_j is j, w_i is n + 1 + i,
+    z0 is n). Writes dz[:k] (the basic z, by position in S) and dw[i] for every row i (meaningful where w_i is basic).
+    Mt is M transposed: the columns of M as contiguous rows."""
+    if entering > n:
+        # w_p enters: row p leaves the equations, K z_S = -q_C + e_p t
+        p = row_pos[entering - n - 1]
+        for c in range(k):
+            dz[c] = Kinv[c, p]
+        for i in range(n):
+            dw[i] = 0.0
+    else:
+        # z_j (or z0) enters: K dz = -M[C, j]
+        for c in range(k):
+            dz[c] = 0.0
+        for r in range(k):
+            a = _column(M, n, rows[r], entering)
+            if a != 0.0:       # a contact's column is zero outside the contacts sharing a body with it
+                for c in range(k):
+                    dz[c] -= Kinv[c, r] * a
+        for i in range(n):
+            dw[i] = 1.0 if entering == n else Mt[entering, i]
+    for c in range(k):
+        f = dz[c]
+        if f != 0.0:
+            s = cols[c]
+            if s == n:
+                for i in range(n):
+                    dw[i] += f
+            else:
+                for i in range(n):
+                    dw[i] += f * Mt[s, i]
+
+
+@njit(cache=True)
+def _basis_inverse_row(M, n, k, Kinv, cols, rows, cand_code, out):
+    """Row of B^-1 (the tableau's columns 0..n-1) of one basic variable: for the basic z at position c it is -Kinv[c, p]
+    at column rows[p]; for a basic w_i it is e_i - ([M | e][i, S] K^-1) at those columns (the system is
+    I w - M z - e z0 = q, solved through K as in `_direction`)."""
+    for t in range(n):
+        out[t] = 0.0
+    if cand_code < k:
+        for p in range(k):
+            out[rows[p]] = -Kinv[cand_code, p]
+    else:
+        i = cand_code - n - 1
+        out[i] = 1.0
+        for c in range(k):
+            v = _column(M, n, i, cols[c])
+            if v != 0.0:
+                for p in range(k):
+                    out[rows[p]] -= v * Kinv[c, p]
+
+
+@njit(cache=True)
+def _ratio_test(M, n, k, Kinv, cols, rows, row_pos, xz, xw, dz, dw, piv_tol, ratio_tol, rhs_scale, cand, rate, lex):
+    """The blocking basic variable: -1 none (a ray), c < k the basic z at position c, n + 1 + i the basic w_i.
+
+    lemke._ratio_test's rule on the same numbers (a tableau entry T[i, j] is the basic variable's rate of DEcrease,
+    -dz or -dw here): candidates fall faster than piv_tol of the fastest; the smallest ratio value / rate; ties
+    within ratio_tol of the problem's scale go to the artificial variable, then are broken lexicographically on the
+    rows of B^-1 (built from K^-1 for the tied candidates only, in `lex`: n x n work), then by the largest rate.
+    cand (int64), rate (float64): (>=n,) work."""
+    colmax = 0.0
+    for c in range(k):
+        colmax = max(colmax, abs(dz[c]))
+    for i in range(n):
+        if row_pos[i] < 0:
+            colmax = max(colmax, abs(dw[i]))
+    if colmax == 0.0:
+        return -1
+    thresh = piv_tol * colmax
+    nc = 0
+    best = np.inf
+    for c in range(k):
+        if -dz[c] > thresh:
+            cand[nc] = c
+            rate[nc] = -dz[c]
+            best = min(best, max(xz[c], 0.0) / -dz[c])
+            nc += 1
+    for i in range(n):
+        if row_pos[i] < 0 and -dw[i] > thresh:
+            cand[nc] = n + 1 + i
+            rate[nc] = -dw[i]
+            best = min(best, max(xw[i], 0.0) / -dw[i])
+            nc += 1
+    if nc == 0:
+        return -1
+    tol = ratio_tol * max(best, rhs_scale / colmax)
+    m = 0
+    for a in range(nc):
+        code = cand[a]
+        x = xz[code] if code < k else xw[code - n - 1]
+        if max(x, 0.0) / rate[a] <= best + tol:
+            cand[m] = code
+            rate[m] = rate[a]
+            m += 1
+    nc = m
+    if nc == 1:
+        return cand[0]
+    for a in range(nc):
+        if cand[a] < k and cols[cand[a]] == n:
+            return cand[a]
+    # lexicographic on the rows of B^-1, as lemke._ratio_test (ties judged against the largest |B^-1 / rate|)
+    lex_scale = 0.0
+    for a in range(nc):
+        _basis_inverse_row(M, n, k, Kinv, cols, rows, cand[a], lex[a])
+        for t in range(n):
+            lex[a, t] /= rate[a]
+            lex_scale = max(lex_scale, abs(lex[a, t]))
+    tol = ratio_tol * lex_scale
+    for t in range(n):
+        best = np.inf
+        for a in range(nc):
+            best = min(best, lex[a, t])
+        m = 0
+        for a in range(nc):
+            if lex[a, t] <= best + tol:
+                if m != a:
+                    cand[m] = cand[a]
+                    rate[m] = rate[a]
+                    for t2 in range(n):
+                        lex[m, t2] = lex[a, t2]
+                m += 1
+        nc = m
+        if nc == 1:
+            return cand[0]
+    # still tied (round-off only): the largest pivot element
+    pick = 0
+    for a in range(1, nc):
+        if rate[a] > rate[pick]:
+            pick = a
+    return cand[pick]
+
+
+@njit(cache=True)
+def _drift(n, k, rows, entering, dz, dw):
+    """How far the direction misses its equations (K dz = -M[C, j], or e_p for w_p entering), relative to its size."""
+    err = 0.0
+    big = 1.0
+    for c in range(k):
+        big = max(big, abs(dz[c]))
+    for r in range(k):
+        unit = 1.0 if entering > n and rows[r] == entering - n - 1 else 0.0
+        err = max(err, abs(dw[rows[r]] - unit))
+    return err / big
+
+
+@njit(cache=True)
+def _refactor(M, Mt, q, n, k, Kinv, cols, rows, row_pos, xz, xw, lu, perm):
+    """K^-1 anew from M (Gauss-Jordan with partial pivoting, O(k^3)), and the basic values from it: the updates'
+    round-off grows with every pivot. Returns False if K is singular to working precision (an elimination pivot
+    below SINGULAR_TOL of K's largest entry): the path has taken a pivot the updates could not resolve."""
+    kmax = 0.0
+    for r in range(k):
+        for c in range(k):
+            lu[r, c] = _column(M, n, rows[r], cols[c])
+            kmax = max(kmax, abs(lu[r, c]))
+            Kinv[r, c] = 1.0 if r == c else 0.0
+    # lu is K with its rows permuted as eliminated; Kinv accumulates the same row operations (its rows then index
+    # K's columns: the inverse)
+    for c in range(k):
+        p = c
+        big = abs(lu[c, c])
+        for r in range(c + 1, k):
+            if abs(lu[r, c]) > big:
+                big = abs(lu[r, c])
+                p = r
+        if big <= SINGULAR_TOL * kmax:
+            return False
+        if p != c:
+            for t in range(k):
+                tmp = lu[c, t]
+                lu[c, t] = lu[p, t]
+                lu[p, t] = tmp
+                tmp = Kinv[c, t]
+                Kinv[c, t] = Kinv[p, t]
+                Kinv[p, t] = tmp
+        piv = lu[c, c]
+        for t in range(k):
+            lu[c, t] /= piv
+            Kinv[c, t] /= piv
+        for r in range(k):
+            if r == c:
+                continue
+            f = lu[r, c]
+            if f != 0.0:
+                for t in range(k):
+                    lu[r, t] -= f * lu[c, t]
+                    Kinv[r, t] -= f * Kinv[c, t]
+    for c in range(k):
+        s = 0.0
+        for r in range(k):
+            s -= Kinv[c, r] * q[rows[r]]
+        xz[c] = s
+    for i in range(n):
+        xw[i] = q[i]
+    for c in range(k):
+        f = xz[c]
+        if f != 0.0:
+            s = cols[c]
+            for i in range(n):
+                xw[i] += f * (1.0 if s == n else Mt[s, i])
+    return True
+
+
+@njit(cache=True)
+def _remove_position(Kinv, k, cols, rows, col_pos, row_pos, xz, n, c, p):
+    """Drop column position c and row position p of K (row c and column p of K^-1), moving the last into them."""
+    last = k - 1
+    if c != last:
+        for t in range(k):
+            Kinv[c, t] = Kinv[last, t]
+        cols[c] = cols[last]
+        xz[c] = xz[last]
+        if cols[c] < n:
+            col_pos[cols[c]] = c
+    if p != last:
+        for t in range(k):
+            Kinv[t, p] = Kinv[t, last]
+        rows[p] = rows[last]
+        row_pos[rows[p]] = p
+
+
+@njit(cache=True)
+def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, Mt, cols, rows, col_pos, row_pos, xz, xw, dz,
+                dw, y, z, w, lu, rhs, perm, zb, zalt, walt):
+    """Solve the LCP (M, q) by Lemke's method (covering vector e) on the Schur complement of its basis.
+
+    M : (n, n), q : (n,) -- not modified. Kinv, Mt, lu : (>=n, >=n) work; cols, rows, col_pos, row_pos, zb, perm :
+    (>=n,) int64 work; xz, xw, dz, dw, y, rhs, zalt, walt : (>=n,) float64 work. z, w : outputs.
+    Returns (status, pivots, residual) with lemke_kernel's meaning: STATUS_SOLVED only when certified.
+    """
+    n = q.shape[0]
+    if n == 0:
+        return STATUS_SOLVED, 0, 0.0
+    for i in range(n):
+        if not np.isfinite(q[i]):
+            return STATUS_INVALID, 0, np.inf
+        for j in range(n):
+            if not np.isfinite(M[i, j]):
+                return STATUS_INVALID, 0, np.inf
+            Mt[j, i] = M[i, j]
+    scale = lcp_scale(M, q)
+    rhs_scale = 0.0
+    r = -1
+    qmin = 0.0
+    for i in range(n):
+        rhs_scale = max(rhs_scale, abs(q[i]))
+        if q[i] <= qmin and q[i] < 0.0:   # ties: the last index, as lemke_kernel
+            qmin = q[i]
+            r = i
+        z[i] = 0.0
+        col_pos[i] = -1
+        row_pos[i] = -1
+        xw[i] = q[i]
+    if r < 0:
+        return STATUS_SOLVED, 0, lcp_residual(M, q, z, w)
+    # z0 enters at -q_r: every w_i rises by it, w_r is the one at zero and leaves (K = [1])
+    t = -q[r]
+    for i in range(n):
+        xw[i] += t
+    k = 1
+    cols[0] = n
+    rows[0] = r
+    row_pos[r] = 0
+    Kinv[0, 0] = 1.0
+    xz[0] = t
+    leaving = n + 1 + r
+    pivots = 1
+    status = STATUS_MAX_PIVOTS
+    while pivots < max_pivots:
+        # the complement of the variable that just left enters
+        entering = leaving - n - 1 if leaving > n else n + 1 + leaving
+        _direction(M, Mt, n, k, Kinv, cols, rows, row_pos, entering, dz, dw)
+        # dw is computed on every row: where w_i = 0 stays an equation (the rows C) it must vanish, and what is left
+        # there is the updated K^-1's error. Past DRIFT_TOL of the scale, K^-1 and the values are made anew.
+        if _drift(n, k, rows, entering, dz, dw) > DRIFT_TOL * scale:
+            if not _refactor(M, Mt, q, n, k, Kinv, cols, rows, row_pos, xz, xw, lu, perm):
+                status = STATUS_INACCURATE
+                break
+            _direction(M, Mt, n, k, Kinv, cols, rows, row_pos, entering, dz, dw)
+            if _drift(n, k, rows, entering, dz, dw) > DRIFT_TOL * scale:
+                status = STATUS_INACCURATE      # ill-conditioned even when made anew: leave it to the tableau
+                break
+        blk = _ratio_test(M, n, k, Kinv, cols, rows, row_pos, xz, xw, dz, dw, piv_tol, ratio_tol, rhs_scale, perm,
+                         rhs, lu)
+        if blk < 0:
+            status = STATUS_RAY
+            break
+        if blk < k:
+            t = max(xz[blk], 0.0) / -dz[blk]
+        else:
+            t = max(xw[blk - n - 1], 0.0) / -dw[blk - n - 1]
+        for c in range(k):
+            xz[c] += t * dz[c]
+        for i in range(n):
+            if row_pos[i] < 0:
+                xw[i] += t * dw[i]
+        if entering <= n:
+            j = entering
+            if blk < k:
+                # z_j replaces z_s in column position c: Sherman-Morrison, K^-1 a = -dz, pivot -dz_c
+                c = blk
+                s = cols[c]
+                piv = -dz[c]
+                for t2 in range(k):
+                    y[t2] = Kinv[c, t2] / piv
+                for a in range(k):
+                    f = -dz[a] - (1.0 if a == c else 0.0)
+                    if f != 0.0:
+                        for t2 in range(k):
+                            Kinv[a, t2] -= f * y[t2]
+                leaving = s
+                if s < n:
+                    col_pos[s] = -1
+                cols[c] = j
+                xz[c] = t
+                if j < n:
+                    col_pos[j] = c
+            else:
+                # w_r leaves: K grows by row r and column j; Schur complement s = dw_r
+                rr = blk - n - 1
+                sc = dw[rr]
+                for t2 in range(k):
+                    y[t2] = 0.0
+                for a in range(k):
+                    v = _column(M, n, rr, cols[a])
+                    if v != 0.0:
+                        for t2 in range(k):
+                            y[t2] += v * Kinv[a, t2]
+                for a in range(k):
+                    f = -dz[a] / sc
+                    if f != 0.0:
+                        for t2 in range(k):
+                            Kinv[a, t2] += f * y[t2]
+                    Kinv[a, k] = dz[a] / sc
+                for t2 in range(k):
+                    Kinv[k, t2] = -y[t2] / sc
+                Kinv[k, k] = 1.0 / sc
+                cols[k] = j
+                xz[k] = t
+                if j < n:
+                    col_pos[j] = k
+                rows[k] = rr
+                row_pos[rr] = k
+                k += 1
+                leaving = n + 1 + rr
+        else:
+            jr = entering - n - 1          # w_jr enters: row position p leaves the equations
+            p = row_pos[jr]
+            if blk < k:
+                # z_s leaves: K shrinks by row p and column c (Schur downdate of K^-1 on its pivot Kinv[c, p])
+                c = blk
+                s = cols[c]
+                piv = Kinv[c, p]
+                for a in range(k):
+                    if a == c:
+                        continue
+                    f = Kinv[a, p] / piv
+                    if f != 0.0:
+                        for t2 in range(k):
+                            Kinv[a, t2] -= f * Kinv[c, t2]
+                row_pos[jr] = -1
+                if s < n:
+                    col_pos[s] = -1
+                _remove_position(Kinv, k, cols, rows, col_pos, row_pos, xz, n, c, p)
+                k -= 1
+                leaving = s
+            else:
+                # w_r leaves, w_jr enters: row p of K replaced by row r; K^-1 e_p = dz, pivot dw_r
+                rr = blk - n - 1
+                sc = dw[rr]
+                for t2 in range(k):
+                    y[t2] = 0.0
+                for a in range(k):
+                    v = _column(M, n, rr, cols[a])
+                    if v != 0.0:
+                        for t2 in range(k):
+                            y[t2] += v * Kinv[a, t2]
+                y[p] -= 1.0
+                for a in range(k):
+                    f = dz[a] / sc
+                    if f != 0.0:
+                        for t2 in range(k):
+                            Kinv[a, t2] -= f * y[t2]
+                row_pos[jr] = -1
+                rows[p] = rr
+                row_pos[rr] = p
+                leaving = n + 1 + rr
+            xw[jr] = t
+        pivots += 1
+        if leaving == n:
+            status = STATUS_SOLVED
+            break
+        # the artificial variable at zero while still basic: the basic z may already solve the LCP (lemke_kernel)
+        c0 = -1
+        for c in range(k):
+            if cols[c] == n:
+                c0 = c
+        if c0 >= 0 and xz[c0] <= res_tol * scale:
+            if _certify(M, q, k, cols, xz, z, w, res_tol, scale, lu, rhs, perm, zb, zalt, walt) <= res_tol * scale:
+                status = STATUS_SOLVED
+                break
+    res = _certify(M, q, k, cols, xz, z, w, res_tol, scale, lu, rhs, perm, zb, zalt, walt)
+    if res <= res_tol * scale:
+        return STATUS_SOLVED, pivots, res
+    if status == STATUS_SOLVED:
+        return STATUS_INACCURATE, pivots, res
+    return status, pivots, res
+
+
+@njit(cache=True)
+def _certify(M, q, k, cols, xz, z, w, res_tol, scale, lu, rhs, perm, zb, zalt, walt):
+    """The answer at the current basis: the basic z as the pivots left them, or, unless that is already well inside
+    the tolerance, recomputed from (M, q) (M[Z, Z] z_Z = -q[Z] over the basic z); the better one in z, w = M z + q.
+    Returns its residual."""
+    n = q.shape[0]
+    for i in range(n):
+        z[i] = 0.0
+    m = 0
+    for c in range(k):
+        if cols[c] < n:
+            z[cols[c]] = max(xz[c], 0.0)
+            zb[m] = cols[c]
+            m += 1
+    res = lcp_residual(M, q, z, w)
+    if res > 1e-3 * res_tol * scale:
+        ok, neg = _solve_basic_z(M, q, zb, m, zalt, lu, rhs, perm)
+        if ok:
+            res2 = max(lcp_residual(M, q, zalt, walt), -neg)
+            if res2 < res:
+                res = res2
+                for i in range(n):
+                    z[i] = zalt[i]
+                    w[i] = walt[i]
+    return res
+
+
+def make_block_work(n):
+    """Work arrays for `block_lemke` (after M, q and the scalars): Kinv, Mt, cols, rows, col_pos, row_pos, xz, xw, dz,
+    dw, y, z, w, lu, rhs, perm, zb, zalt, walt."""
+    i = lambda: np.empty(n, np.int64)  # noqa: E731
+    f = lambda: np.zeros(n)  # noqa: E731
+    return (np.empty((n, n)), np.empty((n, n)), i(), i(), i(), i(), f(), f(), f(), f(), f(), f(), f(),
+            np.empty((n, n)), f(), i(), i(), f(), f())

@@ -1,0 +1,142 @@
+"""Block Lemke (engine/solvers/block_lemke.py): Lemke's path pivoted on the Schur complement of its basis.
+
+Oracles: the tableau kernel (lemke.py), pivot for pivot, on the third-party LCP corpus and on random problems; numpy's
+inverse of the basis block the kernel keeps updated; the dense LCPs of large islands (the bin of 40 shapes), on which
+the answers must move the bodies as the tableau's do; and the time-stepper's counts.
+"""
+
+import numpy as np
+import pytest
+
+from planar_lcp.engine.layout import Stat
+from planar_lcp.engine.solvers.block_lemke import block_lemke, make_block_work
+from planar_lcp.engine.solvers.lemke import STATUS_MAX_PIVOTS, STATUS_SOLVED, default_max_pivots, lemke_solve
+from planar_lcp.experiments.lcp_corpus import find_corpus_dir, load_corpus
+from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL
+from planar_lcp.model import compile_scene
+from planar_lcp.sim import SimOptions, Simulator
+from planar_lcp.spec import piles
+from planar_lcp.spec.scene import parse_scene
+
+from test_piles import island_problems
+
+TOLS = (DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL)
+_dir = find_corpus_dir()
+IDS = [inst.id for inst in load_corpus(_dir)] if _dir else ["<corpus absent>"]
+
+
+def _block(M, q, max_pivots=None):
+    """(status, pivots, residual, z, work) of block_lemke on (M, q)."""
+    n = len(q)
+    wk = make_block_work(n)
+    st, piv, res = block_lemke(M, q, max_pivots or default_max_pivots(n), *TOLS, *wk)
+    return st, piv, res, wk[11][:n].copy(), wk
+
+
+def _residual(M, q, z):
+    w = M @ z + q
+    return float(np.abs(np.minimum(z, w)).max() + max(0.0, -z.min()) + max(0.0, -w.min()))
+
+
+def _scale(M, q):
+    return max(1.0, float(np.abs(M).max()), float(np.abs(q).max()))
+
+
+@pytest.mark.parametrize("inst_id", IDS)
+def test_the_corpus_takes_the_tableaus_path(corpus, inst_id):
+    """Every corpus instance, the degenerate ones included (Kostreva's cycling example, DART's 12-D box, tobenna,
+    Murty's 2^n path): the same status and the same number of pivots as the tableau, and a certified answer."""
+    inst = corpus[inst_id]
+    M, q = np.ascontiguousarray(inst.M, float), np.ascontiguousarray(inst.q, float)
+    zd, _, std, pivd, _ = lemke_solve(M, q, default_max_pivots(len(q)), *TOLS, False)
+    st, piv, res, z, _ = _block(M, q)
+    assert (st, piv) == (std, pivd)
+    if st == STATUS_SOLVED:
+        assert _residual(M, q, z) <= DEFAULT_RES_TOL * _scale(M, q)
+
+
+def _random_lcp(rng, kind, n):
+    G = rng.normal(size=(n, n))
+    if kind == "pd":
+        M = G @ G.T + 0.1 * np.eye(n)
+    elif kind == "psd_skew":
+        M = G @ G.T + (G - G.T)
+    elif kind == "low_rank":
+        H = rng.normal(size=(n, max(1, n // 2)))
+        M = H @ H.T
+    else:
+        M = G
+    return M, rng.normal(size=n)
+
+
+@pytest.mark.parametrize("kind", ["pd", "psd_skew", "low_rank", "general"])
+def test_random_problems_take_the_tableaus_path(kind):
+    """200 random LCPs of 1 to 40 unknowns of each kind: the same status and pivots as the tableau; where the
+    solution is unique (positive definite M) the same z; every answer reported solved is certified."""
+    rng = np.random.default_rng(7)
+    solved = 0
+    for _ in range(200):
+        n = int(rng.integers(1, 41))
+        M, q = _random_lcp(rng, kind, n)
+        zd, _, std, pivd, _ = lemke_solve(M, q, default_max_pivots(n), *TOLS, False)
+        st, piv, res, z, _ = _block(M, q)
+        assert (st, piv) == (std, pivd)
+        if st == STATUS_SOLVED:
+            solved += 1
+            assert _residual(M, q, z) <= DEFAULT_RES_TOL * _scale(M, q)
+            if kind == "pd":
+                np.testing.assert_allclose(z, zd, rtol=1e-9, atol=1e-9 * _scale(M, q))
+    # positive (semi)definite: Lemke always solves; general random M mostly ends on a ray, as the tableau does
+    assert solved >= {"pd": 200, "psd_skew": 200, "low_rank": 40, "general": 5}[kind]
+
+
+def test_the_updated_inverse_is_the_inverse_of_the_basis_block():
+    """Stopped after 10 to 250 pivots on a settled bin's LCP (grown, shrunk, row- and column-replaced K): the K^-1 it
+    keeps equals numpy's inverse of K = [M | e][rows, cols] within 1e-8, relative."""
+    ok, its, z, A, b, nci, nf = island_problems(piles.bin_scene(40), 60, 60)[0]
+    n = len(b)
+    Ae = np.hstack([A, np.ones((n, 1))])
+    for m in (10, 50, 100, 150, 200, 250):
+        st, piv, res, z, wk = _block(A, b, max_pivots=m)
+        assert st == STATUS_MAX_PIVOTS and piv == m
+        row_pos = wk[5][:n]
+        k = int((row_pos >= 0).sum())
+        cols, rows = wk[2][:k], wk[3][:k]
+        K = Ae[np.ix_(rows, cols)]
+        Kinv = np.linalg.inv(K)
+        assert np.abs(wk[0][:k, :k] - Kinv).max() <= 1e-8 * np.abs(Kinv).max(), m
+
+
+def test_a_bins_lcps_are_solved_as_the_tableau_solves_them():
+    """The largest island of a bin of 40 shapes falling and settled (LCPs of 300 to 372 unknowns): certified, the
+    tableau's number of pivots, and the same velocity rows (the bodies move the same) to 1e-9 of the scale."""
+    probs = island_problems(piles.bin_scene(40), 90, 30)
+    for ok, its, zs, A, b, nci, nf in probs:
+        n = len(b)
+        assert n >= 300
+        zd, _, std, pivd, _ = lemke_solve(A, b, default_max_pivots(n), *TOLS, False)
+        st, piv, res, z, _ = _block(A, b)
+        assert st == std == STATUS_SOLVED
+        assert abs(piv - pivd) <= 0.05 * pivd      # round-off can split a tie differently
+        scale = _scale(A, b)
+        assert _residual(A, b, z) <= DEFAULT_RES_TOL * scale
+        np.testing.assert_allclose(A[:nci] @ z + b[:nci], A[:nci] @ zd + b[:nci], atol=1e-9 * scale)
+
+
+def test_the_time_stepper_solves_a_bins_large_islands_by_block_lemke():
+    """A bin of 40 shapes for 60 steps (the fall and the pile) with the defaults: its large islands, which the mode
+    iteration leaves (statically indeterminate), are solved by block Lemke, the rest by the tableau; no step fails,
+    and a second run is the same bit for bit."""
+    sc = parse_scene(piles.bin_scene(40))
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
+    q, v, qk, vk = sim.initial_state()
+    out = sim.rollout(q, v, qk, vk[None], 60)
+    st = out["stats"]
+    large = int(st[:, Stat.SPARSE_FALLBACKS].sum())
+    assert large >= 30
+    assert st[:, Stat.SOLVED_BLOCK].sum() >= 0.9 * large
+    assert st[:, Stat.PGS_UNCERTIFIED].sum() == 0 and st[:, Stat.LEMKE_STATUS].max() == 0
+    again = sim.rollout(q, v, qk, vk[None], 60)
+    assert np.array_equal(again["q"], out["q"]) and np.array_equal(again["stats"], out["stats"])
+    dense = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, sparse_min_unknowns=0))
+    assert dense.rollout(q, v, qk, vk[None], 60)["stats"][:, Stat.SOLVED_BLOCK].sum() == 0
