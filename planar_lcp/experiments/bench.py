@@ -552,19 +552,20 @@ class _PileRun:
 
 
 def _run_fields(out):
-    """Stats of a run: pivots per step, sparse solves and fallbacks, the sparse share, failed steps, largest LCP,
-    islands per step."""
+    """Stats of a run: pivots per step, sparse solves and fallbacks, the sparse share, block Lemke's solves (of the
+    fallbacks), failed steps, largest LCP, islands per step."""
     from planar_lcp.engine.layout import Stat
     n = int(out["steps_done"])
     st = out["stats"][:n]
     sparse, fallbacks = int(st[:, Stat.SOLVED_SPARSE].sum()), int(st[:, Stat.SPARSE_FALLBACKS].sum())
     return dict(pivots_per_step=float(st[:, Stat.PIVOTS].mean()), solved_sparse=sparse, sparse_fallbacks=fallbacks,
                 sparse_share=sparse / (sparse + fallbacks) if sparse + fallbacks else None,
-                failed_steps=int(np.count_nonzero(out["status"][:n])), lcp_max=int(st[:, Stat.LCP_MAX].max()),
+                solved_block=int(st[:, Stat.SOLVED_BLOCK].sum()), failed_steps=int(np.count_nonzero(out["status"][:n])), lcp_max=int(st[:, Stat.LCP_MAX].max()),
                 islands=float(st[:, Stat.N_ISLANDS].mean()))
 
 
-_RUN_FIELDS = ("pivots_per_step", "solved_sparse", "sparse_fallbacks", "sparse_share", "failed_steps", "lcp_max",
+_RUN_FIELDS = ("pivots_per_step", "solved_sparse", "sparse_fallbacks", "sparse_share", "solved_block", "failed_steps",
+               "lcp_max",
                "islands")
 #: the two paths of a large pile: (name, JSON field prefix, sparse_min_unknowns: None for the default)
 _PATHS = (("defaults", "", None), ("dense", "dense_", 0))
@@ -710,19 +711,21 @@ def _fmt_path(r, pre):
 
 
 def _fmt_sparse(r):
+    """The defaults' solver cells: sparse solves / fallbacks (share) | block Lemke solves."""
     if r["timing"] == "skipped":
-        return "-"
+        return "- | -"
     share = r["sparse_share"]
-    return f"{r['solved_sparse']} / {r['sparse_fallbacks']} ({'-' if share is None else f'{100 * share:.0f} %'})"
+    return (f"{r['solved_sparse']} / {r['sparse_fallbacks']} ({'-' if share is None else f'{100 * share:.0f} %'}) | "
+            f"{r['solved_block']}")
 
 
 def format_scaling_piles_table(rows, fits, fit_spread, fit_bodies):
     from planar_lcp.sim import SimOptions
     smin = SimOptions.sparse_min_unknowns      # the dataclass field's default
     lines = ["| kind | bodies | scene | timed from | largest LCP | islands | defaults µs / step median [min-max] | "
-             "sparse solves / fallbacks (share) | pivots / step | dense µs / step median [min-max] | pivots / step | "
-             "dense / defaults median [min-max] |",
-             "|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---:|"]
+             "sparse solves / fallbacks (share) | block Lemke solves | pivots / step | dense µs / step median [min-max] | "
+             "pivots / step | dense / defaults median [min-max] |",
+             "|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|"]
     for r in rows:
         ran = [pre for _, pre, _ in _PATHS if r[pre + "timing"] != "skipped"]
         timed = "t = 0" if r["kind"] != "bin" else (f"step {r['settle_steps']} ({r['settle_max_speed']:.2f} m/s)"
@@ -878,14 +881,15 @@ def bench_pile(scenes=PILE_SCENES, steps=PILE_STEPS, rounds=PILE_ROUNDS, min_rou
                              box2d_top_drift=drift if tower else None, box2d_penetration=pen,
                              solved_sparse=int(out["stats"][:, Stat.SOLVED_SPARSE].sum()),
                              sparse_fallbacks=int(out["stats"][:, Stat.SPARSE_FALLBACKS].sum()),
+                             solved_block=int(out["stats"][:, Stat.SOLVED_BLOCK].sum()),
                              rounds=rounds, steps=steps, h=h))
     return rows
 
 
 def format_pile_table(rows):
     lines = ["| scene | bodies | Box2D substeps | ours µs/step | Box2D µs/step | ratio ours/Box2D | ours: top drift, "
-             "penetration (m) | Box2D: top drift, penetration (m) | sparse solves / fallbacks |",
-             "|---|---:|---|---:|---:|---:|---|---|---|"]
+             "penetration (m) | Box2D: top drift, penetration (m) | sparse solves / fallbacks | block Lemke solves |",
+             "|---|---:|---|---:|---:|---:|---|---|---|---:|"]
 
     def state(drift, pen):
         return (f"{drift:.1e} ({'stands' if drift < STAND_TOL else 'falls'}), {pen:.1e}" if drift is not None
@@ -897,7 +901,7 @@ def format_pile_table(rows):
                      f"{r['ratio']:.2f} [{r['ratio_min']:.2f}-{r['ratio_max']:.2f}] | "
                      f"{state(r['ours_top_drift'], r['ours_penetration'])} | "
                      f"{state(r['box2d_top_drift'], r['box2d_penetration'])} | "
-                     f"{r['solved_sparse']} / {r['sparse_fallbacks']} |")
+                     f"{r['solved_sparse']} / {r['sparse_fallbacks']} | {r['solved_block']} |")
     if rows:
         lines.append("")
         lines.append(f"times: thread CPU time per step of a whole {rows[0]['steps']}-step run (h = 1/60 s) from the "
