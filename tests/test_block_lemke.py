@@ -140,3 +140,4 @@ def test_the_time_stepper_solves_a_bins_large_islands_by_block_lemke():
     assert np.array_equal(again["q"], out["q"]) and np.array_equal(again["stats"], out["stats"])
     dense = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, sparse_min_unknowns=0))
     assert dense.rollout(q, v, qk, vk[None], 60)["stats"][:, Stat.SOLVED_BLOCK].sum() == 0
+
