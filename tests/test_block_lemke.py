@@ -30,7 +30,7 @@ def _block(M, q, max_pivots=None):
     n = len(q)
     wk = make_block_work(n)
     st, piv, res = block_lemke(M, q, max_pivots or default_max_pivots(n), *TOLS, *wk)
-    return st, piv, res, wk[11][:n].copy(), wk
+    return st, piv, res, wk[13][:n].copy(), wk
 
 
 def _residual(M, q, z):
@@ -99,9 +99,9 @@ def test_the_updated_inverse_is_the_inverse_of_the_basis_block():
     for m in (10, 50, 100, 150, 200, 250):
         st, piv, res, z, wk = _block(A, b, max_pivots=m)
         assert st == STATUS_MAX_PIVOTS and piv == m
-        row_pos = wk[5][:n]
+        row_pos = wk[7][:n]
         k = int((row_pos >= 0).sum())
-        cols, rows = wk[2][:k], wk[3][:k]
+        cols, rows = wk[4][:k], wk[5][:k]
         K = Ae[np.ix_(rows, cols)]
         Kinv = np.linalg.inv(K)
         assert np.abs(wk[0][:k, :k] - Kinv).max() <= 1e-8 * np.abs(Kinv).max(), m

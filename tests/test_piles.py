@@ -263,7 +263,7 @@ def test_sparse_and_block_answers_on_300_random_large_islands():
             wk = make_block_work(n)
             bst = block_lemke(A, b, default_max_pivots(n), DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL,
                               *wk)[0]
-            answers = ([z] if ok else []) + ([wk[11][:n].copy()] if bst == STATUS_SOLVED else [])
+            answers = ([z] if ok else []) + ([wk[13][:n].copy()] if bst == STATUS_SOLVED else [])
             certified += ok
             block += bst == STATUS_SOLVED
             either += bool(answers)

@@ -163,6 +163,8 @@ sparse_x           | f8    | reduced           | N s        | sparse    | its so
 sparse_r           | f8    | reduced           | m/s        | sparse    | refinement residual, then correction
 sparse_dv          | f8    | dyn x 3           | m/s, rad/s | sparse    | M^-1 G z of the candidate answer
 block_cols         | i8    | unknown           | -          | block     | the basic z (and z0) of block Lemke, by position
+block_col_row      | i8    | dense2            | -          | block     | the rows of M's nonzeros, column by column
+block_col_start    | i8    | dense1            | -          | block     | each column's first entry in block_col_row
 block_rows         | i8    | unknown           | -          | block     | the rows whose w is not basic, by position
 block_col_pos      | i8    | unknown           | -          | block     | each z's position in block_cols (-1: not basic)
 block_row_pos      | i8    | unknown           | -          | block     | each row's position in block_rows (-1: w basic)
@@ -262,7 +264,7 @@ def work_sizes(model, dense_capacity=None):
     reduced = min(2 * contact, SPARSE_UNKNOWNS_PER_BODY * dyn)
     return dict(body=a.body_kind.shape[0], vert=max(1, a.vert_local.shape[0]), pair=max(1, a.pair_a.shape[0]),
                 contact=contact, contact2=2 * contact, dyn=dyn, dyn1=dyn + 1, support=max(1, a.sup_dyn.shape[0]),
-                unknown=U, dense=D, dense2=D * D, tableau=D * (2 * D + 2), tableau_row=2 * D + 2, reduced=reduced,
+                unknown=U, dense=D, dense1=D + 1, dense2=D * D, tableau=D * (2 * D + 2), tableau_row=2 * D + 2, reduced=reduced,
                 band=reduced * (2 * SPARSE_MAX_BAND + 1))
 
 

@@ -23,8 +23,8 @@ already passes, else recomputed from (M, q) for the final basis
 (`lemke._solve_basic_z`), and certified by the residual test of `lemke_kernel` (`lcp_residual` within res_tol of
 `lcp_scale`). A problem it does not certify goes on to the tableau (lemke.py `solve_island_lemke`).
 
-Numba kernels, no allocation: the caller passes the work arrays (engine/layout.py `block_*`; `Kinv` and `Mt`, a copy
-of M^T, borrow the tableau's buffer).
+Numba kernels, no allocation: the caller passes the work arrays (engine/layout.py `block_*`; `Kinv` and the values of
+M's compressed columns borrow the tableau's buffer).
 """
 
 import numpy as np
@@ -47,10 +47,17 @@ def _column(M, n, i, s):
 
 
 @njit(cache=True)
-def _direction(M, Mt, n, k, Kinv, cols, rows, row_pos, entering, dz, dw):
+def _add_column(col_val, col_row, col_start, s, f, dw):
+    """dw += f M[:, s], from M's compressed columns (a contact couples only the contacts sharing a body with it)."""
+    for e in range(col_start[s], col_start[s + 1]):
+        dw[col_row[e]] += f * col_val[e]
+
+
+@njit(cache=True)
+def _direction(M, col_val, col_row, col_start, n, k, Kinv, cols, rows, row_pos, entering, dz, dw):
     """How the basic variables change when `entering` rises at unit rate (variable codes: z_j is j, w_i is n + 1 + i,
     z0 is n). Writes dz[:k] (the basic z, by position in S) and dw[i] for every row i (meaningful where w_i is basic).
-    Mt is M transposed: the columns of M as contiguous rows."""
+    col_val, col_row, col_start: M's nonzero entries by column (values, rows, each column's first entry)."""
     if entering > n:
         # w_p enters: row p leaves the equations, K z_S = -q_C + e_p t
         p = row_pos[entering - n - 1]
@@ -68,7 +75,9 @@ def _direction(M, Mt, n, k, Kinv, cols, rows, row_pos, entering, dz, dw):
                 for c in range(k):
                     dz[c] -= Kinv[c, r] * a
         for i in range(n):
-            dw[i] = 1.0 if entering == n else Mt[entering, i]
+            dw[i] = 1.0 if entering == n else 0.0
+        if entering < n:
+            _add_column(col_val, col_row, col_start, entering, 1.0, dw)
     for c in range(k):
         f = dz[c]
         if f != 0.0:
@@ -77,8 +86,7 @@ def _direction(M, Mt, n, k, Kinv, cols, rows, row_pos, entering, dz, dw):
                 for i in range(n):
                     dw[i] += f
             else:
-                for i in range(n):
-                    dw[i] += f * Mt[s, i]
+                _add_column(col_val, col_row, col_start, s, f, dw)
 
 
 @njit(cache=True)
@@ -196,7 +204,7 @@ def _drift(n, k, rows, entering, dz, dw):
 
 
 @njit(cache=True)
-def _refactor(M, Mt, q, n, k, Kinv, cols, rows, xz, xw, lu):
+def _refactor(M, col_val, col_row, col_start, q, n, k, Kinv, cols, rows, xz, xw, lu):
     """K^-1 anew from M (Gauss-Jordan with partial pivoting, O(k^3)), and the basic values from it: the updates'
     round-off grows with every pivot. Returns False if K is singular to working precision (an elimination pivot
     below SINGULAR_TOL of K's largest entry): the path has taken a pivot the updates could not resolve."""
@@ -248,8 +256,11 @@ def _refactor(M, Mt, q, n, k, Kinv, cols, rows, xz, xw, lu):
         f = xz[c]
         if f != 0.0:
             s = cols[c]
-            for i in range(n):
-                xw[i] += f * (1.0 if s == n else Mt[s, i])
+            if s == n:
+                for i in range(n):
+                    xw[i] += f
+            else:
+                _add_column(col_val, col_row, col_start, s, f, xw)
     return True
 
 
@@ -272,12 +283,13 @@ def _remove_position(Kinv, k, cols, rows, col_pos, row_pos, xz, n, c, p):
 
 
 @njit(cache=True)
-def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, Mt, cols, rows, col_pos, row_pos, xz, xw, dz,
+def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, col_val, col_row, col_start, cols, rows, col_pos,
+                row_pos, xz, xw, dz,
                 dw, y, z, w, lu, rhs, perm, zb, zalt, walt):
     """Solve the LCP (M, q) by Lemke's method (covering vector e) on the Schur complement of its basis.
 
-    M : (n, n), q : (n,) -- not modified. Kinv, Mt, lu : (>=n, >=n) work; cols, rows, col_pos, row_pos, zb, perm :
-    (>=n,) int64 work; xz, xw, dz, dw, y, rhs, zalt, walt : (>=n,) float64 work. z, w : outputs.
+    M : (n, n), q : (n,) -- not modified. Kinv, lu : (>=n, >=n) work; col_val (float64), col_row (int64) : (>=n*n,)
+    work; col_start : (>=n+1,) int64 work; cols, rows, col_pos, row_pos, zb, perm : (>=n,) int64 work; xz, xw, dz, dw, y, rhs, zalt, walt : (>=n,) float64 work. z, w : outputs.
     Returns (status, pivots, residual) with lemke_kernel's meaning: STATUS_SOLVED only when certified.
     """
     n = q.shape[0]
@@ -289,7 +301,15 @@ def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, Mt, cols, r
         for j in range(n):
             if not np.isfinite(M[i, j]):
                 return STATUS_INVALID, 0, np.inf
-            Mt[j, i] = M[i, j]
+    nnz = 0
+    for j in range(n):
+        col_start[j] = nnz
+        for i in range(n):
+            if M[i, j] != 0.0:
+                col_val[nnz] = M[i, j]
+                col_row[nnz] = i
+                nnz += 1
+    col_start[n] = nnz
     scale = lcp_scale(M, q)
     rhs_scale = 0.0
     r = -1
@@ -321,14 +341,14 @@ def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, Mt, cols, r
     while pivots < max_pivots:
         # the complement of the variable that just left enters
         entering = leaving - n - 1 if leaving > n else n + 1 + leaving
-        _direction(M, Mt, n, k, Kinv, cols, rows, row_pos, entering, dz, dw)
+        _direction(M, col_val, col_row, col_start, n, k, Kinv, cols, rows, row_pos, entering, dz, dw)
         # dw is computed on every row: where w_i = 0 stays an equation (the rows C) it must vanish, and what is left
         # there is the updated K^-1's error. Past DRIFT_TOL of the scale, K^-1 and the values are made anew.
         if _drift(n, k, rows, entering, dz, dw) > DRIFT_TOL * scale:
-            if not _refactor(M, Mt, q, n, k, Kinv, cols, rows, xz, xw, lu):
+            if not _refactor(M, col_val, col_row, col_start, q, n, k, Kinv, cols, rows, xz, xw, lu):
                 status = STATUS_INACCURATE
                 break
-            _direction(M, Mt, n, k, Kinv, cols, rows, row_pos, entering, dz, dw)
+            _direction(M, col_val, col_row, col_start, n, k, Kinv, cols, rows, row_pos, entering, dz, dw)
             if _drift(n, k, rows, entering, dz, dw) > DRIFT_TOL * scale:
                 status = STATUS_INACCURATE      # ill-conditioned even when made anew: leave it to the tableau
                 break
@@ -487,9 +507,9 @@ def _certify(M, q, k, cols, xz, z, w, res_tol, scale, lu, rhs, perm, zb, zalt, w
 
 
 def make_block_work(n):
-    """Work arrays for `block_lemke` (after M, q and the scalars): Kinv, Mt, cols, rows, col_pos, row_pos, xz, xw, dz,
-    dw, y, z, w, lu, rhs, perm, zb, zalt, walt."""
+    """Work arrays for `block_lemke` (after M, q and the scalars): Kinv, col_val, col_row, col_start, cols, rows,
+    col_pos, row_pos, xz, xw, dz, dw, y, z, w, lu, rhs, perm, zb, zalt, walt."""
     i = lambda: np.empty(n, np.int64)  # noqa: E731
     f = lambda: np.zeros(n)  # noqa: E731
-    return (np.empty((n, n)), np.empty((n, n)), i(), i(), i(), i(), f(), f(), f(), f(), f(), f(), f(),
-            np.empty((n, n)), f(), i(), i(), f(), f())
+    return (np.empty((n, n)), np.empty(n * n), np.empty(n * n, np.int64), np.empty(n + 1, np.int64), i(), i(), i(),
+            i(), f(), f(), f(), f(), f(), f(), f(), np.empty((n, n)), f(), i(), i(), f(), f())
