@@ -11,7 +11,7 @@ and every basic w_i follows as w_i = q_i + M[i, S] z_S. So a pivot needs K^-1, n
 tableau keeps: this kernel keeps K^-1 explicitly and changes it by one row and/or column per pivot (a bordered
 inverse when K grows, its Schur downdate when it shrinks, Sherman-Morrison when a row or a column is replaced), each
 O(k^2). The tableau's pivot costs O(n^2) whatever k is; on a large contact island's LCP (n = 4 per contact) k ends
-at about half to two thirds of n and Lemke starts from k = 0 (the bin of 40 shapes: 2.4x less per pivot).
+at about half to two thirds of n and Lemke starts from k = 0 (the bin of 40 shapes: about 3x less a pivot).
 
 The path is the tableau's: the same entering variables and the same ratio test (minimum ratio, ties relative to the
 problem's scale, the artificial variable first among tied rows, then the lexicographic rule on the rows of B^-1,
