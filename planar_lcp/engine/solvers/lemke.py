@@ -518,8 +518,9 @@ from planar_lcp.engine.solvers.block_lemke import block_lemke  # noqa: E402
 # When none is certified the step pipeline hands the island to its fallback (PGS: uncertified, the step is reported
 # as failed) or, in the variant without one, hands the step back to the caller.
 RETRY_PIV_TOLS = (1e-6, 1e-4)
-#: block Lemke's pivot cap per unknown: Lemke's path on a contact island takes about one pivot per unknown (the bin
-#: of 40: 250 for 360), a cycle without the lexicographic rule would take the whole 50 n of the tableau's cap
+#: block Lemke's pivot cap per unknown: Lemke's path on a contact island takes under one pivot per unknown (the bin
+#: of 40: about 260 for 360); where round-off splits a tie into a cycle the tableau takes over after 2 n + 100
+#: pivots, not after its own cap of 50 n + 100
 BLOCK_PIVOTS_PER_UNKNOWN = 2
 # The chain, in order: (stats counter, pivot tolerance (-1: the options'), equilibrate, velocity-form normal rows,
 # the impact law of restitution)
