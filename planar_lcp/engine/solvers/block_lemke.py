@@ -265,6 +265,18 @@ def _refactor(M, col_val, col_row, col_start, q, n, k, Kinv, cols, rows, xz, xw,
 
 
 @njit(cache=True)
+def _row_times_inverse(M, n, k, Kinv, cols, r, y):
+    """y[:k] = [M | e][r, S] K^-1: the row entering K (grown or replaced) times the inverse, over its nonzeros."""
+    for t in range(k):
+        y[t] = 0.0
+    for a in range(k):
+        v = _column(M, n, r, cols[a])
+        if v != 0.0:
+            for t in range(k):
+                y[t] += v * Kinv[a, t]
+
+
+@njit(cache=True)
 def _remove_position(Kinv, k, cols, rows, col_pos, row_pos, xz, n, c, p):
     """Drop column position c and row position p of K (row c and column p of K^-1), moving the last into them."""
     last = k - 1
@@ -289,7 +301,8 @@ def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, col_val, co
     """Solve the LCP (M, q) by Lemke's method (covering vector e) on the Schur complement of its basis.
 
     M : (n, n), q : (n,) -- not modified. Kinv, lu : (>=n, >=n) work; col_val (float64), col_row (int64) : (>=n*n,)
-    work; col_start : (>=n+1,) int64 work; cols, rows, col_pos, row_pos, zb, perm : (>=n,) int64 work; xz, xw, dz, dw, y, rhs, zalt, walt : (>=n,) float64 work. z, w : outputs.
+    work; col_start : (>=n+1,) int64 work; cols, rows, col_pos, row_pos, zb, perm : (>=n,) int64 work; xz, xw, dz,
+    dw, y, rhs, zalt, walt : (>=n,) float64 work. z, w : outputs.
     Returns (status, pivots, residual) with lemke_kernel's meaning: STATUS_SOLVED only when certified.
     """
     n = q.shape[0]
@@ -298,13 +311,13 @@ def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, col_val, co
     for i in range(n):
         if not np.isfinite(q[i]):
             return STATUS_INVALID, 0, np.inf
-        for j in range(n):
-            if not np.isfinite(M[i, j]):
-                return STATUS_INVALID, 0, np.inf
+    # M's compressed columns, its finiteness checked on the same pass
     nnz = 0
     for j in range(n):
         col_start[j] = nnz
         for i in range(n):
+            if not np.isfinite(M[i, j]):
+                return STATUS_INVALID, 0, np.inf
             if M[i, j] != 0.0:
                 col_val[nnz] = M[i, j]
                 col_row[nnz] = i
@@ -391,13 +404,7 @@ def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, col_val, co
                 # w_r leaves: K grows by row r and column j; Schur complement s = dw_r
                 rr = blk - n - 1
                 sc = dw[rr]
-                for t2 in range(k):
-                    y[t2] = 0.0
-                for a in range(k):
-                    v = _column(M, n, rr, cols[a])
-                    if v != 0.0:
-                        for t2 in range(k):
-                            y[t2] += v * Kinv[a, t2]
+                _row_times_inverse(M, n, k, Kinv, cols, rr, y)
                 for a in range(k):
                     f = -dz[a] / sc
                     if f != 0.0:
@@ -440,13 +447,7 @@ def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, col_val, co
                 # w_r leaves, w_jr enters: row p of K replaced by row r; K^-1 e_p = dz, pivot dw_r
                 rr = blk - n - 1
                 sc = dw[rr]
-                for t2 in range(k):
-                    y[t2] = 0.0
-                for a in range(k):
-                    v = _column(M, n, rr, cols[a])
-                    if v != 0.0:
-                        for t2 in range(k):
-                            y[t2] += v * Kinv[a, t2]
+                _row_times_inverse(M, n, k, Kinv, cols, rr, y)
                 y[p] -= 1.0
                 for a in range(k):
                     f = dz[a] / sc

@@ -549,13 +549,14 @@ def lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate):
 @njit(cache=True, inline='always')
 def block_lemke_in_work(w, A, b, n, opt):
     """`block_lemke` on the LCP (A, b) of size n in the step's work buffers (answer in w.lemke_z): K^-1 and the values
-    of M's compressed columns in the tableau's buffer, which is at least twice as large. At most BLOCK_PIVOTS_PER_UNKNOWN pivots per
-    unknown: a cycle costs little before the tableau takes over."""
+    of M's compressed columns in the tableau's buffer, which is at least twice as large. At most
+    BLOCK_PIVOTS_PER_UNKNOWN pivots per unknown: a cycle costs little before the tableau takes over."""
     T = w.lemke_tableau
     Kinv = T[:n * n].reshape((n, n))
     return block_lemke(A, b, BLOCK_PIVOTS_PER_UNKNOWN * n + 100, opt.piv_tol, opt.ratio_tol, opt.res_tol, Kinv,
-                       T[n * n:2 * n * n], w.block_col_row, w.block_col_start, w.block_cols, w.block_rows, w.block_col_pos, w.block_row_pos, w.block_xz, w.block_xw,
-                       w.block_dz, w.block_dw, w.block_y, w.lemke_z, w.lemke_w, w.lemke_lu, w.lemke_rhs,
+                       T[n * n:2 * n * n], w.block_col_row, w.block_col_start, w.block_cols, w.block_rows,
+                       w.block_col_pos, w.block_row_pos, w.block_xz, w.block_xw, w.block_dz, w.block_dw, w.block_y,
+                       w.lemke_z, w.lemke_w, w.lemke_lu, w.lemke_rhs,
                        w.lemke_perm, w.lemke_basic, w.lemke_z_refined, w.lemke_w_refined)
 
 
