@@ -142,3 +142,20 @@ def test_the_time_stepper_solves_a_bins_large_islands_by_block_lemke():
     dense = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, sparse_min_unknowns=0))
     assert dense.rollout(q, v, qk, vk[None], 60)["stats"][:, Stat.SOLVED_BLOCK].sum() == 0
 
+
+
+def test_a_block_solve_leaves_its_own_basis_for_the_warm_start():
+    """With the warm start on, an island solved by block Lemke keeps block Lemke's final basis (z_j basic where it
+    holds a column of K) as the next step's guess, not the basis some earlier tableau solve left in the buffers."""
+    sc = parse_scene(piles.bin_scene(40))
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, warm_start=True))
+    q, v, qk, vk = sim.initial_state()
+    out = sim.rollout(q, v, qk, vk[None], 60)
+    assert out["stats"][-1, Stat.SOLVED_BLOCK] == 1 and out["stats"][-1, Stat.WARM_STARTS] == 0
+    w = sim.work
+    n = int(w.warm_size.max())
+    assert n >= 300
+    isl = int(np.argmax(w.warm_size))
+    basic = w.block_col_pos[:n] >= 0
+    assert 100 <= basic.sum() < n
+    np.testing.assert_array_equal(w.warm_basic_z[isl, :n], basic)

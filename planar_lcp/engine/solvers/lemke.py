@@ -651,7 +651,11 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
         w.warm_size[isl] = n
         for i in range(n):
             w.warm_basic_z[isl, i] = False
-        if piv > 0:  # with no pivot (q >= 0: z = 0) lemke_kernel leaves lbasis as it was
+        if block:
+            # block Lemke's final basis: z_j is basic where it holds a column position of K
+            for i in range(n):
+                w.warm_basic_z[isl, i] = w.block_col_pos[i] >= 0
+        elif piv > 0:  # with no pivot (q >= 0: z = 0) lemke_kernel leaves lbasis as it was
             for i in range(n):
                 kb = w.lemke_basis[i]
                 if kb >= n and kb < 2 * n:
