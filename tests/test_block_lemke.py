@@ -159,3 +159,42 @@ def test_a_block_solve_leaves_its_own_basis_for_the_warm_start():
     basic = w.block_col_pos[:n] >= 0
     assert 100 <= basic.sum() < n
     np.testing.assert_array_equal(w.warm_basic_z[isl, :n], basic)
+
+
+def test_the_certificates_shortcuts_equal_what_they_replace():
+    """`_certify`'s two shortcuts against what they stand for. The residual from M's compressed columns equals
+    `lcp_residual` bit for bit (the bin's LCP, answers with zeros). The predicted negativity of the complementary
+    system (from K^-1, artificial variable basic) equals numpy's solve of M[Z, Z] z = -q[Z] (random positive definite
+    LCPs stopped mid-path), so the recomputation it skips would have given a negative z."""
+    from planar_lcp.engine.solvers.block_lemke import _complementary_negativity, _residual_csc
+    from planar_lcp.engine.solvers.lemke import lcp_residual
+    ok, its, z, A, b, nci, nf = island_problems(piles.bin_scene(40), 60, 60)[0]
+    n = len(b)
+    st, piv, res, zb, wk = _block(A, b)
+    assert st == STATUS_SOLVED
+    rng = np.random.default_rng(3)
+    for zt in (zb, np.where(rng.random(n) < 0.5, 0.0, rng.random(n)), np.zeros(n)):
+        w1, w2 = np.empty(n), np.empty(n)
+        assert _residual_csc(wk[1], wk[2], wk[3], b, zt, w1) == lcp_residual(A, b, zt, w2)
+        assert np.array_equal(w1, w2)
+    checked = 0
+    for _ in range(60):
+        m = 12
+        G = rng.standard_normal((m, m))
+        M, q = G @ G.T + 0.1 * np.eye(m), rng.standard_normal(m)
+        for stop in range(1, m + 1):
+            st, piv, res, _, wk = _block(M, q, max_pivots=stop)
+            if st != STATUS_MAX_PIVOTS:
+                break
+            row_pos, col_pos = wk[7][:m], wk[6][:m]
+            k = int((row_pos >= 0).sum())
+            cols, rows = wk[4][:k], wk[5][:k]
+            got = _complementary_negativity(q, k, wk[0], cols, rows, col_pos)
+            if m not in cols:
+                assert got == 0.0
+                continue
+            Z = np.array([c for c in cols if c != m], dtype=int)
+            want = max(0.0, -np.linalg.solve(M[np.ix_(Z, Z)], -q[Z]).min()) if len(Z) else 0.0
+            assert abs(got - want) <= 1e-9 * max(1.0, want), (stop, got, want)
+            checked += 1
+    assert checked >= 100
