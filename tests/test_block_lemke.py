@@ -198,3 +198,57 @@ def test_the_certificates_shortcuts_equal_what_they_replace():
             assert abs(got - want) <= 1e-9 * max(1.0, want), (stop, got, want)
             checked += 1
     assert checked >= 100
+
+
+def _state_and_largest_lcp(scene_dict, steps):
+    """A default run's state after `steps` steps, the simulator, and its largest island's LCP (A, b) there (the step's
+    first solve), assembled densely."""
+    from test_piles import _largest_island, _sparse_then_dense
+    from planar_lcp.engine.layout import NSTAT
+    sc = parse_scene(scene_dict)
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
+    q, v, qk, vk = sim.initial_state()
+    run = sim.rollout(q, v, qk, vk[None], steps)
+    state = tuple(np.ascontiguousarray(run[k][steps]) for k in ("q", "v", "qk"))
+    probe = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
+    sizes = np.zeros(2, np.int64)
+    _largest_island(probe.kmodel, *state, vk, probe.h, probe.kopt, probe.kwork, np.empty_like(qk), np.zeros(NSTAT),
+                    sizes)
+    U = probe.work.lcp_vector.shape[0]
+    b = np.zeros(U)
+    _, _, n, _ = _sparse_then_dense(probe.kmodel, probe.kwork, probe.kopt, vk, int(sizes[0]), int(sizes[1]), probe.h,
+                                    np.zeros(U), probe.work.lcp_matrix, b)
+    A = probe.work.lcp_matrix[:n * n].reshape(n, n).copy()
+    return sim, state, vk, A, b[:n].copy()
+
+
+def test_a_large_island_block_lemke_leaves_is_tried_again_equilibrated():
+    """The bin of 40 at step 36: block Lemke on the island's LCP as assembled ends with K singular after 39 pivots,
+    and the tableau's own path wanders to its cap (16,900 pivots, measured). On the exactly equilibrated problem
+    (another pivot path) block Lemke solves it in about n pivots: the step's islands are all solved by block Lemke,
+    certified, none by the tableau."""
+    sim, state, vk, A, b = _state_and_largest_lcp(piles.bin_scene(40), 36)
+    n = len(b)
+    st, piv, res, z, _ = _block(A, b, max_pivots=2 * n + 100)
+    assert st != STATUS_SOLVED, "this state no longer exercises the equilibrated retry: pick another"
+    sim.step(*state, vk)
+    s = sim.stats
+    assert s[Stat.LEMKE_STATUS] == 0 and s[Stat.N_ISLANDS] == 1
+    assert s[Stat.SOLVED_BLOCK] == s[Stat.RESOLVES] + 1 and s[Stat.SOLVED_LEMKE] + s[Stat.SOLVED_EQUILIBRATED] == 0
+    assert s[Stat.PIVOTS] <= 4 * (2 * n + 100)
+
+
+def test_a_large_islands_tableau_tries_are_capped_before_they_wander():
+    """pyramid(8) at step 51: block Lemke fails as assembled and equilibrated, and the tableau as assembled wanders
+    (its full cap of 50 n + 100 = 25,700 pivots ended uncertified, 9.3 s, measured). For islands past block Lemke
+    each try of the chain is first capped at 2 n + 100 pivots (the equilibrated try then solves it) and only the tries
+    that reached that cap are run again with the full cap, if no try was certified."""
+    sim, state, vk, A, b = _state_and_largest_lcp(piles.pyramid(8), 51)
+    n = len(b)
+    zd, _, std, pivd, _ = lemke_solve(A, b, 2 * n + 100, *TOLS, False)
+    assert std == STATUS_MAX_PIVOTS, "this state no longer exercises the capped first sweep: pick another"
+    sim.step(*state, vk)
+    s = sim.stats
+    assert s[Stat.LEMKE_STATUS] == 0
+    assert s[Stat.SOLVED_EQUILIBRATED] >= 1
+    assert s[Stat.PIVOTS] < default_max_pivots(n)

@@ -220,7 +220,8 @@ STATS = (
     ("warm_starts", True, "island LCPs solved by the previous step's basis"),
     ("solved_sparse", True, "island LCPs solved by the sparse solver (large islands)"),
     ("sparse_fallbacks", True, "large islands the sparse solver left to dense Lemke"),
-    ("solved_block", True, "island LCPs solved by Lemke on the Schur complement of its basis (large islands)"),
+    ("solved_block", True, "island LCPs solved by Lemke on the Schur complement of its basis (large islands; "
+                            "as assembled, else equilibrated)"),
     ("solved_lemke", True, "island LCPs solved by Lemke as assembled"),
     ("solved_equilibrated", True, "island LCPs solved by Lemke on the equilibrated problem"),
     ("solved_strict", True, "island LCPs solved by Lemke with stricter pivot tolerances"),
