@@ -73,7 +73,8 @@ def lemke(M, q, *, max_pivots=None, piv_tol=DEFAULT_PIV_TOL, ratio_tol=DEFAULT_R
     ----------
     M : (n, n) array_like;  q : (n,) array_like
     max_pivots : int, optional
-        Pivot cap; default `default_max_pivots(n)` = 50 n + 100 (the time-stepper's too).
+        Pivot cap; default `default_max_pivots(n)` = 50 n + 100 (the time-stepper's too, after a first sweep capped
+        at 2 n + 100 on the large islands block Lemke leaves; docs/method.md, "Large islands").
     piv_tol : float
         A tableau entry is an admissible pivot only if it exceeds piv_tol times the largest magnitude in the
         entering column.

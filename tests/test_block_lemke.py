@@ -211,6 +211,9 @@ def _state_and_largest_lcp(scene_dict, steps):
     run = sim.rollout(q, v, qk, vk[None], steps)
     state = tuple(np.ascontiguousarray(run[k][steps]) for k in ("q", "v", "qk"))
     probe = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
+    if probe.work.lemke_lu.shape[0] < sim.work.lemke_lu.shape[0]:
+        probe.work.dense_needed[0] = sim.work.lemke_lu.shape[0]    # the dense buffers the run grew to
+        probe._grow_dense()
     sizes = np.zeros(2, np.int64)
     _largest_island(probe.kmodel, *state, vk, probe.h, probe.kopt, probe.kwork, np.empty_like(qk), np.zeros(NSTAT),
                     sizes)

@@ -520,7 +520,8 @@ from planar_lcp.engine.solvers.block_lemke import block_lemke  # noqa: E402
 RETRY_PIV_TOLS = (1e-6, 1e-4)
 #: block Lemke's pivot cap per unknown: Lemke's path on a contact island takes under one pivot per unknown (the bin
 #: of 40: about 260 for 360); where round-off splits a tie into a cycle the tableau takes over after 2 n + 100
-#: pivots, not after its own cap of 50 n + 100
+#: pivots, not after its own cap of 50 n + 100. The same cap is the first sweep's of the tableau's tries on those
+#: islands (`solve_island_lemke`)
 BLOCK_PIVOTS_PER_UNKNOWN = 2
 # The chain, in order: (stats counter, pivot tolerance (-1: the options'), equilibrate, velocity-form normal rows,
 # the impact law of restitution)
