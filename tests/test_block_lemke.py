@@ -18,7 +18,7 @@ from planar_lcp.sim import SimOptions, Simulator
 from planar_lcp.spec import piles
 from planar_lcp.spec.scene import parse_scene
 
-from test_piles import island_problems
+from test_piles import island_problems, largest_island_problem
 
 TOLS = (DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL)
 _dir = find_corpus_dir()
@@ -201,28 +201,16 @@ def test_the_certificates_shortcuts_equal_what_they_replace():
 
 
 def _state_and_largest_lcp(scene_dict, steps):
-    """A default run's state after `steps` steps, the simulator, and its largest island's LCP (A, b) there (the step's
-    first solve), assembled densely."""
-    from test_piles import _largest_island, _sparse_then_dense
-    from planar_lcp.engine.layout import NSTAT
+    """A default run's simulator, its state after `steps` steps and its largest island's LCP (A, b) there (the step's
+    first solve), assembled densely. (`step` from that state starts cold, as the run's step did not: its memory of
+    the modes and bases is reset, so the probe's use of the work buffers changes nothing of it.)"""
     sc = parse_scene(scene_dict)
     sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
     q, v, qk, vk = sim.initial_state()
     run = sim.rollout(q, v, qk, vk[None], steps)
     state = tuple(np.ascontiguousarray(run[k][steps]) for k in ("q", "v", "qk"))
-    probe = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
-    if probe.work.lemke_lu.shape[0] < sim.work.lemke_lu.shape[0]:
-        probe.work.dense_needed[0] = sim.work.lemke_lu.shape[0]    # the dense buffers the run grew to
-        probe._grow_dense()
-    sizes = np.zeros(2, np.int64)
-    _largest_island(probe.kmodel, *state, vk, probe.h, probe.kopt, probe.kwork, np.empty_like(qk), np.zeros(NSTAT),
-                    sizes)
-    U = probe.work.lcp_vector.shape[0]
-    b = np.zeros(U)
-    _, _, n, _ = _sparse_then_dense(probe.kmodel, probe.kwork, probe.kopt, vk, int(sizes[0]), int(sizes[1]), probe.h,
-                                    np.zeros(U), probe.work.lcp_matrix, b)
-    A = probe.work.lcp_matrix[:n * n].reshape(n, n).copy()
-    return sim, state, vk, A, b[:n].copy()
+    _, _, _, A, b, _, _ = largest_island_problem(sim, *state, vk)
+    return sim, state, vk, A, b
 
 
 def test_a_large_island_block_lemke_leaves_is_tried_again_equilibrated():

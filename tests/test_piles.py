@@ -68,20 +68,22 @@ def island_problems(scene_dict, steps, every):
     sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, sparse_min_unknowns=0))
     q, v, qk, vk = sim.initial_state()
     run = sim.rollout(q, v, qk, vk[None], steps)
-    out = []
+    return [largest_island_problem(sim, *(np.ascontiguousarray(run[k][s]) for k in ("q", "v", "qk")), vk)
+            for s in range(every, steps + 1, every)]
+
+
+def largest_island_problem(sim, q, v, qk, vk):
+    """(sparse certified?, iterations, z, A, b, nci, nf) of the largest island of the step from (q, v, qk) in `sim`'s
+    work buffers (its first solve: the sparse solver's answer z, and the LCP (A, b) assembled densely)."""
     U = sim.work.lcp_vector.shape[0]
-    for s in range(every, steps + 1, every):
-        qs, vs, qks = (np.ascontiguousarray(run[k][s]) for k in ("q", "v", "qk"))
-        sizes = np.zeros(2, np.int64)
-        _largest_island(sim.kmodel, qs, vs, qks, vk, sim.h, sim.kopt, sim.kwork, np.empty_like(qks), np.zeros(NSTAT),
-                        sizes)
-        nci, nsi = int(sizes[0]), int(sizes[1])
-        z, A, b = np.zeros(U), np.zeros(U * U if U * U < 4e7 else 1), np.zeros(U)
-        ok, its, n, nf = _sparse_then_dense(sim.kmodel, sim.kwork, sim.kopt, vk, nci, nsi, sim.h, z,
-                                            sim.work.lcp_matrix, b)
-        A = sim.work.lcp_matrix[:n * n].reshape(n, n).copy()
-        out.append((bool(ok), int(its), z[:n].copy(), A, b[:n].copy(), nci, nf))
-    return out
+    sizes = np.zeros(2, np.int64)
+    _largest_island(sim.kmodel, q, v, qk, vk, sim.h, sim.kopt, sim.kwork, np.empty_like(qk), np.zeros(NSTAT), sizes)
+    nci, nsi = int(sizes[0]), int(sizes[1])
+    z, b = np.zeros(U), np.zeros(U)
+    ok, its, n, nf = _sparse_then_dense(sim.kmodel, sim.kwork, sim.kopt, vk, nci, nsi, sim.h, z, sim.work.lcp_matrix,
+                                        b)
+    A = sim.work.lcp_matrix[:n * n].reshape(n, n).copy()
+    return bool(ok), int(its), z[:n].copy(), A, b[:n].copy(), nci, nf
 
 
 def _residual(A, b, z):

@@ -31,7 +31,8 @@ import numpy as np
 from numba import njit
 
 from planar_lcp.engine.solvers.lemke import (STATUS_INACCURATE, STATUS_INVALID, STATUS_MAX_PIVOTS, STATUS_RAY,
-                                             STATUS_SOLVED, _solve_basic_z, lcp_residual, lcp_scale)
+                                             STATUS_SOLVED, _solve_basic_z, lcp_residual, lcp_scale,
+                                             natural_residual)
 
 
 #: K^-1 is made anew (`_refactor`) when a direction's equations are off by more than this, relative to the scale
@@ -494,18 +495,7 @@ def _residual_csc(col_val, col_row, col_start, q, z, w):
             f = z[j]
             for a in range(col_start[j], col_start[j + 1]):
                 w[col_row[a]] += col_val[a] * f
-    comp = 0.0
-    zneg = 0.0
-    wneg = 0.0
-    for i in range(n):
-        m = min(z[i], w[i])
-        if abs(m) > comp:
-            comp = abs(m)
-        if -z[i] > zneg:
-            zneg = -z[i]
-        if -w[i] > wneg:
-            wneg = -w[i]
-    return comp + zneg + wneg
+    return natural_residual(z, w, n)
 
 
 @njit(cache=True)
