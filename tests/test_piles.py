@@ -27,7 +27,8 @@ from planar_lcp.spec.random_scenes import scene_to_toml
 from planar_lcp.spec.scene import load_scene, parse_scene, scene_path
 
 
-@pytest.mark.parametrize("name, made", [("tower", lambda: piles.tower(16)), ("pyramid", lambda: piles.pyramid(6))])
+@pytest.mark.parametrize("name, made", [("tower", lambda: piles.tower(16)), ("pyramid", lambda: piles.pyramid(6)),
+                                        ("bin", lambda: piles.bin_scene(40, t_end=1.0, h=1 / 240))])
 def test_the_shipped_piles_are_the_generators_output(name, made):
     text = scene_path(name).read_text()
     body = "\n".join(line for line in text.splitlines() if not line.startswith("#")) + "\n"

@@ -121,8 +121,12 @@ def test_a_singular_guess_is_rejected_not_raised():
 #: warm start is first used once the disk rests on the table, after 1.37 s
 WHOLE_RUN = {"bouncing_disk"}
 
+#: shipped scenes with LCPs of several solutions along their run, where the warm start keeps another one than Lemke's:
+#: the test below shows it for each
+SEVERAL_SOLUTIONS = {"bin"}
 
-@pytest.mark.parametrize("name", [n for n, _ in list_scenes()])
+
+@pytest.mark.parametrize("name", [n for n, _ in list_scenes() if n not in SEVERAL_SOLUTIONS])
 def test_warm_and_cold_runs_agree_on_the_shipped_scenes(name):
     """Where every LCP of a run has one solution, the warm start changes only how it is solved: on every shipped
     scene at its own h the two runs agree to 1e-8 (m, rad; push_t, whose contact sequence amplifies round-off most,
@@ -135,6 +139,24 @@ def test_warm_and_cold_runs_agree_on_the_shipped_scenes(name):
     all_sparse = np.all(warm.stats["solved_sparse"] > 0) and warm.stats["sparse_fallbacks"].sum() == 0
     assert warm.stats["warm_starts"].sum() > 0 or warm.stats["lcp_size"].sum() == 0 or all_sparse
     assert cold.stats["warm_starts"].sum() == 0
+
+
+@pytest.mark.parametrize("name", sorted(SEVERAL_SOLUTIONS))
+def test_warm_and_cold_runs_part_where_an_lcp_has_several_solutions(name):
+    """The bin's settling pile is statically indeterminate: at a state where the warm and cold runs still agree (to
+    1e-10), their certified impulses differ by far more than round-off (measured: 0.30 N s at step 64, the velocities
+    after it by 7e-7), and the pile's contacts amplify that to 2.9e-5 m by the end. Both runs are certified
+    throughout; which solution each keeps is the only difference."""
+    warm, cold = simulate(name, warm_start=True), simulate(name)
+    assert not warm.failures and not cold.failures
+    apart = np.abs(warm.q - cold.q).max(axis=(1, 2))
+    assert apart.max() > 1e-8, f"{name}: the runs agree; drop it from SEVERAL_SOLUTIONS"
+    s = int(np.argmax(apart > 1e-10)) - 1         # the last step from states that agree
+    assert apart[s] <= 1e-10 and warm.stats["warm_starts"][s] > 0
+    n = warm.contacts["count"][s]
+    assert cold.contacts["count"][s] == n and np.array_equal(warm.contacts["pair"][s, :n], cold.contacts["pair"][s, :n])
+    assert np.abs(warm.contacts["cn"][s, :n] - cold.contacts["cn"][s, :n]).max() > 1e-3
+    assert max(warm.stats["residual"][s], cold.stats["residual"][s]) <= 1e-7
 
 
 def test_steady_pushing_reuses_the_basis():

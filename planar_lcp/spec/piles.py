@@ -1,10 +1,12 @@
 """Large contact islands as scene dicts: towers, pyramids and walls of boxes, bins of mixed shapes, random piles.
 
 Each function returns a scene dict (`parse_scene` reads it; `random_scenes.scene_to_toml` writes it as a file). The
-shipped scenes `tower` and `pyramid` are files written by these functions (tests/test_piles.py checks that they still
-are). Units: m, kg, s.
+shipped scenes `tower`, `pyramid` and `bin` are files written by these functions (tests/test_piles.py checks that they
+still are). Units: m, kg, s.
 
-All are in the vertical plane, h = 1/60 s (the rate Box2D's comparison runs at), friction 0.5.
+All are in the vertical plane, friction 0.5, h = 1/60 s (the rate Box2D's comparison runs at) unless a function is
+given another: the shipped `bin` steps at 1/240 s, where its shapes' fall stays within 1 mm of penetration
+(docs/performance.md, "Piles").
 """
 
 import numpy as np
@@ -14,10 +16,10 @@ BOX_W, BOX_H = 0.2, 0.1
 H = 1.0 / 60.0
 
 
-def _world(name, description, bodies, t_end):
+def _world(name, description, bodies, t_end, h=H):
     return {"name": name, "description": description,
             "world": {"plane": "vertical", "gravity": [0.0, -9.81], "friction": 0.5},
-            "sim": {"h": H, "t_end": t_end}, "bodies": bodies}
+            "sim": {"h": h, "t_end": t_end}, "bodies": bodies}
 
 
 def _box(name, x, y, w=BOX_W, hgt=BOX_H, mass=1.0, angle_deg=None):
@@ -100,9 +102,9 @@ def _random_body(rng, name, x, y, size):
     return body
 
 
-def bin_scene(n, seed=0, t_end=2.0, size=0.1):
+def bin_scene(n, seed=0, t_end=2.0, size=0.1, h=H):
     """n mixed shapes (disks, boxes, capsules, polygons of about `size`) on a grid above a bin 12 sizes wide,
-    dropped at rest (seeded): they settle into one pile, one island."""
+    dropped at rest (seeded): they settle into one pile, one island. h : the scene's step (s)."""
     rng = np.random.default_rng(seed)
     cols = 8
     pitch = 1.5 * size        # a shape reaches at most size / sqrt(2) from its centre
@@ -116,7 +118,7 @@ def bin_scene(n, seed=0, t_end=2.0, size=0.1):
         bodies.append(_random_body(rng, f"s{i}", x, y, size))
     height = max(0.5, (rows + 1) * pitch)
     return _world(f"bin_{n}" if n != 40 else "bin", f"{n} disks, boxes, capsules and polygons dropped in a bin",
-                  bodies + [_bin_walls(width, height)], t_end)
+                  bodies + [_bin_walls(width, height)], t_end, h)
 
 
 def random_pile(seed, n=None):
