@@ -343,7 +343,7 @@ def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, col_val, co
     t = -q[r]
     for i in range(n):
         xw[i] += t
-    k = 1
+    k = np.int64(1)                     # not a literal: numba would compile the helpers for Literal[int](1) too
     cols[0] = n
     rows[0] = r
     row_pos[r] = 0
@@ -555,7 +555,7 @@ def _certify(M, q, k, Kinv, cols, rows, col_pos, col_val, col_row, col_start, xz
     n = q.shape[0]
     for i in range(n):
         z[i] = 0.0
-    m = 0
+    m = np.int64(0)                     # not a literal: numba would compile _solve_basic_z for Literal[int](0) too
     for c in range(k):
         if cols[c] < n:
             z[cols[c]] = max(xz[c], 0.0)

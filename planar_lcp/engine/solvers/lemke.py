@@ -269,7 +269,7 @@ def refine_from_basis(M, q, basis, n, z, lu, rhs, perm, zb, zmask):
         k = basis[i]
         if k >= n and k < 2 * n:
             zmask[k - n] = 1
-    m = 0
+    m = np.int64(0)                     # not a literal: numba would compile _solve_basic_z for Literal[int](0) too
     for i in range(n):
         if zmask[i]:
             zb[m] = i
@@ -286,7 +286,7 @@ def lemke_from_basis(M, q, zmask, res_tol, z, w, lu, rhs, perm, zb):
     accurate as a cold solve. Used as a warm start with the basis of the previous time step, where contact modes
     rarely change. Returns (accepted, residual); z, w hold the answer only when accepted.
     """
-    m = 0
+    m = np.int64(0)                     # not a literal: numba would compile _solve_basic_z for Literal[int](0) too
     for i in range(q.shape[0]):
         if zmask[i]:
             zb[m] = i
@@ -397,7 +397,7 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, 
     for i in range(n):
         rhs_scale = max(rhs_scale, abs(d[i] * q[i]))
     qmin = 0.0
-    r = -1
+    r = np.int64(-1)                    # not a literal: numba would compile _pivot for Literal[int](-1) too
     for i in range(n):
         # ties: the LAST index keeps the initial tableau lexicographically positive
         qi = d[i] * q[i]
@@ -588,7 +588,7 @@ def block_lemke_equilibrated(m, w, opt, vk, nci, nsi, h, velocity_form, A, b, n)
         for j in range(n):
             A[i, j] *= d[i] * d[j]
     status, p, res = block_lemke_in_work(w, A, b, n, opt)
-    assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b)
+    assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b, np.bool_(True))
     if status != STATUS_SOLVED:
         return status, p, res
     for i in range(n):
@@ -628,7 +628,9 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
             return STATUS_NEEDS_SPACE
         A = w.lcp_matrix[:n * n].reshape((n, n))
         b = w.lcp_vector[:n]
-        assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector)
+        # np.bool_: every call site passes `elastic` typed alike, else numba compiles assemble_lcp once for the
+        # omitted default, once for Literal[bool](True) and once for bool
+        assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector, np.bool_(True))
         if opt.warm_start and w.warm_size[isl] == n:
             # the previous step's basis for this island: contact modes rarely change from one step to the next
             warm, res = lemke_from_basis(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu,
@@ -715,6 +717,6 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
                 if kb >= n and kb < 2 * n:
                     w.warm_basic_z[isl, kb - n] = True
     apply_impulses(nci + 2 * nf + k * nsi, w.column_slot, w.column_g, w.lemke_z, m, w.v_new)
-    record_impulses(m, w, nci, w.lemke_z, False, nci)
+    record_impulses(m, w, nci, w.lemke_z, np.bool_(False), nci)   # np.bool_: one compilation with PGS's call
     contact_velocities(m, w, opt, vk, nci)
     return status

@@ -166,6 +166,6 @@ def solve_island_pgs(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     stats[Stat.LCP_SIZE] += n
     stats[Stat.LCP_MAX] = max(stats[Stat.LCP_MAX], n)
     apply_impulses(n, w.column_slot, w.column_g, w.pgs_impulse, m, w.v_new)
-    record_impulses(m, w, nci, w.pgs_impulse, True, 0)
+    record_impulses(m, w, nci, w.pgs_impulse, np.bool_(True), np.int64(0))   # typed as Lemke's call: compiled once
     contact_velocities(m, w, opt, vk, nci)
     return STATUS_SOLVED

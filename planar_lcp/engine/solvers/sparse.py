@@ -496,7 +496,7 @@ def solve_island_sparse(m, w, opt, vk, nci, nsi, h, velocity_form):
     layout (engine/assemble.py), w.lemke_w its w. Islands with table friction (nsi > 0) are not handled."""
     if nsi > 0:
         return False, 0, np.inf
-    n, nf = assemble_columns(m, w, vk, nci, nsi, h, velocity_form, w.lcp_vector)
+    n, nf = assemble_columns(m, w, vk, nci, nsi, h, velocity_form, w.lcp_vector, np.bool_(True))  # as assemble_lcp
     f = 0
     for a in range(nci):
         if m.pair_mu[w.con_pair[w.island_con[a]]] > 0.0:
