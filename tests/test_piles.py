@@ -62,11 +62,12 @@ def _sparse_then_dense(m, w, opt, vk, nci, nsi, h, z_out, A_out, b_out):
     return ok, its, n, nf
 
 
-def island_problems(scene_dict, steps, every):
-    """(sparse certified?, iterations, z, A, b, nci, nf) of the largest island at every `every`-th state of a dense
-    run of the scene."""
+def island_problems(scene_dict, steps, every, run_sparse_min=0):
+    """(sparse certified?, iterations, z, A, b, nci, nf) of the largest island at every `every`-th state of a run of
+    the scene: dense (run_sparse_min = 0), or with the large-island solvers from that many unknowns (the default
+    path's states: 10x faster where dense Lemke's paths on large islands are long, e.g. random pile 9: 60 -> 5 s)."""
     sc = parse_scene(scene_dict)
-    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, sparse_min_unknowns=0))
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, sparse_min_unknowns=run_sparse_min))
     q, v, qk, vk = sim.initial_state()
     run = sim.rollout(q, v, qk, vk[None], steps)
     return [largest_island_problem(sim, *(np.ascontiguousarray(run[k][s]) for k in ("q", "v", "qk")), vk)
@@ -260,7 +261,8 @@ def test_sparse_and_block_answers_on_300_random_large_islands():
     recomputed densely with numpy, and moves the bodies as dense Lemke's answer does (the velocity rows)."""
     islands = certified = block = either = 0
     for seed in ORACLE_SEEDS:
-        for ok, its, z, A, b, nci, nf in island_problems(piles.random_pile(seed), 30, 10):
+        for ok, its, z, A, b, nci, nf in island_problems(piles.random_pile(seed), 30, 10,
+                                                         SimOptions.sparse_min_unknowns):
             islands += 1
             n = len(b)
             wk = make_block_work(n)
@@ -283,9 +285,12 @@ def test_sparse_and_block_answers_on_300_random_large_islands():
     print(f"sparse solver: {certified} of {islands} islands certified; block Lemke: {block}; either: {either}")
     assert islands == 300
     # measured: sparse 138 of 300 (123 before the mode memory and the band limit of 256; the rest, mostly bins and
-    # collapsing walls, go to dense Lemke); block Lemke 269; either 282
+    # collapsing walls, go to dense Lemke); block Lemke 254; either 273. The states are the default path's (the
+    # large-island solvers on): 44 s for the test. On a dense run's states (sparse_min_unknowns = 0, whose long
+    # tableau paths made this the slow suite's longest test, about 15 minutes on 2 cores) the counts were 138, 269 and
+    # 282 of another 300 islands.
     assert certified >= 130, f"the sparse solver certified only {certified} of the 300 islands"
-    assert block >= 260 and either >= 275, (block, either)
+    assert block >= 245 and either >= 265, (block, either)
 
 
 def test_a_settled_bin_is_statically_indeterminate():
