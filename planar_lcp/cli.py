@@ -486,6 +486,16 @@ def _raised_while_interrupted(e):
 
 def main(argv=None):
     args = build_parser().parse_args(argv)
+    from planar_lcp.engine.compile_notice import announce_compilation, uninstall
+    # one line on stderr before a cold numba cache's wait (nothing when the cache is warm)
+    notice = announce_compilation(f"planar-lcp {args.command}")
+    try:
+        return _run(args)
+    finally:
+        uninstall(notice)
+
+
+def _run(args):
     try:
         return args.func(args)
     except Exception as e:
@@ -498,15 +508,13 @@ def main(argv=None):
         # saving the unfinished function to its cache) in place of the KeyboardInterrupt. Still an interrupt.
         if not _raised_while_interrupted(e):
             raise
-        interrupted = True
     except KeyboardInterrupt:
-        interrupted = True
-    if interrupted:
-        # Long runs return to Python often enough for this (rollouts in chunks, a flag in the planners' termination
-        # condition), so Ctrl-C ends any command within about a second: one line, exit status 130 (128 + SIGINT).
-        sys.stdout.flush()
-        print(f"planar-lcp {args.command}: error: interrupted (Ctrl-C); stopped", file=sys.stderr)
-        return 130
+        pass
+    # Long runs return to Python often enough for this (rollouts in chunks, a flag in the planners' termination
+    # condition), so Ctrl-C ends any command within about a second: one line, exit status 130 (128 + SIGINT).
+    sys.stdout.flush()
+    print(f"planar-lcp {args.command}: error: interrupted (Ctrl-C); stopped", file=sys.stderr)
+    return 130
 
 
 if __name__ == "__main__":

@@ -16,6 +16,7 @@ pytest.importorskip("ompl")
 pytest.importorskip("shapely")
 
 from cli_helpers import interrupt_cli, run_cli  # noqa: E402
+from planar_lcp.engine.compile_notice import NOTICE  # noqa: E402
 
 pytestmark = pytest.mark.needs_jit     # cold compiles and timing
 
@@ -35,6 +36,7 @@ def test_first_plan_on_a_cold_cache(tmp_path):
     assert plan["exact"] and plan["goal"]["goal_holds"] and len(plan["controls"]) > 0
     assert any((tmp_path / "numba_cache").iterdir()), "the run did not use its own cache: it was not cold"
     assert "Traceback" not in r.stderr and "leaked" not in r.stderr, r.stderr
+    assert r.stderr.count(f"planar-lcp plan: {NOTICE}\n") == 1, r.stderr    # issue M: why the first run waits
 
 
 def test_demo_fails_loudly_when_its_plan_fails(tmp_path, monkeypatch, capsys):
@@ -56,7 +58,8 @@ def small_plan(tip_plan):
 
 def test_plan_prints_no_binding_leaks(small_plan):
     r, _ = small_plan
-    assert "leaked" not in r.stderr and r.stderr.strip() == "", r.stderr
+    # nothing on stderr but, if the suite's numba cache was still cold for a kernel of the plan, the one notice
+    assert "leaked" not in r.stderr and r.stderr in ("", f"planar-lcp plan: {NOTICE}\n"), r.stderr
 
 
 def test_replay_lcp_reproduces_the_plan_bit_for_bit(small_plan, tmp_path):

@@ -1,0 +1,51 @@
+"""One line before the wait when the simulation kernels must be compiled, nothing when numba's cache has them.
+
+numba announces a compilation with a "numba:compile" event only after its on-disk cache missed (numba's
+`Dispatcher.compile`: the cache is tried first, the event wraps the compiler), so a listener sees exactly the
+compilations a run waits for. The CLI installs it for every command (`planar_lcp/cli.py`, `main`).
+"""
+
+import sys
+
+from numba.core import event
+
+#: measured: the first `planar-lcp simulate falling_rod` on an empty numba cache, 2 cores, 40 s wall clock
+#: (docs/performance.md, "Compile time")
+COLD_START_SECONDS = 40
+
+NOTICE = (f"compiling the simulation kernels once (about {COLD_START_SECONDS} s on 2 cores); "
+          "later runs start at once")
+
+_PACKAGES = ("planar_lcp", "planners")
+
+
+class CompileNotice(event.Listener):
+    """Prints `prefix: NOTICE` to `stream` at the first compilation of one of our kernels, once per process."""
+
+    def __init__(self, prefix, stream=None):
+        self.prefix = prefix
+        self.stream = stream
+        self.said = False
+
+    def on_start(self, ev):
+        if self.said:
+            return
+        func = getattr(ev.data.get("dispatcher"), "py_func", None)
+        module = getattr(func, "__module__", None) or ""
+        if module.split(".")[0] in _PACKAGES:
+            self.said = True
+            print(f"{self.prefix}: {NOTICE}", file=self.stream or sys.stderr, flush=True)
+
+    def on_end(self, ev):
+        pass
+
+
+def announce_compilation(prefix, stream=None):
+    """Install a `CompileNotice` for this process (numba's listeners are global) and return it; `uninstall` it."""
+    notice = CompileNotice(prefix, stream)
+    event.register("numba:compile", notice)
+    return notice
+
+
+def uninstall(notice):
+    event.unregister("numba:compile", notice)

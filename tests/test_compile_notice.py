@@ -1,0 +1,52 @@
+"""Issue M, "say what is happening": one line before a cold numba cache's wait, nothing when the cache is warm
+(planar_lcp/engine/compile_notice.py). The cold runs themselves are the slow suite's (tests/test_readme_commands.py
+`test_demo` and tests/test_planning_e2e.py `test_first_plan_on_a_cold_cache` check the line there)."""
+
+import io
+
+import pytest
+from numba import njit
+
+from cli_helpers import run_cli
+from planar_lcp.engine.compile_notice import NOTICE, CompileNotice, announce_compilation, uninstall
+
+
+def _function_of(module):
+    """A new numba function whose Python function lives in `module` (numba's events name it by that)."""
+    namespace = {"__name__": module}
+    exec("def f(x):\n    return x + 1\n", namespace)
+    return njit(namespace["f"])
+
+
+def test_the_notice_is_printed_once_at_our_first_compilation_and_not_for_others():
+    stream = io.StringIO()
+    notice = announce_compilation("planar-lcp probe", stream)
+    try:
+        assert _function_of("somebody_else.module")(1) == 2           # not ours: nothing said
+        assert stream.getvalue() == ""
+        assert _function_of("planar_lcp.engine.probe")(1) == 2        # ours, compiled: the line, before the wait
+        assert stream.getvalue() == f"planar-lcp probe: {NOTICE}\n"
+        assert _function_of("planners.probe")(2) == 3                 # once per process
+        assert stream.getvalue().count(NOTICE) == 1
+    finally:
+        uninstall(notice)
+    assert isinstance(notice, CompileNotice) and notice.said
+
+
+def test_an_uninstalled_notice_says_nothing():
+    stream = io.StringIO()
+    uninstall(announce_compilation("planar-lcp probe", stream))
+    _function_of("planar_lcp.engine.probe")(1)
+    assert stream.getvalue() == ""
+
+
+@pytest.mark.needs_jit
+def test_a_warm_cache_prints_nothing(tmp_path):
+    """The same command twice on one cache: the first may compile (and then says so, once), the second finds every
+    kernel in the cache and prints nothing on stderr."""
+    args = ("simulate", "falling_rod", "--t-end", "0.05")
+    first = run_cli(*args, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    assert first.stderr in ("", f"planar-lcp simulate: {NOTICE}\n"), first.stderr
+    second = run_cli(*args, cwd=tmp_path)
+    assert second.returncode == 0 and second.stderr == "", second.stderr
