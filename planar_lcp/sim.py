@@ -14,10 +14,12 @@ import numpy as np
 from planar_lcp.engine.constants import SUPPORT_POINTS
 from planar_lcp.engine.layout import (NSTAT, STATS, Stat, StepOptions, make_step_work, model_struct, step_work_bytes,
                                       work_struct)
-from planar_lcp.engine.rollout import Recording, rollout_lemke, rollout_lemke_full, rollout_pgs
+from planar_lcp.engine.rollout import (Recording, rollout_lemke, rollout_lemke_full, rollout_lemke_full_small,
+                                       rollout_lemke_small, rollout_pgs)
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES
 from planar_lcp.engine.step import (FORM_VELOCITY, STEP_LCP_FAILED, STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE,
-                                    STEP_NONFINITE, STEP_OK, step_lemke, step_lemke_full, step_pgs)
+                                    STEP_NONFINITE, STEP_OK, step_lemke, step_lemke_full, step_lemke_full_small,
+                                    step_lemke_small, step_pgs)
 from planar_lcp.model import Model, compile_scene
 from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
 from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, restitution_setting, sim_settings,
@@ -96,7 +98,7 @@ def _cause(status, stats, stopped):
     return "ok"
 
 
-def _variants(options):
+def _variants(options, model):
     """The (step, rollout) kernels a simulator runs, in the order tried: a step that one hands back
     (STEP_NEEDS_FALLBACK) is run again by the next, which has a fallback (engine/step.py `step_pipeline`)."""
     if options.solver == "osqp":
@@ -104,10 +106,17 @@ def _variants(options):
         return ((osqp_step, osqp_rollout),)
     if options.solver == "pgs":
         return ((step_pgs, rollout_pgs),)
-    full = (step_lemke_full, rollout_lemke_full)
+    # A model none of whose islands can reach the large-island threshold runs the kernels without the large-island
+    # solvers: the same steps, and a cold cache compiles a third less (engine/solvers/lemke.py
+    # `solve_island_lemke_small`)
+    small = options.sparse_min_unknowns == 0 or model.max_unknowns() < options.sparse_min_unknowns
+    if small:
+        first, full = (step_lemke_small, rollout_lemke_small), (step_lemke_full_small, rollout_lemke_full_small)
+    else:
+        first, full = (step_lemke, rollout_lemke), (step_lemke_full, rollout_lemke_full)
     # the velocity form needs the projection; the position forms try the kernel without PGS and the projection
     # first, so that those compile only when a run needs them
-    return (full,) if FORMULATIONS[options.formulation] == FORM_VELOCITY else ((step_lemke, rollout_lemke), full)
+    return (full,) if FORMULATIONS[options.formulation] == FORM_VELOCITY else (first, full)
 
 
 class Simulator:
@@ -127,7 +136,7 @@ class Simulator:
         self.kwork = work_struct(self.work)
         self.stats = np.zeros(NSTAT)
         self._last_step_out = None  # (q, v, qk) returned by the last `step`, for its warm start
-        self._variants = _variants(options)
+        self._variants = _variants(options, model)
 
     @property
     def h(self):

@@ -108,3 +108,28 @@ def test_csv_layout(tmp_path):
     assert row[0] == 0.0 and row[1] == 0.0 and row[2] == 1.0 and row[4] == 1.5
     last = np.array(lines[-1].split(","), dtype=float)
     np.testing.assert_array_equal(last[1:7], np.concatenate([tr.q[-1, 0], tr.v[-1, 0]]))
+
+
+def test_models_below_the_large_island_threshold_run_the_kernels_without_its_solvers():
+    """Issue M (cold start): a model none of whose islands can reach sparse_min_unknowns (Model.max_unknowns) runs
+    `step_lemke_small` / `step_lemke_full_small`, which do not compile the sparse solver and block Lemke; the piles
+    keep the full kernels. The same steps bit for bit: box_push by either kernel."""
+    import planar_lcp.engine.step as S
+    from planar_lcp.engine.rollout import rollout_lemke, rollout_lemke_full_small
+
+    def first_variant(name, **options):
+        sc = load_scene(name)
+        return Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, **options))._variants[0][0]
+    assert first_variant("falling_rod") is S.step_lemke_small and first_variant("tower") is S.step_lemke
+    assert first_variant("tower", sparse_min_unknowns=0) is S.step_lemke_small
+    assert first_variant("box_push", formulation="velocity") is S.step_lemke_full_small
+    assert compile_scene(load_scene("box_push")).max_unknowns() < SimOptions.sparse_min_unknowns
+    sc = load_scene("box_push")
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
+    q, v, qk, vk = sim.initial_state()
+    small = sim.rollout(q, v, qk, vk[None], 150)
+    sim._variants = ((S.step_lemke, rollout_lemke),) + sim._variants[1:]
+    large = sim.rollout(q, v, qk, vk[None], 150)
+    for key in ("q", "v", "qk", "stats", "status"):
+        assert np.array_equal(small[key], large[key]), key
+    assert sim._variants[1][1] is rollout_lemke_full_small

@@ -10,7 +10,8 @@ from collections import namedtuple
 from numba import njit
 
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.step import STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE, STEP_OK, step_lemke, step_lemke_full, step_pgs
+from planar_lcp.engine.step import (STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE, STEP_OK, step_lemke, step_lemke_full,
+                                    step_lemke_full_small, step_lemke_small, step_pgs)
 
 #: A rollout's output buffers. States q, v (nsteps + 1, ndyn, 3) and qk (nsteps + 1, nkin, 3), row 0 the initial
 #: state; per step: stats (nsteps, NSTAT), status (nsteps,) STEP_* codes, and the contacts of the step's active set
@@ -110,6 +111,19 @@ def rollout_lemke(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on
 def rollout_lemke_full(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
     return rollout_loop(step_lemke_full, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                         reset_warm_start)
+
+
+@njit(cache=True)
+def rollout_lemke_small(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
+    return rollout_loop(step_lemke_small, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
+                        reset_warm_start)
+
+
+@njit(cache=True)
+def rollout_lemke_full_small(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
+                             reset_warm_start):
+    return rollout_loop(step_lemke_full_small, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec,
+                        stop_on_failure, reset_warm_start)
 
 
 @njit(cache=True)

@@ -20,7 +20,8 @@ from planar_lcp.engine.constants import SUPPORT_LIMIT_SURFACE
 from planar_lcp.engine.contacts import body_poses, find_contacts, world_vertices
 from planar_lcp.engine.islands import find_islands, island_members
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.solvers.lemke import STATUS_NEEDS_SPACE, STATUS_SOLVED, lemke_in_work, solve_island_lemke
+from planar_lcp.engine.solvers.lemke import (STATUS_NEEDS_SPACE, STATUS_SOLVED, lemke_in_work, solve_island_lemke,
+                                             solve_island_lemke_small)
 from planar_lcp.engine.solvers.pgs import solve_island_pgs
 
 # The stages are inline='always' (and so are the island solvers, through the pipeline's arguments): every separately
@@ -353,6 +354,20 @@ def step_lemke_full(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     """Lemke with the PGS fallback and the velocity form's projection."""
     return step_pipeline(solve_island_lemke, solve_island_pgs, project_positions, m, q, v, qk, vk, h, opt, w, q_out,
                          v_out, qk_out, stats)
+
+
+@njit(cache=True)
+def step_lemke_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """`step_lemke` for a model whose islands stay below opt.sparse_min unknowns (`solve_island_lemke_small`)."""
+    return step_pipeline(solve_island_lemke_small, None, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out,
+                         stats)
+
+
+@njit(cache=True)
+def step_lemke_full_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """`step_lemke_full` for a model whose islands stay below opt.sparse_min unknowns."""
+    return step_pipeline(solve_island_lemke_small, solve_island_pgs, project_positions, m, q, v, qk, vk, h, opt, w,
+                         q_out, v_out, qk_out, stats)
 
 
 @njit(cache=True)
