@@ -9,9 +9,9 @@ import sys
 
 from numba.core import event
 
-#: measured: the first `planar-lcp simulate falling_rod` on an empty numba cache, 2 cores, 40 s wall clock
+#: measured: the first `planar-lcp simulate falling_rod` on an empty numba cache, 2 cores: 29 s wall clock
 #: (docs/performance.md, "Compile time")
-COLD_START_SECONDS = 40
+COLD_START_SECONDS = 30
 
 NOTICE = (f"compiling the simulation kernels once (about {COLD_START_SECONDS} s on 2 cores); "
           "later runs start at once")

@@ -14,6 +14,8 @@ whatever a kernel writes through the struct is visible in the namedtuple. Kernel
 (attribute access), and with NUMBA_DISABLE_JIT=1 the namedtuples are used as they are.
 """
 
+import functools
+import math
 from collections import namedtuple
 from enum import IntEnum
 
@@ -269,9 +271,20 @@ def work_sizes(model, dense_capacity=None):
                 band=reduced * (2 * SPARSE_MAX_BAND + 1))
 
 
+#: each work field's shape as (dimension: an int, or the name of a `work_sizes` entry), parsed once; and its itemsize
+_WORK_DIMS = [tuple(int(d) if d.isdigit() else d for d in f.shape.split(" x ")) for f in WORK_LAYOUT]
+_WORK_ITEMSIZES = [np.dtype(_DTYPES[f.dtype][1]).itemsize for f in WORK_LAYOUT]
+
+
 def _work_shapes(model, dense_capacity=None):
-    sizes = work_sizes(model, dense_capacity)
-    return [tuple(int(d) if d.isdigit() else sizes[d] for d in f.shape.split(" x ")) for f in WORK_LAYOUT]
+    return _shapes_of(tuple(work_sizes(model, dense_capacity).items()))
+
+
+@functools.lru_cache(maxsize=64)
+def _shapes_of(sizes):
+    """The work fields' shapes for the `work_sizes` items `sizes` (remembered: a sweep makes the same ones often)."""
+    sizes = dict(sizes)
+    return tuple(tuple(d if isinstance(d, int) else sizes[d] for d in dims) for dims in _WORK_DIMS)
 
 
 def make_step_work(model, dense_capacity=None):
@@ -283,8 +296,7 @@ def make_step_work(model, dense_capacity=None):
 
 def step_work_bytes(model, dense_capacity=None):
     """What `make_step_work(model, dense_capacity)` allocates, in bytes, without allocating it."""
-    return sum(int(np.prod(shape)) * np.dtype(_DTYPES[f.dtype][1]).itemsize
-               for f, shape in zip(WORK_LAYOUT, _work_shapes(model, dense_capacity)))
+    return sum(math.prod(shape) * size for size, shape in zip(_WORK_ITEMSIZES, _work_shapes(model, dense_capacity)))
 
 
 @structref.register
@@ -360,16 +372,16 @@ def _has_field_type(field, v):
             and fl.c_contiguous and fl.writeable and fl.aligned)
 
 
-def _struct(view, struct_type, layout):
-    """The struct of `struct_type` over the buffers of the namedtuple `view` (checked against `layout`), with the
-    view attached; with NUMBA_DISABLE_JIT, the view itself."""
+def _struct(view, struct_type, layout, check=True):
+    """The struct of `struct_type` over the buffers of the namedtuple `view` (checked against `layout` unless
+    check is False), with the view attached; with NUMBA_DISABLE_JIT, the view itself."""
     if numba.config.DISABLE_JIT:
         return view
     what = type(view).__name__
     names = tuple(f.name for f in layout)
     if tuple(view._fields) != names:
         raise TypeError(f"{what}: fields {view._fields} do not match the struct's {names}")
-    for f, v in zip(layout, view):
+    for f, v in zip(layout, view) if check else ():
         if not _has_field_type(f, v):
             got, want = numba.typeof(v), numba_type(f)
             if got != want:
@@ -387,6 +399,13 @@ def model_struct(arrays):
 def work_struct(work):
     """The kernels' view of a StepWork namedtuple (same buffers). With NUMBA_DISABLE_JIT, the namedtuple."""
     return _struct(work, WORK_STRUCT, WORK_LAYOUT)
+
+
+def new_work_struct(model, dense_capacity=None):
+    """(make_step_work(model, dense_capacity), its struct): the buffers are made here with the layout's types, so
+    their per-field check (about 50 µs of a Simulator's set-up) is skipped."""
+    work = make_step_work(model, dense_capacity)
+    return work, _struct(work, WORK_STRUCT, WORK_LAYOUT, check=False)
 
 
 def python_view(s):

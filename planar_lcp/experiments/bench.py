@@ -281,10 +281,15 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
     The three are timed in `rounds` alternating rounds of thread CPU time (`alternate_rounds`): ours, ours warm-started,
     pymunk, ours, ... each round a fixed number of whole runs. `ratio` (`warm_ratio`) is the median over rounds of
     ours (warm-started) / pymunk measured back to back, with its spread in ratio_min, ratio_q1, ratio_q3,
-    ratio_max; the µs per step are medians over rounds."""
+    ratio_max; the µs per step are medians over rounds.
+
+    Also timed in the same rounds, the API a user calls (issue M): `simulate(scene)` over the scene's own run with
+    the defaults (`simulate_ratio` against pymunk), its set-up (`setup_us`: the per-round difference between that
+    run and the bare rollout, i.e. settings, the compiled model, the Simulator and the Trajectory), and
+    `Simulator(model, options)` alone (`simulator_us`)."""
     from planar_lcp.model import compile_scene
     from planar_lcp.spec.scene import load_scene
-    from planar_lcp.sim import SimOptions, Simulator
+    from planar_lcp.sim import SimOptions, Simulator, simulate
     from planar_lcp.engine.layout import Stat
     from planar_lcp.experiments.pymunk_bridge import PymunkRun
     rows = []
@@ -299,6 +304,10 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
             stats[warm] = sim.rollout(q, v, qk, vk[None], n)["stats"]  # also compiles
             runners["ours_warm" if warm else "ours"] = (
                 lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], n))
+        model = compile_scene(sc)
+        opts = SimOptions(h=sc.sim.h, solver=sc.sim.solver, formulation=sc.sim.formulation)
+        runners["simulate"] = lambda sc=sc: simulate(sc)
+        runners["simulator"] = lambda model=model, opts=opts: Simulator(model, opts)
         if pymunk:
             runners["pymunk"] = PymunkRun(sc, n)
         m = alternate_rounds(runners, rounds=rounds, min_round_s=min_round_s)
@@ -312,11 +321,15 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
                    warm_pivots_per_step=float(stw[:, Stat.PIVOTS].mean()),
                    warm_start_share=float(stw[with_lcp, Stat.WARM_STARTS].mean()) if with_lcp.any() else 0.0,
                    rounds=rounds, runs_per_round={k: int(v) for k, v in m["reps"].items()},
-                   other_threads_cpu_share=m["other_threads_cpu_share"])
+                   other_threads_cpu_share=m["other_threads_cpu_share"],
+                   simulate_us_per_step=float(np.median(per["simulate"])) / n * 1e6,
+                   setup_us=float(np.median(np.asarray(per["simulate"]) - np.asarray(per["ours"]))) * 1e6,
+                   simulator_us=float(np.median(per["simulator"])) * 1e6)
         if pymunk:
             row["pymunk_us_per_step"] = float(np.median(per["pymunk"])) / n * 1e6
             row.update(_ratio_fields("ratio", ratio_stats(per["ours"], per["pymunk"])))
             row.update(_ratio_fields("warm_ratio", ratio_stats(per["ours_warm"], per["pymunk"])))
+            row.update(_ratio_fields("simulate_ratio", ratio_stats(per["simulate"], per["pymunk"])))
         rows.append(row)
     return rows
 
@@ -333,6 +346,18 @@ def format_step_table(rows, compile_times=None):
                      f"{r['mean_lcp_size']:.1f} | {r['max_lcp_size']} | {r['pivots_per_step']:.1f} | "
                      f"{r['warm_us_per_step']:.2f} | {wr} | {100 * r['warm_start_share']:.0f} % | "
                      f"{r['warm_pivots_per_step']:.1f} |")
+    if rows and "setup_us" in rows[0]:
+        lines += ["", "| scene | simulate() µs / step (its own run, set-up included) | ratio to pymunk median [min-max] "
+                  "| simulate() set-up µs | Simulator() µs |", "|---|---:|---:|---:|---:|"]
+        for r in rows:
+            sr = _fmt_ratio(r, "simulate_ratio") if "simulate_ratio" in r else "-"
+            lines.append(f"| {r['scene']} | {r['simulate_us_per_step']:.2f} | {sr} | {r['setup_us']:.0f} | "
+                         f"{r['simulator_us']:.0f} |")
+        lines.append("simulate(): the API's whole call on the scene with its defaults, timed in the same rounds; its "
+                     "set-up: the per-round median of that call less the bare rollout (settings, the compiled model "
+                     "(remembered for a scene already compiled), Simulator, Trajectory); Simulator(): construction "
+                     "from a compiled model; targets (issue M): set-up and Simulator() <= 300 µs, simulate() ratio "
+                     "<= 1.5")
     if rows:
         lines.append("")
         peers = "ours, ours warm-started, pymunk" if "ratio" in rows[0] else "ours, ours warm-started"
