@@ -279,6 +279,36 @@ def _cmd_simulate(args):
         return 2
 
 
+#: A long run's progress bar shows only after this many seconds (a shorter run prints nothing)
+PROGRESS_DELAY_S = 2.0
+
+
+class ProgressBar:
+    """A tqdm bar on stderr as `Simulator.progress` (progress(done, total)), shown on a terminal only once a run has
+    taken PROGRESS_DELAY_S and cleared at its end; none when tqdm is not installed (it comes with the plan and studies
+    extras, and the core's commands do not need it)."""
+
+    def __init__(self, desc, unit="step"):
+        try:
+            from tqdm import tqdm
+        except ImportError:
+            tqdm = None
+        self._tqdm, self.desc, self.unit, self.bar = tqdm, desc, unit, None
+
+    def __call__(self, done, total):
+        if self._tqdm is None:
+            return
+        if self.bar is None:
+            # disable=None: only on a terminal (a log or a pipe gets no bar frames)
+            self.bar = self._tqdm(total=total, desc=self.desc, unit=self.unit, delay=PROGRESS_DELAY_S, leave=False,
+                                  disable=None)
+        self.bar.update(done - self.bar.n)
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
 def _simulate(args):
     import time
 
@@ -310,9 +340,11 @@ def _simulate(args):
     settings["restitution"] = args.restitution
     print(f"scene          {scene.name} ({scene.source})", flush=True)
     t0 = time.perf_counter()
+    bar = ProgressBar(f"simulate {scene.name}")
     try:
-        traj = simulate(scene, **settings, on_failure=args.on_failure, option_names=SIMULATE_FLAGS)
+        traj = simulate(scene, **settings, on_failure=args.on_failure, option_names=SIMULATE_FLAGS, progress=bar)
     except SimulationError as e:
+        bar.close()                       # before the message (closing twice is harmless)
         print(f"planar-lcp simulate: simulation failed: {e}", file=sys.stderr)
         return 1
     except SceneError as e:
@@ -321,6 +353,8 @@ def _simulate(args):
     except (ValueError, NotImplementedError) as e:
         # options the scene accepts but the simulator rejects (e.g. a solver not available there)
         raise InputError(f"{scene.source}: {e}") from None
+    finally:
+        bar.close()
     wall = time.perf_counter() - t0
 
     o = traj.options

@@ -136,6 +136,8 @@ class Simulator:
         self.stats = np.zeros(NSTAT)
         self._last_step_out = None  # (q, v, qk) returned by the last `step`, for its warm start
         self._variants = _variants(options, model)
+        #: called as progress(steps_done, nsteps) after each of a rollout's kernel calls (CHUNK_SECONDS apart), or None
+        self.progress = None
 
     @property
     def h(self):
@@ -254,6 +256,8 @@ class Simulator:
             if done and not level:
                 chunk = int(min(max(16, self.CHUNK_SECONDS * done / max(time.perf_counter() - t0, 1e-9)), 1 << 20))
             start += done
+            if self.progress is not None:
+                self.progress(start, nsteps)
             if done and stop_on_failure and rec.status[start - 1] != STEP_OK:
                 return start                  # stopped on a failed step
             if done < n and rec.status[start] == STEP_NEEDS_SPACE:
@@ -348,7 +352,7 @@ def compiled_scene(scene, friction_directions=None, seed_friction_arm=False, sup
 def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_point_iterations=None,
              friction_directions=None, pgs_iterations=None, support_model=None, limit_surface_twists=None,
              limit_surface_resolution=None, restitution=None, on_failure="raise", record_contacts=True,
-             seed_friction_arm=False, option_names=None, **options) -> Trajectory:
+             seed_friction_arm=False, option_names=None, progress=None, **options) -> Trajectory:
     """Simulate a scene (a Scene, a shipped scene name, or a .toml path). Keywords override the scene's [sim], and
     support_model ("limit_surface" or "points") its world.support_model: the horizontal plane's table friction
     (docs/method.md, "Table friction"; limit_surface_twists and limit_surface_resolution are that model's knobs), and
@@ -360,7 +364,8 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     in Trajectory.failures. seed_friction_arm applies contact
     friction at the shapes' core points, as the seed paper's rod does (see compile_scene). option_names: how error
     messages name the keywords, e.g. {"t_end": "--t-end", "on_failure": "--on-failure record"} for a command line
-    (default: the keywords themselves). Further keywords go to SimOptions.
+    (default: the keywords themselves). progress: called as progress(steps_done, nsteps) every quarter second or so
+    of a long run (`Simulator.progress`). Further keywords go to SimOptions.
 
     Every override is checked by the rules of the scene file's [sim] table (docs/scene-format.md, "Limits"), and the
     run's memory (`check_run_size`) before anything is allocated: SceneError (a ValueError) names the setting, the
@@ -384,6 +389,7 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
                            sim.limit_surface_resolution)
     check_run_size(model, nsteps, names, record_contacts)
     simr = Simulator(model, opts)
+    simr.progress = progress
     q0, v0, qk0, vk0 = simr.initial_state()
     out = simr.rollout(q0, v0, qk0, vk0[None], nsteps, stop_on_failure=(on_failure == "raise"),
                        record_contacts=record_contacts)

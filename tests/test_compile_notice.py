@@ -50,3 +50,30 @@ def test_a_warm_cache_prints_nothing(tmp_path):
     assert first.stderr in ("", f"planar-lcp simulate: {NOTICE}\n"), first.stderr
     second = run_cli(*args, cwd=tmp_path)
     assert second.returncode == 0 and second.stderr == "", second.stderr
+
+
+def test_simulate_reports_its_progress_to_the_end():
+    from planar_lcp import simulate
+    seen = []
+    tr = simulate("box_tip", progress=lambda done, total: seen.append((done, total)))
+    n = len(tr.t) - 1
+    assert seen and seen[-1] == (n, n) and all(t == n for _, t in seen)
+    assert [d for d, _ in seen] == sorted(d for d, _ in seen)
+
+
+def test_a_long_simulate_command_shows_a_progress_bar_and_a_short_one_does_not(monkeypatch, capsys):
+    """The bar (tqdm, on stderr) appears on a terminal once a run has taken PROGRESS_DELAY_S: 0 here, so any run
+    shows it; a pipe or a log never gets it (tests/test_cli_simulate.py's Ctrl-C test reads stderr whole)."""
+    pytest.importorskip("tqdm")
+    import sys
+    import planar_lcp.cli as cli
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    assert cli.main(["simulate", "box_tip", "--t-end", "0.5"]) == 0
+    assert "simulate box_tip" not in capsys.readouterr().err          # shorter than the delay: nothing
+    monkeypatch.setattr(cli, "PROGRESS_DELAY_S", 0.0)
+    assert cli.main(["simulate", "box_tip", "--t-end", "0.5"]) == 0
+    err = capsys.readouterr().err
+    assert "simulate box_tip" in err and "step" in err, err
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
+    assert cli.main(["simulate", "box_tip", "--t-end", "0.5"]) == 0
+    assert capsys.readouterr().err == ""                              # not a terminal: no bar
