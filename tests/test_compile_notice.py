@@ -26,7 +26,7 @@ def test_the_notice_is_printed_once_at_our_first_compilation_and_not_for_others(
         assert stream.getvalue() == ""
         assert _function_of("planar_lcp.engine.probe")(1) == 2        # ours, compiled: the line, before the wait
         assert stream.getvalue() == f"planar-lcp probe: {NOTICE}\n"
-        assert _function_of("planners.probe")(2) == 3                 # once per process
+        assert _function_of("planar_lcp.spec.probe")(2) == 3          # once per process
         assert stream.getvalue().count(NOTICE) == 1
     finally:
         uninstall(notice)

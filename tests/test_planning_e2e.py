@@ -140,6 +140,10 @@ def test_ctrl_c_stops_replay_cleanly(small_plan, tmp_path):
     plan["steps"] = [10] * 40000
     long_plan = tmp_path / "long.json"
     long_plan.write_text(json.dumps(plan))
+    # the plan's own replay first: it compiles whatever kernel of the task the suite's cache does not hold yet (a
+    # fresh CI cache, where this test once ran before any test had compiled the fallback variant the replay needs)
+    warm = run_cli("replay", out / "plan.json", "--out", tmp_path / "warm")
+    assert warm.returncode == 0, warm.stderr
     rc, err, dt = interrupt_cli(["replay", long_plan, "--out", tmp_path], "simulator", tmp_path)
     assert rc == 130 and err == "planar-lcp replay: error: interrupted (Ctrl-C); stopped\n", err
     assert dt < 2.0, dt

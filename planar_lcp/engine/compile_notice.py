@@ -16,7 +16,7 @@ COLD_START_SECONDS = 30
 NOTICE = (f"compiling the simulation kernels once (about {COLD_START_SECONDS} s on 2 cores); "
           "later runs start at once")
 
-_PACKAGES = ("planar_lcp", "planners")
+_PACKAGES = ("planar_lcp",)  # the planners have no numba code of their own
 
 
 class CompileNotice(event.Listener):
