@@ -133,3 +133,16 @@ def test_models_below_the_large_island_threshold_run_the_kernels_without_its_sol
     for key in ("q", "v", "qk", "stats", "status"):
         assert np.array_equal(small[key], large[key]), key
     assert sim._variants[1][1] is rollout_lemke_full_small
+
+
+def test_simulate_compiles_a_scene_once_for_the_same_settings():
+    """Issue M (set-up): `simulate` takes its model from `compiled_scene`, which remembers compile_scene's answer for a
+    scene and its settings (a Model never changes after compile) and compiles again for other settings."""
+    from planar_lcp.sim import compiled_scene
+    sc = load_scene("box_push")
+    m = compiled_scene(sc)
+    assert compiled_scene(load_scene("box_push")) is m                 # an equal scene, read again
+    assert compiled_scene(sc, support_model="points") is not m
+    assert compiled_scene(sc, friction_directions=8) is not m
+    tr = simulate(sc, t_end=0.05)
+    assert np.array_equal(tr.q_com[0], m.q0)

@@ -612,7 +612,7 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
 def solve_island_lemke_small(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     """`solve_island_lemke` for a model whose islands never reach opt.sparse_min unknowns (Model.max_unknowns, or
     opt.sparse_min = 0): the same steps bit for bit, without the large-island solvers' code, which a cold numba cache
-    then does not compile (measured: 13 s of the 40 s cold start of falling_rod)."""
+    then does not compile (measured: 11 s of the 40 s cold start of falling_rod)."""
     return lemke_island(None, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
 
 
