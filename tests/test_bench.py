@@ -183,13 +183,15 @@ def test_bench_step_measures_ours_and_pymunk():
 
 
 @needs_jit
-def test_bench_step_json_keeps_the_old_fields_and_adds_the_spread(monkeypatch, tmp_path):
+def test_bench_step_json_keeps_the_old_fields_and_adds_the_spread(monkeypatch, tmp_path, capsys):
     monkeypatch.setattr(bench, "bench_step", functools.partial(bench_step, scenes=("box_tip",), rounds=3))
     monkeypatch.setattr(bench, "measure_step_compile_time",   # two cold-cache subprocesses: minutes, not tested here
                         lambda: dict(cold_import_s=1.0, cold_first_simulate_s=2.0, warm_import_s=0.1,
                                      warm_first_simulate_s=0.2))
     path = tmp_path / "bench.json"
     bench.run_bench("step", json_path=str(path))
+    err = capsys.readouterr().err                 # issue M: a line on stderr as each stage of minutes starts
+    assert "bench step: the first simulate() on an empty numba cache" in err and "bench step: box_tip (1 of 1)" in err
     d = json.loads(path.read_text())
     assert d["step"]["clock"] == "thread_time"
     (r,) = d["step"]["rows"]

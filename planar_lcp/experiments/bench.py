@@ -273,7 +273,7 @@ def measure_step_compile_time():
                 warm_first_simulate_cpu_s=out[1][3])
 
 
-def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_ROUND_S):
+def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_ROUND_S, progress=None):
     """Microseconds per step of our stepper (one jitted rollout over the scene's duration, warm JIT), with its defaults
     and with the LCP warm start the planners use, and, in the same process, of pymunk on the same scene and h through
     planar_lcp.experiments.pymunk_bridge (10 iterations, its defaults).
@@ -286,14 +286,17 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
     Also timed in the same rounds, the API a user calls (issue M): `simulate(scene)` over the scene's own run with
     the defaults (`simulate_ratio` against pymunk), its set-up (`setup_us`: the per-round difference between that
     run and the rollout it makes, which records the contacts: settings, the compiled model, the Simulator and the
-    Trajectory), and `Simulator(model, options)` alone (`simulator_us`)."""
+    Trajectory), and `Simulator(model, options)` alone (`simulator_us`). progress: called with a line as each scene
+    starts."""
     from planar_lcp.model import compile_scene
     from planar_lcp.spec.scene import load_scene
     from planar_lcp.sim import SimOptions, Simulator, simulate
     from planar_lcp.engine.layout import Stat
     from planar_lcp.experiments.pymunk_bridge import PymunkRun
     rows = []
-    for name in scenes:
+    for i, name in enumerate(scenes):
+        if progress is not None:
+            progress(f"{name} ({i + 1} of {len(scenes)})")
         sc = load_scene(name)
         n = int(round(sc.sim.t_end / sc.sim.h))
         runners, stats = {}, {}
@@ -861,7 +864,7 @@ class _Box2dRunner:
             world.step(self.h, self.substeps)
 
 
-def bench_pile(scenes=PILE_SCENES, steps=PILE_STEPS, rounds=PILE_ROUNDS, min_round_s=MIN_ROUND_S):
+def bench_pile(scenes=PILE_SCENES, steps=PILE_STEPS, rounds=PILE_ROUNDS, min_round_s=MIN_ROUND_S, progress=None):
     """Per step, ours (the defaults: the sparse solver on large islands) against Box2D v3 on the same scenes in the
     same process, alternating rounds of thread CPU time; Box2D at its default 4 substeps and at the fewest of
     PILE_SUBSTEPS that keep the tower of the same scene family standing (towers: their own; the bin: the 64-box
@@ -872,7 +875,9 @@ def bench_pile(scenes=PILE_SCENES, steps=PILE_STEPS, rounds=PILE_ROUNDS, min_rou
     from planar_lcp.sim import SimOptions, Simulator
     from planar_lcp.spec.scene import parse_scene
     rows, tuned_for_bin = [], None
-    for name, make in scenes:
+    for i, (name, make) in enumerate(scenes):
+        if progress is not None:
+            progress(f"{name} ({i + 1} of {len(scenes)})")
         scene = parse_scene(make())
         model = compile_scene(scene)
         h = scene.sim.h
@@ -958,6 +963,10 @@ def run_bench(which, json_path=None, kinds=None, sizes=None, steps=None, rounds=
     steps per timed run; steps and scenes (names of PILE_SCENES) for pile; rounds for any (default: each
     benchmark's own)."""
     report = {}
+
+    def say(bench_name):
+        """A progress line on stderr (the tables go to stdout): each benchmark takes minutes."""
+        return lambda line: print(f"bench {bench_name}: {line}", file=sys.stderr, flush=True)
     if which in ("scaling", "all"):
         kinds = kinds or (SCALING_KINDS if which == "scaling" else SCALING_LAYOUTS)
         layouts = [k for k in kinds if k in SCALING_LAYOUTS]
@@ -973,23 +982,27 @@ def run_bench(which, json_path=None, kinds=None, sizes=None, steps=None, rounds=
             rows, fits, fit_spread, fit_bodies = bench_scaling_piles(
                 kinds=pile_kinds, sizes=sizes or PILE_SCALING_SIZES, steps=steps or PILE_SCALING_STEPS,
                 rounds=rounds or SCALING_ROUNDS, step_budget_s=step_budget_s, settle_budget_s=settle_budget_s,
-                progress=lambda line: print(f"bench scaling: {line}", file=sys.stderr, flush=True))
+                progress=say("scaling"))
             print(format_scaling_piles_table(rows, fits, fit_spread, fit_bodies))
             report["scaling_piles"] = dict(rows=rows, fits=fits, fit_spread=fit_spread, fit_bodies=fit_bodies,
                                            clock="thread_time", step_budget_s=step_budget_s,
                                            settle_budget_s=settle_budget_s, settle_extra_s=SETTLE_EXTRA_S)
     if which == "pile":
         chosen = tuple(sc for sc in PILE_SCENES if sc[0] in scenes) if scenes else PILE_SCENES
-        rows = bench_pile(scenes=chosen, steps=steps or PILE_STEPS, rounds=rounds or PILE_ROUNDS)
+        rows = bench_pile(scenes=chosen, steps=steps or PILE_STEPS, rounds=rounds or PILE_ROUNDS,
+                          progress=say("pile"))
         print(format_pile_table(rows))
         report["pile"] = dict(rows=rows, clock="thread_time")
     if which in ("step", "all"):
+        say("step")("the first simulate() on an empty numba cache, in a child process (about 30 s)")
         compile_times = measure_step_compile_time()
-        rows = bench_step(rounds=rounds or ROUNDS)
+        rows = bench_step(rounds=rounds or ROUNDS, progress=say("step"))
         print(format_step_table(rows, compile_times))
         report["step"] = dict(rows=rows, compile=compile_times, clock="thread_time")
     if which in ("lcp", "all"):
+        say("lcp")("the first lemke() on an empty numba cache, in a child process")
         compile_times = measure_compile_time()
+        say("lcp")("the corpus, ours against QuantEcon's lcp_lemke in alternating rounds")
         rows = bench_lcp(rounds=rounds or ROUNDS)
         if not rows:
             raise SystemExit("bench lcp: the LCP corpus ../shared/data/lcp was not found (set PLANAR_LCP_CORPUS)")
