@@ -354,8 +354,8 @@ def format_step_table(rows, compile_times=None):
                      f"{r['warm_us_per_step']:.2f} | {wr} | {100 * r['warm_start_share']:.0f} % | "
                      f"{r['warm_pivots_per_step']:.1f} |")
     if rows and "setup_us" in rows[0]:
-        lines += ["", "| scene | simulate() µs / step (its own run, set-up included) | ratio to pymunk median [min-max] "
-                  "| simulate() set-up µs | Simulator() µs |", "|---|---:|---:|---:|---:|"]
+        lines += ["", "| scene | simulate() µs / step (its own run, set-up included) | ratio to pymunk median "
+                  "[min-max] | simulate() set-up µs | Simulator() µs |", "|---|---:|---:|---:|---:|"]
         for r in rows:
             sr = _fmt_ratio(r, "simulate_ratio") if "simulate_ratio" in r else "-"
             lines.append(f"| {r['scene']} | {r['simulate_us_per_step']:.2f} | {sr} | {r['setup_us']:.0f} | "
