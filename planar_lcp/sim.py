@@ -61,6 +61,11 @@ class SimOptions:
     # by the same residual test; dense Lemke when it gives no certified answer): docs/method.md, "Large islands".
     # 0: never. Smaller islands take the dense path as before, so the goldens and the committed plans are unchanged.
     sparse_min_unknowns: int = 128
+    # Run only the kernel with the fallbacks (PGS, the velocity form's projection) from the first step. By default
+    # the position forms run a kernel without them and hand a failed island's step to that one, so a run that never
+    # fails compiles one kernel; a run that meets a failed island (a planner's propagations into jams) compiles both,
+    # about 13 s more on a cold cache. The same results bit for bit either way (engine/step.py `step_pipeline`).
+    single_kernel: bool = False
 
     def kernel_options(self):
         if self.solver not in SOLVERS:
@@ -116,7 +121,8 @@ def _variants(options, model):
         first, full = (step_lemke, rollout_lemke), (step_lemke_full, rollout_lemke_full)
     # the velocity form needs the projection; the position forms try the kernel without PGS and the projection
     # first, so that those compile only when a run needs them
-    return (full,) if FORMULATIONS[options.formulation] == FORM_VELOCITY else (first, full)
+    single = options.single_kernel or FORMULATIONS[options.formulation] == FORM_VELOCITY
+    return (full,) if single else (first, full)
 
 
 class Simulator:

@@ -7,6 +7,7 @@ the LCP conditions checked with numpy (for a non-unique LCP); the cold-start sim
 step); bitwise equality where the contract promises it.
 """
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -242,6 +243,12 @@ def test_lemke_rollout_with_fallback_steps_equals_the_full_variant_bit_for_bit(w
     assert done == n
     for k, a in z.items():
         assert np.array_equal(out[k], a), k
+    # SimOptions(single_kernel=True) (the planners') runs only the full variant: the same outputs
+    single = Simulator(compile_scene(sc), dataclasses.replace(opts, single_kernel=True))
+    assert len(single._variants) == 1 and len(sim._variants) == 2
+    alone = single.rollout(q, v, qk, vk[None], n, stop_on_failure=False, record_contacts=True)
+    for k in ("q", "v", "qk", "stats", "status", "con_pair", "con_cn", "con_ft"):
+        assert np.array_equal(out[k], alone[k]), k
     # and a loop of step, which takes the same path
     loop = Simulator(compile_scene(sc), opts)
     for i in range(n):
