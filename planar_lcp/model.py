@@ -45,6 +45,12 @@ class Model:
         never change after compile, and each struct costs about 0.1 ms of typing to make."""
         return model_struct(self.arrays)
 
+    def __getstate__(self):
+        # pickled without the struct (numba's memory cannot be pickled); `struct` is made again on first use
+        state = dict(self.__dict__)
+        state.pop("struct", None)
+        return state
+
     @property
     def ndyn(self):
         return len(self.dyn_names)

@@ -146,3 +146,17 @@ def test_simulate_compiles_a_scene_once_for_the_same_settings():
     assert compiled_scene(sc, friction_directions=8) is not m
     tr = simulate(sc, t_end=0.05)
     assert np.array_equal(tr.q_com[0], m.q0)
+
+
+def test_a_model_pickles_after_its_kernel_struct_was_made():
+    """Model.struct is made once and kept on the model; numba's memory does not pickle, so a pickled model leaves it
+    out and makes it again (a Model sent to a Dask worker, or saved)."""
+    import pickle
+    sc = load_scene("box_push")
+    model = compile_scene(sc)
+    sim = Simulator(model, SimOptions(h=sc.sim.h))
+    q, v, qk, vk = sim.initial_state()
+    before = sim.rollout(q, v, qk, vk[None], 50)
+    again = pickle.loads(pickle.dumps(model))
+    after = Simulator(again, SimOptions(h=sc.sim.h)).rollout(q, v, qk, vk[None], 50)
+    assert np.array_equal(before["q"], after["q"]) and np.array_equal(before["v"], after["v"])
