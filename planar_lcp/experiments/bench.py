@@ -299,22 +299,22 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
             progress(f"{name} ({i + 1} of {len(scenes)})")
         sc = load_scene(name)
         n = int(round(sc.sim.t_end / sc.sim.h))
-        runners, stats = {}, {}
+        runners, stats, sims = {}, {}, {}
         for warm in (False, True):
-            sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, solver=sc.sim.solver,
-                                                          formulation=sc.sim.formulation, warm_start=warm))
+            sim = sims[warm] = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, solver=sc.sim.solver,
+                                                                       formulation=sc.sim.formulation,
+                                                                       warm_start=warm))
             q, v, qk, vk = sim.initial_state()
             stats[warm] = sim.rollout(q, v, qk, vk[None], n)["stats"]  # also compiles
             runners["ours_warm" if warm else "ours"] = (
                 lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], n))
-        model = compile_scene(sc)
-        opts = SimOptions(h=sc.sim.h, solver=sc.sim.solver, formulation=sc.sim.formulation)
-        sim = Simulator(model, opts)
-        q, v, qk, vk = sim.initial_state()
-        runners["recorded"] = lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], n,
-                                                                                 record_contacts=True)
+        # the defaults' simulator again: the rollout simulate() makes (contacts recorded), and its construction
+        cold = sims[False]
+        q, v, qk, vk = cold.initial_state()
+        runners["recorded"] = lambda sim=cold, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], n,
+                                                                                  record_contacts=True)
         runners["simulate"] = lambda sc=sc: simulate(sc)
-        runners["simulator"] = lambda model=model, opts=opts: Simulator(model, opts)
+        runners["simulator"] = lambda model=cold.model, opts=cold.options: Simulator(model, opts)
         if pymunk:
             runners["pymunk"] = PymunkRun(sc, n)
         m = alternate_rounds(runners, rounds=rounds, min_round_s=min_round_s)
@@ -635,11 +635,15 @@ def bench_scaling_piles(kinds=SCALING_PILES, sizes=PILE_SCALING_SIZES, steps=PIL
     say = progress or (lambda line: None)
     rows, fits, fit_spread, fit_bodies = [], {}, {}, {}
     # Compile the kernels before any clock: on a fresh numba cache the first probe would take the compilation (about
-    # 2 minutes on the 2-core machine) for its steps, go over the step budget and skip the kind's larger sizes
+    # 2 minutes on the 2-core machine) for its steps, go over the step budget and skip the kind's larger sizes. Both
+    # kernels the two paths run: the defaults' on a pile has the large-island solvers (sparse_min_unknowns = 1
+    # chooses it for the two-box tower too), the dense path's is the one without them (sim.py `_variants`)
     warm_scene, _ = scaling_pile_scene("tower", 2)
-    warm = Simulator(compile_scene(parse_scene(warm_scene)), SimOptions(h=1.0 / 60.0))
-    q0, v0, qk0, vk0 = warm.initial_state()
-    warm.rollout(q0, v0, qk0, vk0[None], 1)
+    warm_model = compile_scene(parse_scene(warm_scene))
+    for smin in (1, 0):
+        warm = Simulator(warm_model, SimOptions(h=1.0 / 60.0, sparse_min_unknowns=smin))
+        q0, v0, qk0, vk0 = warm.initial_state()
+        warm.rollout(q0, v0, qk0, vk0[None], 1)
     for kind in kinds:
         params, runners, kind_rows = [], {}, []
         for size in sorted(set(sizes)):
