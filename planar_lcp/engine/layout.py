@@ -384,11 +384,12 @@ def _struct(view, struct_type, layout, check=True):
     names = tuple(f.name for f in layout)
     if tuple(view._fields) != names:
         raise TypeError(f"{what}: fields {view._fields} do not match the struct's {names}")
-    for f, v in zip(layout, view) if check else ():
-        if not _has_field_type(f, v):
-            got, want = numba.typeof(v), numba_type(f)
-            if got != want:
-                raise TypeError(f"{what}.{f.name}: expected {want}, got {got}")
+    if check:
+        for f, v in zip(layout, view):
+            if not _has_field_type(f, v):
+                got, want = numba.typeof(v), numba_type(f)
+                if got != want:
+                    raise TypeError(f"{what}.{f.name}: expected {want}, got {got}")
     s = _new_struct(struct_type, view)
     s.view = view
     return s
