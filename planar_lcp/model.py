@@ -23,6 +23,7 @@ from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STAT
                                          SUPPORT_LIMIT_SURFACE, SUPPORT_POINTS)
 from planar_lcp.engine.layout import ModelArrays, model_struct  # the kernels' arrays: engine/layout.py MODEL_LAYOUT
 from planar_lcp.engine.limit_surface import unit_load_wrench
+from planar_lcp.engine.precompile import start_if_cold
 
 
 @dataclass(frozen=True)
@@ -310,5 +311,7 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
                   qk0=arr(qk0, shape=(0, 3)), vk0=arr(vk0, shape=(0, 3)))
     if ls_bodies:
         _fill_fixed_columns(model, ls_bodies, nls)
+    # on a cold numba cache, the island solvers' kernels compile in a second process meanwhile (engine/precompile.py)
+    start_if_cold(model)
     _check_start_overlaps(scene, model)
     return model

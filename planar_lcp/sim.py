@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planar_lcp.engine.constants import SUPPORT_POINTS
+from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS, SUPPORT_POINTS
 from planar_lcp.engine.layout import NSTAT, STATS, Stat, StepOptions, new_work_struct, step_work_bytes
 from planar_lcp.engine.rollout import (Recording, rollout_lemke, rollout_lemke_full, rollout_lemke_full_small,
                                        rollout_lemke_small, rollout_pgs)
@@ -60,7 +60,7 @@ class SimOptions:
     # Islands without table friction whose LCP has at least this many unknowns try the sparse solver first (certified
     # by the same residual test; dense Lemke when it gives no certified answer): docs/method.md, "Large islands".
     # 0: never. Smaller islands take the dense path as before, so the goldens and the committed plans are unchanged.
-    sparse_min_unknowns: int = 128
+    sparse_min_unknowns: int = SPARSE_MIN_UNKNOWNS
     # Run only the kernel with the fallbacks (PGS, the velocity form's projection) from the first step. By default
     # the position forms run a kernel without them and hand a failed island's step to that one, so a run that never
     # fails compiles one kernel; a run that meets a failed island (a planner's propagations into jams) compiles both,
@@ -119,9 +119,9 @@ def _variants(options, model):
         first, full = (step_lemke_small, rollout_lemke_small), (step_lemke_full_small, rollout_lemke_full_small)
     else:
         first, full = (step_lemke, rollout_lemke), (step_lemke_full, rollout_lemke_full)
-    # the velocity form needs the projection; the position forms try the kernel without PGS and the projection
-    # first, so that those compile only when a run needs them
-    single = options.single_kernel or FORMULATIONS[options.formulation] == FORM_VELOCITY
+    # the velocity form needs the projection, the warm start the kernel with its code; the position forms try the
+    # kernel without PGS, the projection and the warm start first, so that those compile only when a run needs them
+    single = options.single_kernel or options.warm_start or FORMULATIONS[options.formulation] == FORM_VELOCITY
     return (full,) if single else (first, full)
 
 

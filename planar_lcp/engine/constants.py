@@ -14,3 +14,5 @@ SUPPORT_LIMIT_SURFACE, SUPPORT_POINTS = 0, 1
 #: islands' bands go to dense Lemke), and the reduced unknowns per dynamic body its buffers hold.
 SPARSE_MAX_BAND = 256
 SPARSE_UNKNOWNS_PER_BODY = 16
+# islands with at least this many unknowns try the sparse solver first by default (SimOptions.sparse_min_unknowns)
+SPARSE_MIN_UNKNOWNS = 128

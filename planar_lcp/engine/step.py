@@ -21,7 +21,8 @@ from planar_lcp.engine.contacts import body_poses, find_contacts, world_vertices
 from planar_lcp.engine.islands import find_islands, island_members
 from planar_lcp.engine.layout import Stat
 from planar_lcp.engine.solvers.lemke import (STATUS_NEEDS_SPACE, STATUS_SOLVED, lemke_in_work, solve_island_lemke,
-                                             solve_island_lemke_small)
+                                             solve_island_lemke_cold, solve_island_lemke_small,
+                                             solve_island_lemke_small_cold)
 from planar_lcp.engine.solvers.pgs import solve_island_pgs
 
 # The stages are inline='always' (and so are the island solvers, through the pipeline's arguments): every separately
@@ -344,22 +345,22 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
 
 @njit(cache=True)
 def step_lemke(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """Lemke, position forms, no fallback: the smallest kernel, the default's (PGS and the projection compile only
-    when a run needs them)."""
-    return step_pipeline(solve_island_lemke, None, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
+    """Lemke, position forms, no fallback and no warm start: the smallest kernel, the default's (PGS, the projection
+    and the warm start compile only when a run needs them; a run with opt.warm_start takes `step_lemke_full`)."""
+    return step_pipeline(solve_island_lemke_cold, None, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
 
 
 @njit(cache=True)
 def step_lemke_full(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """Lemke with the PGS fallback and the velocity form's projection."""
+    """Lemke with the PGS fallback, the velocity form's projection and the warm start."""
     return step_pipeline(solve_island_lemke, solve_island_pgs, project_positions, m, q, v, qk, vk, h, opt, w, q_out,
                          v_out, qk_out, stats)
 
 
 @njit(cache=True)
 def step_lemke_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """`step_lemke` for a model whose islands stay below opt.sparse_min unknowns (`solve_island_lemke_small`)."""
-    return step_pipeline(solve_island_lemke_small, None, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out,
+    """`step_lemke` for a model whose islands stay below opt.sparse_min unknowns (`solve_island_lemke_small_cold`)."""
+    return step_pipeline(solve_island_lemke_small_cold, None, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out,
                          stats)
 
 

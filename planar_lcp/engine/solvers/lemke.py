@@ -605,7 +605,7 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     certified LEMKE_CHAIN, large islands (opt.sparse_min) by the sparse solver and block Lemke first. When solved,
     its impulses are added to w.v_new and recorded in w.con_*; returns the Lemke status (a failure leaves w.v_new
     unchanged and forgets the island's warm-start basis)."""
-    return lemke_island(solve_island_sparse, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
+    return lemke_island(solve_island_sparse, lemke_from_basis, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
 
 
 @njit(cache=True, inline='always')
@@ -613,13 +613,27 @@ def solve_island_lemke_small(m, w, opt, vk, isl, nci, nsi, h, velocity_form, sta
     """`solve_island_lemke` for a model whose islands never reach opt.sparse_min unknowns (Model.max_unknowns, or
     opt.sparse_min = 0): the same steps bit for bit, without the large-island solvers' code, which a cold numba cache
     then does not compile (measured: 11 s of the 40 s cold start of falling_rod)."""
-    return lemke_island(None, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
+    return lemke_island(None, lemke_from_basis, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
 
 
 @njit(cache=True, inline='always')
-def lemke_island(large_island_solver, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
+def solve_island_lemke_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
+    """`solve_island_lemke` without the warm start's code (for opt.warm_start False: the same steps bit for bit; a
+    cold numba cache then does not compile it, 1.5 to 2.5 s)."""
+    return lemke_island(solve_island_sparse, None, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
+
+
+@njit(cache=True, inline='always')
+def solve_island_lemke_small_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
+    """`solve_island_lemke_small` without the warm start's code (for opt.warm_start False)."""
+    return lemke_island(None, None, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
+
+
+@njit(cache=True, inline='always')
+def lemke_island(large_island_solver, warm_solver, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     """`solve_island_lemke`'s body; large_island_solver: solve_island_sparse, or None for a kernel without the
-    large-island solvers (numba prunes the branches that test it against None)."""
+    large-island solvers; warm_solver: lemke_from_basis, or None for a kernel without the warm start (numba prunes
+    the branches that test them against None)."""
     n, nf, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
     k = support_column_count(m)
     status = STATUS_RAY
@@ -647,9 +661,9 @@ def lemke_island(large_island_solver, m, w, opt, vk, isl, nci, nsi, h, velocity_
         # np.bool_: every call site passes `elastic` typed alike, else numba compiles assemble_lcp once for the
         # omitted default, once for Literal[bool](True) and once for bool
         assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector, np.bool_(True))
-        if opt.warm_start and w.warm_size[isl] == n:
+        if warm_solver is not None and opt.warm_start and w.warm_size[isl] == n:
             # the previous step's basis for this island: contact modes rarely change from one step to the next
-            warm, res = lemke_from_basis(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu,
+            warm, res = warm_solver(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu,
                                          w.lemke_rhs, w.lemke_perm, w.lemke_basic)
         if warm:
             status = STATUS_SOLVED

@@ -1,0 +1,108 @@
+"""Issue M, cold start: the second process that compiles the island solvers' kernels while the first compiles the
+rest (planar_lcp/engine/precompile.py). What must hold: the kernels it caches are the ones the step asks for (the
+same argument types, so the step loads them instead of compiling them again), the steps they make are bit for bit
+the steps of kernels compiled in-process, and it starts only on a cold cache."""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from planar_lcp.engine import precompile
+
+# Runs a snippet in a fresh process on the numba cache `cache`; prints a JSON list of the functions numba compiled.
+_PROBE = textwrap.dedent("""
+    import json, sys
+    from numba.core import event
+    compiled = []
+    class L(event.Listener):
+        def on_start(self, ev):
+            d = ev.data.get("dispatcher")
+            compiled.append(d.py_func.__module__ + "." + d.py_func.__qualname__ if d is not None else "?")
+        def on_end(self, ev):
+            pass
+    event.register("numba:compile", L())
+    {body}
+    print(json.dumps(compiled))
+""")
+
+
+def _run(body, cache, **env):
+    full = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PLANAR_LCP_PRECOMPILE="0", **env)
+    full.pop("NUMBA_DISABLE_JIT", None)
+    out = subprocess.run([sys.executable, "-c", _PROBE.format(body=textwrap.indent(body, "").strip())],
+                         capture_output=True, text=True, env=full, timeout=900)
+    assert out.returncode == 0, out.stderr
+    return out.stdout.strip().splitlines()
+
+
+@pytest.mark.slow
+def test_the_helpers_kernels_are_the_ones_the_step_loads_and_step_alike(tmp_path):
+    """The helper's work on an empty cache, then `simulate` on that cache in another process: none of the planar_lcp
+    kernels the helper compiled is compiled again (a driver typed unlike the step's call would leave them unused),
+    and the run equals, bit for bit, the same run with every kernel compiled by this (the test) process."""
+    from planar_lcp import simulate
+    helper = json.loads(_run("from planar_lcp.engine.precompile import compile_kinds\n"
+                             "compile_kinds(['lemke_small_cold', 'pgs', 'lemke_small', 'projection'])", tmp_path)[-1])
+    ours = {f for f in helper if f.startswith("planar_lcp.") and "._drive" not in f}
+    assert {"planar_lcp.engine.solvers.lemke.lemke_kernel", "planar_lcp.engine.assemble.assemble_lcp",
+            "planar_lcp.engine.islands.find_islands", "planar_lcp.engine.layout._new_struct"} <= ours
+    lines = _run("import numpy as np\nfrom planar_lcp import simulate\n"
+                 "tr = simulate('box_push')\n"
+                 "np.save(%r, np.concatenate([tr.q.ravel(), tr.v.ravel()]))"
+                 % str(tmp_path / "run.npy"), tmp_path)
+    again = set(json.loads(lines[-1])) & ours
+    # the model struct's constructor is the one kernel both compile (another signature: the helper makes the work's)
+    assert again <= {"planar_lcp.engine.layout._new_struct"}, sorted(again)
+    tr = simulate("box_push")
+    assert np.array_equal(np.load(tmp_path / "run.npy"), np.concatenate([tr.q.ravel(), tr.v.ravel()]))
+
+
+def test_the_helper_starts_only_on_a_cold_cache(monkeypatch):
+    """In this process the kernels are compiled (or cached) once any test has simulated: no helper. Nor with the
+    switch off, nor on one CPU. A cold cache (faked) starts one, once per process, with the model's kinds."""
+    from planar_lcp import simulate
+    from planar_lcp.model import compile_scene
+    from planar_lcp.spec.scene import load_scene
+    if precompile.numba.config.DISABLE_JIT:
+        pytest.skip("no JIT: nothing compiles")
+    simulate("falling_rod", t_end=0.01)
+    model = compile_scene(load_scene("falling_rod"))
+    monkeypatch.setattr(precompile, "_helper", None)
+    assert precompile.start_if_cold(model) is None                       # compiled here: warm
+    # the drivers' options are typed as the step's (SimOptions.kernel_options)
+    from planar_lcp.sim import SimOptions
+    assert precompile._options_type() == precompile.numba.typeof(SimOptions(h=0.01).kernel_options())
+    started = []
+
+    class FakePopen:
+        def __init__(self, args, **kw):
+            started.append((args, kw["env"]))
+
+        def poll(self):
+            return 0
+
+    monkeypatch.setattr(precompile.subprocess, "Popen", FakePopen)
+    monkeypatch.setattr(precompile, "_cached", lambda dispatcher: False)
+    monkeypatch.setenv(precompile.ENV_SWITCH, "0")
+    assert precompile.start_if_cold(model) is None and not started      # switched off
+    monkeypatch.delenv(precompile.ENV_SWITCH)
+    monkeypatch.setattr(precompile, "_cpus", lambda: 1)
+    assert precompile.start_if_cold(model) is None and not started      # one CPU: nothing to gain
+    monkeypatch.setattr(precompile, "_cpus", lambda: 2)
+    assert isinstance(precompile.start_if_cold(model), FakePopen)
+    assert precompile.start_if_cold(model) is None                       # once per process
+    (args, env), = started
+    assert args[1:] == ["-m", "planar_lcp.engine.precompile", "lemke_small_cold", "pgs", "lemke_small",
+                        "projection"]
+    assert env[precompile.ENV_SWITCH] == "0"                              # the helper starts no helper
+    tower = compile_scene(load_scene("tower"))
+    monkeypatch.setattr(precompile, "_helper", None)
+    started.clear()
+    precompile.start_if_cold(tower)
+    assert started[0][0][3:] == ["lemke_cold", "pgs", "lemke", "projection"]            # a large model's solvers
+
