@@ -1,6 +1,6 @@
 """On a cold numba cache, compile half of the step's kernels in a second process while this one compiles the rest.
 
-numba compiles one function at a time in one thread, and a cold `simulate()` spends about 30 s in it (issue M,
+numba compiles one function at a time in one thread, and a cold `simulate()` spends 30 to 45 s in it (issue M,
 docs/performance.md "Compile time"), while the machine has a second core. The step's kernels split in two
 independent halves: the contacts (compiled first: the model's start-overlap check needs them) and the island
 solvers (assembly, Lemke and its certification, the impulses). `start_if_cold(model)`, called by `compile_scene`

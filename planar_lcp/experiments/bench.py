@@ -998,7 +998,7 @@ def run_bench(which, json_path=None, kinds=None, sizes=None, steps=None, rounds=
         print(format_pile_table(rows))
         report["pile"] = dict(rows=rows, clock="thread_time")
     if which in ("step", "all"):
-        say("step")("the first simulate() on an empty numba cache, in a child process (about 30 s)")
+        say("step")("the first simulate() on an empty numba cache, in a child process (about 25 s)")
         compile_times = measure_step_compile_time()
         rows = bench_step(rounds=rounds or ROUNDS, progress=say("step"))
         print(format_step_table(rows, compile_times))

@@ -1,0 +1,59 @@
+"""Wall clock of a planar-lcp command on an empty numba cache, each run in a child process with a cache of its own,
+in alternating rounds over the variants given: this tree with the second compiling process (engine/precompile.py),
+without it (PLANAR_LCP_PRECOMPILE=0), and other source trees (--tree, e.g. a git worktree of an earlier commit).
+Used for docs/performance.md ("Issue M"):
+
+    python examples/cold_start.py [--rounds 2] [--tree /path/to/worktree] [--no-helper] -- simulate falling_rod
+    python examples/cold_start.py --rounds 1 --tree /work/before -- plan push_box --seed 5 --iterations 15000
+"""
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parents[1]
+_MAIN = "import sys; from planar_lcp.cli import main; sys.argv[0] = 'planar-lcp'; sys.exit(main())"
+
+
+def cold_run(tree, args, helper=True):
+    """Seconds of wall clock for `planar-lcp ARGS` run from `tree`'s sources on an empty numba cache."""
+    with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as cwd:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(tree), PLANAR_LCP_PRECOMPILE="1" if helper else "0")
+        t0 = time.perf_counter()
+        out = subprocess.run([sys.executable, "-c", _MAIN, *args], cwd=cwd, env=env, capture_output=True, text=True)
+        dt = time.perf_counter() - t0
+    if out.returncode != 0:
+        raise SystemExit(f"planar-lcp {' '.join(args)} from {tree} failed:\n{out.stderr}")
+    return dt
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--tree", action="append", default=[], help="another source tree to time (repeatable)")
+    ap.add_argument("--no-helper", action="store_true", help="also time this tree with PLANAR_LCP_PRECOMPILE=0")
+    ap.add_argument("command", nargs=argparse.REMAINDER, help="-- then the planar-lcp command")
+    a = ap.parse_args()
+    args = a.command[1:] if a.command[:1] == ["--"] else a.command
+    if not args:
+        ap.error("give the command after --, e.g. -- simulate falling_rod")
+    variants = [(f"{t}", Path(t), True) for t in a.tree] + [("this tree", HERE, True)]
+    if a.no_helper:
+        variants.append(("this tree, PLANAR_LCP_PRECOMPILE=0", HERE, False))
+    times = {name: [] for name, _, _ in variants}
+    for r in range(a.rounds):
+        for name, tree, helper in variants:
+            times[name].append(cold_run(tree, args, helper))
+            print(f"round {r + 1}: {name}: {times[name][-1]:.1f} s", file=sys.stderr, flush=True)
+    print(f"planar-lcp {' '.join(args)}, empty numba cache, wall clock, {a.rounds} alternating rounds:")
+    for name, ts in times.items():
+        print(f"  {name}: median {statistics.median(ts):.1f} s [{min(ts):.1f}-{max(ts):.1f}]")
+
+
+if __name__ == "__main__":
+    main()
