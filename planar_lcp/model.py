@@ -21,7 +21,8 @@ from planar_lcp.spec.scene import SUPPORT_MODELS, Scene, SceneError
 from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC,  # noqa: F401
                                          PLANE_HORIZONTAL, PLANE_VERTICAL, SHAPE_CORE, SHAPE_HALFPLANE,
                                          SUPPORT_LIMIT_SURFACE, SUPPORT_POINTS)
-from planar_lcp.engine.layout import ModelArrays, model_struct  # the kernels' arrays: engine/layout.py MODEL_LAYOUT
+# the kernels' arrays: engine/layout.py MODEL_LAYOUT
+from planar_lcp.engine.layout import ModelArrays, model_struct, step_work_bytes
 from planar_lcp.engine.limit_surface import unit_load_wrench
 from planar_lcp.engine.precompile import start_if_cold
 
@@ -45,6 +46,11 @@ class Model:
         """The kernels' struct over `arrays` (engine/layout.py `model_struct`), made once per model: the arrays
         never change after compile, and each struct costs about 0.1 ms of typing to make."""
         return model_struct(self.arrays)
+
+    @functools.cached_property
+    def work_bytes(self):
+        """Bytes of a Simulator's work buffers for this model (engine/layout.py `step_work_bytes`), computed once."""
+        return step_work_bytes(self)
 
     def __getstate__(self):
         # pickled without the struct (numba's memory cannot be pickled); `struct` is made again on first use

@@ -7,13 +7,15 @@
 
 import functools
 import os
+import threading
 import time
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
 
 from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS, SUPPORT_POINTS
-from planar_lcp.engine.layout import NSTAT, STATS, Stat, StepOptions, new_work_struct, step_work_bytes
+from planar_lcp.engine.layout import NSTAT, STATS, Stat, StepOptions, new_work_struct
 from planar_lcp.engine.rollout import (Recording, rollout_lemke, rollout_lemke_full, rollout_lemke_full_small,
                                        rollout_lemke_small, rollout_pgs)
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES
@@ -144,6 +146,7 @@ class Simulator:
         self._variants = _variants(options, model)
         #: called as progress(steps_done, nsteps) after each of a rollout's kernel calls (CHUNK_SECONDS apart), or None
         self.progress = None
+        self._chunk = 64            # steps of a rollout's first kernel call: measured and kept by each call
 
     @property
     def h(self):
@@ -250,7 +253,7 @@ class Simulator:
         together equal one call bit for bit). A step that the first variant hands back (STEP_NEEDS_FALLBACK) is run
         alone by the next one, then the first resumes: each step is computed by the same pipeline from the same
         inputs and warm-start memory, so the result is that of the last variant alone. Returns the steps done."""
-        start, chunk, level = 0, 64, 0
+        start, chunk, level = 0, self._chunk, 0
         while start < nsteps:
             n = 1 if level else min(chunk, nsteps - start)
             # state rows start .. start + n, per-step rows start .. start + n - 1 (an empty contact array stays empty)
@@ -261,6 +264,7 @@ class Simulator:
                                                 n, self.h, self.kopt, self.kwork, view, stop_on_failure, start == 0))
             if done and not level:
                 chunk = int(min(max(16, self.CHUNK_SECONDS * done / max(time.perf_counter() - t0, 1e-9)), 1 << 20))
+                self._chunk = chunk
             start += done
             if self.progress is not None:
                 self.progress(start, nsteps)
@@ -302,7 +306,7 @@ def estimate_run_bytes(model, nsteps, record_contacts=True):
     nd, nk = model.ndyn, model.nkin
     C = model.max_contacts() if record_contacts else 0
     per_step = 8 * (2 * 3 * nd + 3 * nk + NSTAT + 1) + (8 + 88 * C if C else 0) + 8 * (2 * 3 * nd + NSTAT + 2)
-    return (nsteps + 1) * per_step, step_work_bytes(model)
+    return (nsteps + 1) * per_step, model.work_bytes
 
 
 def check_run_size(model, nsteps, names=None, record_contacts=True, limit=None):
@@ -355,6 +359,39 @@ def compiled_scene(scene, friction_directions=None, seed_friction_arm=False, sup
     return _compiled_scene(*key)
 
 
+#: the stats' columns by kind (integer-valued, float), for `simulate`'s Trajectory.stats
+_INT_STATS = [i for i, (_, integer, _) in enumerate(STATS) if integer]
+_FLOAT_STATS = [i for i, (_, integer, _) in enumerate(STATS) if not integer]
+_STAT_ROW = {i: k for idx in (_INT_STATS, _FLOAT_STATS) for k, i in enumerate(idx)}
+
+#: Idle simulators of `simulate`, by (id of the model, options): a call takes one (or makes one) and gives it back, so
+#: that a sweep of short runs does not allocate and wrap the work buffers every call (about 100 µs of the call, issue
+#: M). A rollout depends on its inputs only (it forgets the warm-start memory and writes every buffer a step reads
+#: before reading it), so a kept simulator runs as a new one, bit for bit (tests/test_sim_scenes.py). Each entry
+#: holds its model, so the id stays that model's; at most IDLE_SIMULATORS entries, none whose buffers exceed
+#: IDLE_SIMULATOR_BYTES.
+_idle_simulators = OrderedDict()
+_idle_lock = threading.Lock()
+IDLE_SIMULATORS = 16
+IDLE_SIMULATOR_BYTES = 1 << 20
+
+
+def _take_simulator(model, options):
+    with _idle_lock:
+        sim = _idle_simulators.pop((id(model), options), None)
+    return sim if sim is not None else Simulator(model, options)
+
+
+def _give_back(sim):
+    if sim.model.work_bytes > IDLE_SIMULATOR_BYTES:
+        return
+    sim.progress = None
+    with _idle_lock:
+        _idle_simulators[(id(sim.model), sim.options)] = sim
+        while len(_idle_simulators) > IDLE_SIMULATORS:
+            _idle_simulators.popitem(last=False)
+
+
 def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_point_iterations=None,
              friction_directions=None, pgs_iterations=None, support_model=None, limit_surface_twists=None,
              limit_surface_resolution=None, restitution=None, on_failure="raise", record_contacts=True,
@@ -394,11 +431,12 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     model = compiled_scene(scene, sim.friction_directions, seed_friction_arm, support, sim.limit_surface_twists,
                            sim.limit_surface_resolution)
     check_run_size(model, nsteps, names, record_contacts)
-    simr = Simulator(model, opts)
+    simr = _take_simulator(model, opts)
     simr.progress = progress
     q0, v0, qk0, vk0 = simr.initial_state()
     out = simr.rollout(q0, v0, qk0, vk0[None], nsteps, stop_on_failure=(on_failure == "raise"),
                        record_contacts=record_contacts)
+    _give_back(simr)
     done = out["steps_done"]
     failures = []
     for i in np.flatnonzero(out["status"][:done] != STEP_OK):
@@ -413,9 +451,12 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     q_com, v_com = out["q"][:T], out["v"][:T]
     st = out["stats"][:done]
     en = energy(model, q_com, v_com)
-    # every stat by its name, the integer-valued ones as int (lemke_status is named by a failure's cause instead)
-    stats = {name: st[:, i].astype(int) if integer else st[:, i].copy()
-             for i, (name, integer, _) in enumerate(STATS) if name != "lemke_status"}
+    # every stat by its name, the integer-valued ones as int (lemke_status is named by a failure's cause instead):
+    # rows of two contiguous copies, one per kind (two conversions instead of one per stat: issue M's set-up)
+    by_kind = {kind: np.ascontiguousarray(st[:, idx].T, dtype=int if kind else float)
+               for kind, idx in ((True, _INT_STATS), (False, _FLOAT_STATS))}
+    stats = {name: by_kind[integer][_STAT_ROW[i]] for i, (name, integer, _) in enumerate(STATS)
+             if name != "lemke_status"}
     stats.update(status=out["status"][:done].copy(), energy=en)
     a = model.arrays
     names = [b.name for b in scene.bodies]

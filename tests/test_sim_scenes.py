@@ -148,6 +148,43 @@ def test_simulate_compiles_a_scene_once_for_the_same_settings():
     assert np.array_equal(tr.q_com[0], m.q0)
 
 
+
+@pytest.mark.parametrize("scene, options", [("box_push", {}), ("falling_rod", {"res_tol": 0.0}),
+                                            ("box_tip", {"formulation": "fixed_point"}),
+                                            ("push_t", {"warm_start": True})])
+def test_simulate_keeps_its_simulators_and_a_kept_one_runs_as_a_new_one(scene, options):
+    """Issue M (set-up): `simulate` gives its Simulator back for the next call with the same model and options.
+    Whatever the kept one ran before (another length, failed steps handed to the fallback kernel with res_tol = 0,
+    the warm start's memory), its next run equals a new Simulator's bit for bit, every output."""
+    from planar_lcp import sim as S
+    fails = {"on_failure": "record"} if options.get("res_tol") == 0.0 else {}
+    S._idle_simulators.clear()
+    fresh = simulate(scene, **options, **fails)                      # a new Simulator, kept afterwards
+    assert len(S._idle_simulators) == 1
+    kept, = S._idle_simulators.values()
+    assert kept._chunk > 0
+    simulate(scene, t_end=0.3 * float(fresh.t[-1]), **options, **fails)     # takes it, runs, gives it back
+    assert list(S._idle_simulators.values()) == [kept]
+    again = simulate(scene, **options, **fails)
+    assert list(S._idle_simulators.values()) == [kept]
+    for k in ("q", "v", "q_com", "v_com", "qk"):
+        assert np.array_equal(getattr(fresh, k), getattr(again, k)), k
+    for k, a in fresh.stats.items():
+        assert np.array_equal(a, again.stats[k]), k
+    for k in ("pair", "phi", "normal", "point", "cn", "ft", "vt", "mode"):
+        assert np.array_equal(fresh.contacts[k], again.contacts[k]), k
+    assert fresh.failures == again.failures and (not fails or fresh.failures)
+
+
+def test_simulate_keeps_no_simulator_with_large_buffers_and_a_bounded_number():
+    from planar_lcp import sim as S
+    S._idle_simulators.clear()
+    simulate("tower", t_end=0.05)
+    assert not S._idle_simulators                                    # a tower's buffers: over IDLE_SIMULATOR_BYTES
+    for i in range(S.IDLE_SIMULATORS + 3):
+        simulate("falling_rod", t_end=0.01, contact_margin=1e-3 * (1 + i))   # another SimOptions each
+    assert len(S._idle_simulators) == S.IDLE_SIMULATORS
+
 def test_a_model_pickles_after_its_kernel_struct_was_made():
     """Model.struct is made once and kept on the model; numba's memory does not pickle, so a pickled model leaves it
     out and makes it again (a Model sent to a Dask worker, or saved)."""
