@@ -3,6 +3,7 @@ tree, so a rename that leaves a page behind fails here (docs/architecture.md, RE
 
 import importlib
 import re
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -10,8 +11,29 @@ import pytest
 from planar_lcp import list_scenes
 
 ROOT = Path(__file__).resolve().parent.parent
+#: what a run leaves in a checkout that is not the repository's (README: the demo writes ./planar_lcp_demo/), for a
+#: tree that is not a git checkout
+NOT_THE_REPOSITORYS = {".git", ".venv", "venv", "build", "dist", "__pycache__", ".pytest_cache", ".hypothesis",
+                       "planar_lcp_demo", "out"}
+
+
+def repository_files():
+    """The repository's files (paths relative to ROOT): what git tracks plus new files it does not ignore, so that
+    what a command writes into the checkout (the demo's folder, a virtualenv) is not the repository's; outside a git
+    checkout every file but those under NOT_THE_REPOSITORYS."""
+    try:
+        out = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=ROOT,
+                             capture_output=True, check=True)
+        files = [Path(p) for p in out.stdout.decode().split("\0") if p]
+    except (OSError, subprocess.CalledProcessError):
+        files = [p.relative_to(ROOT) for p in ROOT.rglob("*") if p.is_file()]
+        files = [p for p in files if not (set(p.parts) & NOT_THE_REPOSITORYS or p.parts[0].endswith(".egg-info"))]
+    return [p for p in files if (ROOT / p).is_file()]         # a tracked file deleted in the working tree is gone
+
+
+FILES = repository_files()
 PAGES = sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"]
-SOURCES = [p for p in ROOT.rglob("*.py") if ".git" not in p.parts] + sorted((ROOT / "scenes").glob("*.toml"))
+SOURCES = [ROOT / p for p in FILES if p.suffix == ".py"] + sorted((ROOT / "scenes").glob("*.toml"))
 WORDS = set(re.findall(r"\w+", "\n".join(p.read_text() for p in SOURCES)))
 SCENES = sorted(name for name, _ in list_scenes())
 PYPROJECT = (ROOT / "pyproject.toml").read_text()
@@ -108,19 +130,17 @@ def test_the_readme_layout_names_every_module_and_folder():
     layout = section((ROOT / "README.md").read_text(), "Layout")
     block = re.search(r"```\n(.*?)```", layout, re.S).group(1)
     named = set(re.findall(r"[\w.]+/?", block))
-    for pkg in ("planar_lcp", "planners"):
-        for p in (ROOT / pkg).rglob("*"):
-            if "__pycache__" in p.parts or p.name == "__init__.py" and p.parent.name != "planar_lcp":
-                continue
-            if p.is_dir():
-                assert p.name + "/" in named, f"README Layout does not name the folder {p.relative_to(ROOT)}"
-            elif p.suffix == ".py":
-                assert p.name in named, f"README Layout does not name {p.relative_to(ROOT)}"
-    for top in ROOT.iterdir():
-        if top.name.startswith(".") and top.name != ".ci" or top.name in ("build", "dist") or top.suffix == ".egg-info":
+    for p in FILES:
+        if p.parts[0] not in ("planar_lcp", "planners"):
             continue
-        if top.is_dir() and any(top.iterdir()):
-            assert (top.name + "/") in named or f"{top.name}/run" in block, f"README Layout does not name {top.name}/"
+        for folder in p.parts[1:-1]:
+            assert folder + "/" in named, f"README Layout does not name the folder {folder}/ of {p}"
+        if p.suffix == ".py" and not (p.name == "__init__.py" and p.parent.name != "planar_lcp"):
+            assert p.name in named, f"README Layout does not name {p}"
+    for top in sorted({p.parts[0] for p in FILES if len(p.parts) > 1}):
+        if top.startswith(".") and top != ".ci":
+            continue
+        assert (top + "/") in named or f"{top}/run" in block, f"README Layout does not name {top}/"
     for name in sorted(n for n in named if n.endswith(".py") or n.endswith("/")):
         assert list(ROOT.rglob(name.rstrip("/"))), f"README Layout names {name}, which does not exist"
 
@@ -141,3 +161,14 @@ def test_the_python_examples_in_the_docs_run(page, index, code, tmp_path):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=600,
                        env=dict(__import__("os").environ, MPLBACKEND="Agg"))
     assert r.returncode == 0, f"{page.name} example {index}:\n{code}\n{r.stderr[-3000:]}"
+
+
+def test_ci_runs_the_readmes_two_commands_in_order():
+    """Issue N: .ci/run runs exactly the README's two commands, in order (the demo before the tests), as a user does."""
+    first_block = re.search(r"```\n(.*?)```", (ROOT / "README.md").read_text(), re.S).group(1)
+    commands = [line.strip() for line in first_block.strip().splitlines()]
+    assert commands == ['python -m pip install -e ".[dev]" && planar-lcp demo', "python -m pytest"]
+    ci = [line.strip() for line in (ROOT / ".ci" / "run").read_text().splitlines()]
+    install = ci.index('python -m pip install -q -e ".[dev]" && planar-lcp demo')   # the first, quiet
+    assert ci.index("python -m pytest") > install
+    assert ci.index("python -m pytest -m slow") > ci.index("python -m pytest")

@@ -16,7 +16,7 @@ import re
 from pathlib import Path
 
 import pytest
-from cli_helpers import ROOT, run_cli
+from cli_helpers import ROOT, cli_env, run_cli
 from planar_lcp.engine.compile_notice import NOTICE
 
 README = ROOT / "README.md"
@@ -179,6 +179,32 @@ def test_demo(tmp_path):
     plan = check_json(out / "plan.json", ["task", "planner", "seed", "exact", "controls", "states"])
     assert plan["task"] == "push_box" and plan["exact"] is True
     assert "an exact plan in" in r.stdout
+
+
+@pytest.mark.slow
+def test_the_readme_commands_in_order_in_a_fresh_checkout(tmp_path):
+    """Issue N: the README's two commands in order, as a user runs them in a fresh clone: the demo from the
+    checkout's root (its files go to ./planar_lcp_demo/, as the README says), then the tests, twice. The whole suite
+    is CI's (.ci/run runs the same commands in this order); here the tests that read the checkout (tests/test_docs.py:
+    its layout test failed on the demo's folder) run in a copy of the repository's files made a git checkout."""
+    import shutil
+    import subprocess
+    import sys
+    from test_docs import FILES
+    clone = tmp_path / "clone"
+    for rel in FILES:
+        (clone / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(ROOT / rel, clone / rel)
+    subprocess.run(["git", "init", "-q"], cwd=clone, check=True)
+    env = dict(PYTHONPATH=str(clone))
+    r = run_cli("demo", cwd=clone, timeout=900, env=env)
+    ok(r)
+    demo = clone / "planar_lcp_demo"
+    assert (demo / "plan.json").is_file() and (demo / "falling_rod.csv").is_file()
+    for _ in range(2):
+        t = subprocess.run([sys.executable, "-m", "pytest", "-q", "tests/test_docs.py"], cwd=clone, capture_output=True,
+                           text=True, timeout=900, env=cli_env(**env))
+        assert t.returncode == 0, t.stdout[-3000:] + t.stderr[-3000:]
 
 
 @covers("scenes")
