@@ -27,6 +27,7 @@ from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
 from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, restitution_setting, sim_settings,
                                    support_model_setting)
 from planar_lcp.frames import frame_velocity
+from planar_lcp.infeasibility import diagnose_step
 from planar_lcp.trajectory import Trajectory, energy
 
 #: formulation name (the scene format's list) -> the kernels' FORM_* code, which is its index in that list
@@ -35,6 +36,15 @@ FORMULATIONS = {name: code for code, name in enumerate(FORMULATION_NAMES)}
 
 class SimulationError(RuntimeError):
     """A step failed (LCP not solved, or a non-finite state); the message names the step, the time and the cause."""
+
+
+class NoRigidSolution(SimulationError):
+    """A step failed because its contact problem has no solution, certified (a jam: `infeasibility`); `diagnosis`
+    holds the certificate's StepDiagnosis."""
+
+    def __init__(self, message, diagnosis):
+        super().__init__(message)
+        self.diagnosis = diagnosis
 
 
 @dataclass(frozen=True)
@@ -91,17 +101,21 @@ class SimOptions:
             warm_start=bool(self.warm_start), sparse_min=int(self.sparse_min_unknowns))
 
 
-def _cause(status, stats, stopped):
-    """What went wrong in a failed step; `stopped`: the run ends there (else PGS's answer was used and it went on)."""
+def _cause(status, stats, stopped, diagnosis=None):
+    """What went wrong in a failed step; `stopped`: the run ends there (else PGS's answer was used and it went on);
+    diagnosis: the step's `infeasibility.StepDiagnosis` (an LCP failure's)."""
     if status == STEP_NONFINITE:
         return "the new state is not finite (NaN or inf)"
     if status == STEP_LCP_FAILED:
+        went_on = "" if stopped else "; that island took PGS's uncertified answer"
+        if diagnosis is not None and diagnosis.infeasible:
+            return diagnosis.reason + went_on
         ls = int(stats[Stat.LEMKE_STATUS])
         return (f"no method gave a certified solution of an island's contact LCP (size up to "
                 f"{int(stats[Stat.LCP_MAX])}; Lemke ended with '{STATUS_NAMES[ls]}', residual "
                 f"{stats[Stat.RESIDUAL]:.3e}, after every fallback: "
                 "docs/method.md, 'Certified solves')"
-                + ("" if stopped else "; that island took PGS's uncertified answer"))
+                + (f"; {diagnosis.reason}" if diagnosis is not None else "") + went_on)
     return "ok"
 
 
@@ -436,17 +450,29 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     q0, v0, qk0, vk0 = simr.initial_state()
     out = simr.rollout(q0, v0, qk0, vk0[None], nsteps, stop_on_failure=(on_failure == "raise"),
                        record_contacts=record_contacts)
-    _give_back(simr)
     done = out["steps_done"]
-    failures = []
-    for i in np.flatnonzero(out["status"][:done] != STEP_OK):
-        failures.append((int(i), float((i + 1) * h), _cause(out["status"][i], out["stats"][i],
-                                                            on_failure == "raise")))
+    try:
+        # each failed LCP step examined for a certificate that it has no solution (infeasibility.py): per step,
+        # 1 in certified_infeasible or in unclassified
+        failures, diagnoses = [], {}
+        infeasible, unclassified = np.zeros(done, np.int64), np.zeros(done, np.int64)
+        for i in np.flatnonzero(out["status"][:done] != STEP_OK):
+            diagnosis = None
+            if out["status"][i] == STEP_LCP_FAILED:
+                diagnosis = diagnoses[i] = diagnose_step(simr, out["q"][i], out["v"][i], out["qk"][i], vk0)
+                (infeasible if diagnosis.infeasible else unclassified)[i] = 1
+            failures.append((int(i), float((i + 1) * h), _cause(out["status"][i], out["stats"][i],
+                                                                on_failure == "raise", diagnosis)))
+    finally:
+        _give_back(simr)
     if failures and on_failure == "raise":
         i, t, cause = failures[0]
-        raise SimulationError(f"{scene.source}: step {i} (t = {t:.6g} s, h = {h}): {cause}; the run stopped at this "
-                              f"step. Pass {names['on_failure']} to continue (a failed island then takes PGS's "
-                              "answer) and list the failures.")
+        message = (f"{scene.source}: step {i} (t = {t:.6g} s, h = {h}): {cause}; the run stopped at this step. Pass "
+                   f"{names['on_failure']} to continue (a failed island then takes PGS's answer) and list the "
+                   "failures.")
+        if i in diagnoses and diagnoses[i].infeasible:
+            raise NoRigidSolution(message, diagnoses[i])
+        raise SimulationError(message)
     T = done + 1
     q_com, v_com = out["q"][:T], out["v"][:T]
     st = out["stats"][:done]
@@ -457,7 +483,8 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
                for kind, idx in ((True, _INT_STATS), (False, _FLOAT_STATS))}
     stats = {name: by_kind[integer][_STAT_ROW[i]] for i, (name, integer, _) in enumerate(STATS)
              if name != "lemke_status"}
-    stats.update(status=out["status"][:done].copy(), energy=en)
+    stats.update(status=out["status"][:done].copy(), energy=en, certified_infeasible=infeasible,
+                 unclassified=unclassified)
     a = model.arrays
     names = [b.name for b in scene.bodies]
     pairs = [(names[a.shape_body[pa]], names[a.shape_body[pb]]) for pa, pb in zip(a.pair_a, a.pair_b)]

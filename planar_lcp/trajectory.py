@@ -41,7 +41,9 @@ class Trajectory:
         restitution whose elastic LCP had no certified answer, solved with e = 0: docs/method.md, "Restitution"),
         pgs_uncertified (no method was certified: PGS's answer was used and the step is a failure); fp_change (the
         fixed point's last change of the linearization pose), pgs_update (PGS's largest impulse change in its last sweep: its convergence), status
-        (0 ok, 1 LCP failed, 2 non-finite); energy (T,) J.
+        (0 ok, 1 LCP failed, 2 non-finite); of the failed LCP steps, certified_infeasible (1: an island's contact
+        LCP has no solution, certified: "no rigid solution", planar_lcp.infeasibility) and unclassified (1: no such
+        certificate, a solver failure); energy (T,) J.
     contacts : dict of per-step contact arrays (count (T-1,), then (T-1, C[, 2]): pair, phi, normal, point, cn, ft,
         vt, mode with mode 0 separated, 1 sticking, 2 sliding) and `shape_pairs` naming each pair's bodies. The
         rows of a step are the contacts in the order they were found (not matched across steps). vt and mode use the

@@ -317,7 +317,9 @@ def test_failure_message_python_keeps_the_keyword_and_says_the_run_stopped():
     msg = str(e.value)
     assert re.match(rf"{re.escape(ROD)}: step \d+ \(t = .* s, h = 0\.0025\): no method gave a certified solution "
                     r"of an island's contact LCP \(size up to \d+; Lemke ended with 'inaccurate', residual .*, after "
-                    r"every fallback: docs/method\.md, 'Certified solves'\); the run stopped at this step\. "
+                    r"every fallback: docs/method\.md, 'Certified solves'\); the contact LCP has a solution to within a "
+                    r"residual of .* \(found by branch and bound in \d+ branches; the step's tolerance is 0\.000e\+00\) "
+                    r"that no method certified: a solver failure; the run stopped at this step\. "
                     r"Pass on_failure='record' to continue \(a failed island then takes PGS's answer\) and list the "
                     r"failures\.$", msg), msg
     assert "PGS's uncertified answer" not in msg and "--on-failure" not in msg
@@ -334,6 +336,22 @@ def test_failure_message_cli_names_the_flag(monkeypatch, capsys):
     assert err.endswith("; the run stopped at this step. Pass --on-failure record to continue (a failed island then "
                         "takes PGS's answer) and list the failures.\n"), err
     assert "on_failure=" not in err and "PGS's uncertified answer" not in err
+
+
+def test_a_jam_reads_as_no_rigid_solution_on_the_command_line(tmp_path):
+    """Issue N: a kinematic pusher driving a box into a wall stops the run with one line that says there is no
+    rigid solution and names the bodies, not a solver's status; exit status 1."""
+    pytest.importorskip("scipy")
+    from test_reliability import JAM
+    from planar_lcp.spec.random_scenes import scene_to_toml
+    f = tmp_path / "jam.toml"
+    f.write_text(scene_to_toml(JAM))
+    r = run_cli("simulate", f, cwd=tmp_path)
+    assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert r.stderr.startswith(f"planar-lcp simulate: simulation failed: {f}: step ")
+    assert "no rigid solution: kinematic body 'pusher' drives 'box' into static body 'wall' (certified" in r.stderr
+    assert "ray_termination" not in r.stderr
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -3,17 +3,19 @@ three formulations under the defaults (on_failure="raise"). Required: no aborted
 final penetration, and every island answer certified (no uncertified PGS fallback). A failing seed prints its scene
 as TOML, to be saved as a regression case.
 
-And what cannot be solved is reported as such: a kinematic pusher driving a box head-on into a wall has no
-rigid-body solution (the pusher has no force limit), and the run stops with that cause.
+And what cannot be solved is reported as such: a kinematic pusher driving a box into a wall has no rigid-body
+solution (the pusher has no force limit), and the run stops with that cause, certified (planar_lcp.infeasibility;
+issue N). The jam set (`jam_scene`: a pusher, one or two objects, a block in the path) is the generator's scenes where
+that happens: each run is solved or certified to have no rigid solution, none is left unclassified.
 """
 
 import numpy as np
 import pytest
 
-from planar_lcp.spec.random_scenes import random_scene, scene_to_toml
+from planar_lcp.spec.random_scenes import jam_scene, random_scene, scene_to_toml
 from planar_lcp.spec.scene import FORMULATIONS, load_scene, parse_scene
 from planar_lcp.model import compile_scene
-from planar_lcp.sim import SimulationError, simulate
+from planar_lcp.sim import NoRigidSolution, SimulationError, simulate
 from planar_lcp.trajectory import energy_changes
 
 N_SCENES = 200
@@ -160,12 +162,51 @@ def test_a_pusher_crushing_a_box_into_a_wall_is_reported_not_solved(formulation)
     """Head-on, frictionless: the pusher's contact needs n.v >= 0.2 m/s into the wall, the wall's n.v <= 0 (opposite
     normals): no velocity satisfies both, so the LCP has no solution and no method can certify one. The run stops
     at the step the box reaches the wall (0.01 m of travel at 0.2 m/s: t = 0.05 s), with the cause."""
-    with pytest.raises(SimulationError) as e:
+    pytest.importorskip("scipy")
+    with pytest.raises(NoRigidSolution) as e:
         simulate(parse_scene(JAM, "<jam>"), formulation=formulation)
     msg = str(e.value)
-    assert "ray_termination" in msg
+    assert "no rigid solution: kinematic body 'pusher' drives 'box' into static body 'wall' (certified" in msg
+    assert set(e.value.diagnosis.bodies) == {"pusher", "box", "wall"} and e.value.diagnosis.impulse_bound > 1e6
     t = float(msg.split("t = ")[1].split(" s")[0])
     assert 0.04 <= t <= 0.07
     tr = simulate(parse_scene(JAM, "<jam>"), formulation=formulation, on_failure="record")
     assert tr.failures
     assert set(np.flatnonzero(tr.stats["pgs_uncertified"] > 0)) == {i for i, _, _ in tr.failures}
+    # Trajectory.stats counts the failures by kind: here every one is certified
+    assert tr.stats["certified_infeasible"].sum() == len(tr.failures) and tr.stats["unclassified"].sum() == 0
+
+
+N_JAMS = 60
+
+
+@pytest.mark.parametrize("seed", range(N_JAMS))
+def test_a_jam_scene_is_solved_or_certified_to_have_no_rigid_solution(seed):
+    """Issue N: each run of the jam set, in every formulation, goes to its end or stops at a step whose contact LCP
+    is certified to have no solution (NoRigidSolution, naming the pusher and the block); a SimulationError of any
+    other kind (a failure without a certificate) fails the test."""
+    pytest.importorskip("scipy")
+    data = jam_scene(seed)
+    sc = parse_scene(data, f"<jam scene {data['name']}>")
+    for formulation in FORMULATIONS:
+        try:
+            tr = simulate(sc, formulation=formulation)
+        except NoRigidSolution as e:
+            assert {"pusher", "block"} <= set(e.diagnosis.bodies), (formulation, str(e))
+            continue
+        except SimulationError as e:
+            pytest.fail(f"formulation {formulation!r}: {e}\nscene:\n{scene_to_toml(data)}")
+        assert not tr.failures and tr.stats["certified_infeasible"].sum() == 0 and tr.stats["unclassified"].sum() == 0
+
+
+def test_the_jam_set_has_both_outcomes():
+    """The set measures something: some of its runs jam (certified), others are solved (the object slides past)."""
+    pytest.importorskip("scipy")
+    outcomes = {"solved": 0, "certified infeasible": 0}
+    for seed in range(N_JAMS):
+        try:
+            simulate(parse_scene(jam_scene(seed)))
+            outcomes["solved"] += 1
+        except NoRigidSolution:
+            outcomes["certified infeasible"] += 1
+    assert outcomes["solved"] >= 10 and outcomes["certified infeasible"] >= 10, outcomes

@@ -176,13 +176,18 @@ block_dz           | f8    | unknown           | -          | block     | their 
 block_dw           | f8    | unknown           | -          | block     | the w's rates
 block_y            | f8    | unknown           | -          | block     | a row of the Schur complement's inverse update
 dense_needed       | i8    | 1                 | -          | solvers   | dense size a step asked for (NEEDS_SPACE)
+fail_size          | i8    | 4                 | -          | lemke     | the step's first island no method certified: n, nci, nsi, nf
+fail_matrix        | f8    | dense2            | -          | lemke     | its LCP matrix (n x n, row-major), as first assembled
+fail_vector        | f8    | unknown           | m/s        | lemke     | its LCP vector, as first assembled
+fail_con           | i8    | contact           | -          | lemke     | its contacts' pair indices
+fail_sup           | i8    | support           | -          | lemke     | its support elements
 warm_size          | i8    | dyn               | -          | lemke     | per island: last LCP's size (-1: none)
 warm_basic_z       | bool  | dyn x unknown     | -          | lemke     | per island: which z were basic in it
 warm_size_saved    | i8    | dyn               | -          | step      | warm_size before a step
 sparse_pair_mode   | i8    | pair x 2          | -          | sparse    | its contacts' modes in the last sparse answer
 sparse_pair_saved  | i8    | pair x 2          | -          | step      | sparse_pair_mode before a step
 warm_basic_z_saved | bool  | dyn x unknown     | -          | step      | warm_basic_z before a step
-""", init={'warm_size': -1, 'warm_size_saved': -1, 'sparse_pair_mode': -1, 'sparse_pair_saved': -1})
+""", init={'fail_size': -1, 'warm_size': -1, 'warm_size_saved': -1, 'sparse_pair_mode': -1, 'sparse_pair_saved': -1})
 
 OPTIONS_LAYOUT = _table("""
 name         | dtype | shape | unit   | writer | meaning

@@ -142,6 +142,7 @@ def begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats):
     for p in range(w.pair_forced.shape[0]):
         w.pair_forced[p] = False
     w.dense_needed[0] = 0
+    w.fail_size[0] = -1
 
 
 @njit(cache=True, inline='always')

@@ -9,6 +9,11 @@
 - "push" (horizontal plane): a box or polygon (and sometimes a second object) pushed by a kinematic disk at up to
   2 m/s, with table friction 0 .. 5, pusher friction 0 .. 5, sometimes between two rails (walls along the push).
 
+`jam_scene(seed)` is a third kind, a set of its own (its seeds draw from their own stream, so the two kinds above
+stay as they were): a pusher driving one or two objects at up to 10 m/s towards a static block in its path, head on
+or off centre, so that some runs jam (a kinematic pusher with no force limit and a block: no rigid-body solution,
+reported as certified, planar_lcp.infeasibility) and others slide past the block.
+
 The same seed always gives the same scene (numpy's default_rng). Bodies start separated (a grid with a clearance).
 
 `random_task(seed)` is a scene with a [task] table (docs/scene-format.md, "Task files"): planning problems nobody
@@ -134,6 +139,42 @@ def push_scene(rng, seed):
             "world": {"plane": "horizontal", "friction": _friction(rng), "support_gravity": 9.81},
             "sim": {"h": 0.005, "t_end": round(t_end, 3), "friction_directions": int(rng.choice([4, 8]))},
             "bodies": bodies}
+
+
+JAM_SPEED_RANGE = (0.05, 10.0)   # m/s, log-uniform
+
+
+def jam_scene(seed):
+    """A pusher, one or two objects and a static block in the pusher's path (module docstring), as a TOML-shaped
+    dict."""
+    rng = np.random.default_rng([20261203, int(seed)])
+    size = 0.05 * _log_uniform(rng, 0.5, 3.0)
+    nobj = 1 if rng.random() < 0.6 else 2
+    bodies = []
+    for i in range(nobj):
+        bodies.append({"name": f"o{i}", "type": "dynamic", "mass": _log_uniform(rng, *MASS_RANGE),
+                       "position": [i * 2.6 * size, float(rng.uniform(-0.3, 0.3) * size * i)],
+                       "angle": float(rng.uniform(-math.pi, math.pi)), "support_friction": _friction(rng),
+                       "shapes": [_shape(rng, size)]})
+    r_pusher = size * rng.uniform(0.2, 0.6)
+    speed = _log_uniform(rng, *JAM_SPEED_RANGE)
+    lateral = rng.uniform(-0.6, 0.6) * size
+    bodies.append({"name": "pusher", "type": "kinematic", "position": [-1.6 * size - r_pusher, float(lateral)],
+                   "velocity": [speed, 0.0], "shapes": [{"type": "disk", "radius": r_pusher}]})
+    # the block: across the path (head on) or off centre by up to its own half height
+    gap = rng.uniform(1.5, 4.0) * size
+    x_block = (nobj - 1) * 2.6 * size + size + gap
+    half = size * rng.uniform(0.5, 3.0)
+    y_block = float(lateral + rng.uniform(-1.0, 1.0) * half * (0.0 if rng.random() < 0.5 else 1.5))
+    bodies.append({"name": "block", "type": "static", "position": [x_block + 0.5 * size, y_block],
+                   "shapes": [{"type": "box", "width": size, "height": 2 * half}]})
+    travel = x_block + 1.6 * size + r_pusher
+    t_end = min(2.0, travel / speed + 0.1)
+    h = 0.005 if speed < 2.0 else 0.001
+    return {"name": f"random_jam_{seed}", "description": f"random scene, seed {seed}: a pusher drives "
+                                                         f"{nobj} object(s) towards a block",
+            "world": {"plane": "horizontal", "friction": _friction(rng), "support_gravity": 9.81},
+            "sim": {"h": h, "t_end": round(max(t_end, 4 * h), 4)}, "bodies": bodies}
 
 
 def random_scene(seed):

@@ -629,6 +629,27 @@ def solve_island_lemke_small_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form
     return lemke_island(None, None, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
 
 
+@njit(cache=True)
+def record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf):
+    """Keep the LCP of an island no method certified, as the chain's first try assembled it (its rows as the
+    formulation states them, with restitution), with its contacts and support elements: w.fail_* (the step's first
+    such island; begin_step forgets it). For the diagnosis of the failure (planar_lcp/infeasibility.py)."""
+    A = w.lcp_matrix[:n * n].reshape((n, n))
+    assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector, np.bool_(True))
+    w.fail_size[0] = n
+    w.fail_size[1] = nci
+    w.fail_size[2] = nsi
+    w.fail_size[3] = nf
+    for i in range(n):
+        w.fail_vector[i] = w.lcp_vector[i]
+        for c in range(n):
+            w.fail_matrix[i * n + c] = A[i, c]
+    for a in range(nci):
+        w.fail_con[a] = w.con_pair[w.island_con[a]]
+    for a in range(nsi):
+        w.fail_sup[a] = w.island_sup[a]
+
+
 @njit(cache=True, inline='always')
 def lemke_island(large_island_solver, warm_solver, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     """`solve_island_lemke`'s body; large_island_solver: solve_island_sparse, or None for a kernel without the
@@ -729,6 +750,8 @@ def lemke_island(large_island_solver, warm_solver, m, w, opt, vk, isl, nci, nsi,
     if status != STATUS_SOLVED:
         stats[Stat.LEMKE_STATUS] = max(stats[Stat.LEMKE_STATUS], status)
         w.warm_size[isl] = -1
+        if w.fail_size[0] < 0 and not sparse:
+            record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf)
         return status
     if sparse:
         w.warm_size[isl] = -1                # no basis to keep
