@@ -45,6 +45,17 @@ MAX_FIXED_POINT_ITERATIONS = 1_000     # LCP solves per step
 MAX_FRICTION_DIRECTIONS = 256          # edges of the table-friction polygon (8 already approximates the disk to 8 %)
 MAX_LIMIT_SURFACE_TWISTS = 256         # fixed twists of the polyhedral limit surface (LCP unknowns per body)
 MAX_LIMIT_SURFACE_RESOLUTION = 64      # Gauss points per direction of a curved piece (nodes grow as its square)
+# Physical bounds (issue N): magnitudes outside them are typos or unit mistakes that the numerics cannot carry (a disk
+# radius of 1e308 overflowed the mass properties; a box of 1e308 failed at step 0 as an invalid LCP). They span the
+# machine-to-micro range a planar contact simulator is used at, with room on either side.
+MIN_LENGTH = 1e-6                      # m: a shape's radius, width, height or length when > 0 (a micron)
+MAX_LENGTH = 1e4                       # m: shape sizes, and every position, offset or vertex coordinate (10 km)
+MIN_MASS, MAX_MASS = 1e-6, 1e6         # kg: a milligram to a thousand tonnes
+MIN_INERTIA = MIN_MASS * MIN_LENGTH ** 2   # kg m^2
+MAX_INERTIA = MAX_MASS * MAX_LENGTH ** 2
+MAX_SPEED = 1e3                        # m/s: each velocity component
+MAX_ANGULAR_SPEED = 1e4                # rad/s
+MAX_GRAVITY = 1e3                      # m/s^2: each component of world.gravity, and world.support_gravity
 # A support point may lie outside the bounding box of its body's shapes by at most this fraction of the box's
 # diagonal (rounding only): a point outside would carry load where the body has no material.
 _SUPPORT_REL_TOL = 1e-6
@@ -421,6 +432,29 @@ class _Validator:
             self.fail(f"{path} must be > 0, got {_fmt_num(x)}")
         return x
 
+    def within(self, path: str, x: float, lo: float | None, hi: float, unit: str) -> float:
+        """x itself (its magnitude when lo is None) within the physical bounds [lo, hi] (Limits, docs/scene-format.md)."""
+        size = abs(x) if lo is None else x
+        if size > hi:
+            self.fail(f"{path} must be {'at most' if lo is not None else 'within +-'} {hi:g} {unit} (a physical bound), "
+                      f"got {_fmt_num(x)}")
+        if lo is not None and x < lo:
+            self.fail(f"{path} must be at least {lo:g} {unit} (a physical bound), got {_fmt_num(x)}")
+        return x
+
+    def length(self, path: str, value, positive: bool = True) -> float:
+        """A shape size: > 0 (>= 0 if not positive) and within [MIN_LENGTH, MAX_LENGTH] when > 0."""
+        x = self.positive(path, value) if positive else self.nonneg(path, value)
+        return self.within(path, x, MIN_LENGTH if x > 0.0 else None, MAX_LENGTH, "m")
+
+    def place(self, path: str, value) -> tuple:
+        """A point or offset, m: two finite numbers within +-MAX_LENGTH."""
+        x, y = self.vec2(path, value)
+        if max(abs(x), abs(y)) > MAX_LENGTH:
+            self.fail(f"{path} must be within +-{MAX_LENGTH:g} m in each coordinate (a physical bound), got "
+                      f"{_show_vec(value)}")
+        return x, y
+
     def nonneg(self, path: str, value) -> float:
         x = self.number(path, value)
         if not x >= 0.0:
@@ -474,7 +508,7 @@ class _Validator:
             if minimum == 1:
                 self.fail(f"{path} must be a non-empty array of [x, y] points, got {value!r}")
             self.fail(f"{path} must have at least {minimum} points, got {len(value)}")
-        return tuple(self.vec2(f"{path}[{i}]", p) for i, p in enumerate(value))
+        return tuple(self.place(f"{path}[{i}]", p) for i, p in enumerate(value))
 
     def angle(self, path: str, table: dict) -> float:
         """`angle` (rad) or `angle_deg` (degrees), not both; 0 if neither."""
@@ -667,8 +701,11 @@ def _parse_world(v: _Validator, t: dict) -> WorldSpec:
                        f"world.support_gravity), got {_show_vec(g)}")
     else:
         gravity = v.vec2("world.gravity", t["gravity"]) if "gravity" in t else d.gravity
-    support_gravity = v.nonneg("world.support_gravity", t["support_gravity"]) if "support_gravity" in t \
-        else d.support_gravity
+        if max(abs(gravity[0]), abs(gravity[1])) > MAX_GRAVITY:
+            v.fail(f"world.gravity must be within +-{MAX_GRAVITY:g} m/s^2 in each component (a physical bound), "
+                   f"got {_show_vec(gravity)}")
+    support_gravity = v.within("world.support_gravity", v.nonneg("world.support_gravity", t["support_gravity"]),
+                               None, MAX_GRAVITY, "m/s^2") if "support_gravity" in t else d.support_gravity
     friction = v.nonneg("world.friction", t["friction"]) if "friction" in t else d.friction
     support_model = v.choice("world.support_model", t["support_model"], SUPPORT_MODELS) if "support_model" in t \
         else d.support_model
@@ -722,8 +759,10 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
     mass = inertia = support_friction = support_points = None
     if btype == "dynamic":
         mass = v.positive(f"{path}.mass", v.require(path, t, "mass", " for a dynamic body"))
+        v.within(f"{path}.mass", mass, MIN_MASS, MAX_MASS, "kg")
         if "inertia" in t:
-            inertia = v.positive(f"{path}.inertia", t["inertia"])
+            inertia = v.within(f"{path}.inertia", v.positive(f"{path}.inertia", t["inertia"]), MIN_INERTIA,
+                               MAX_INERTIA, "kg m^2")
         for key in ("support_friction", "support_points"):
             if key in t and plane != "horizontal":
                 v.fail(f"{path}.{key} is only allowed in the horizontal plane, got world.plane = {plane!r}")
@@ -740,10 +779,14 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
             if key in t:
                 v.fail(f"{path}.{key} is not allowed on a {btype} body, got {t[key]!r}")
 
-    position = v.vec2(f"{path}.position", t["position"]) if "position" in t else (0.0, 0.0)
+    position = v.place(f"{path}.position", t["position"]) if "position" in t else (0.0, 0.0)
     angle = v.angle(path, t)
     velocity = v.vec2(f"{path}.velocity", t["velocity"]) if "velocity" in t else (0.0, 0.0)
+    if max(abs(velocity[0]), abs(velocity[1])) > MAX_SPEED:
+        v.fail(f"{path}.velocity must be within +-{MAX_SPEED:g} m/s in each component (a physical bound), got "
+               f"{_show_vec(velocity)}")
     omega = v.number(f"{path}.angular_velocity", t["angular_velocity"]) if "angular_velocity" in t else 0.0
+    v.within(f"{path}.angular_velocity", omega, None, MAX_ANGULAR_SPEED, "rad/s")
     if btype == "static":
         if velocity != (0.0, 0.0):
             v.fail(f"{path}.velocity must be [0, 0] on a static body (use a kinematic body for prescribed "
@@ -771,7 +814,7 @@ def _parse_shape(v: _Validator, path: str, raw, btype: str, plane: str) -> Shape
         if plane == "horizontal":
             v.fail(f"{path}.type 'halfplane' is not allowed in the horizontal plane (the table is implicit), "
                    f"got world.plane = {plane!r}")
-        point = v.vec2(f"{path}.point", t["point"])
+        point = v.place(f"{path}.point", t["point"])
         normal = v.vec2(f"{path}.normal", t["normal"])
         norm = math.hypot(*normal)
         if norm == 0.0:
@@ -779,24 +822,24 @@ def _parse_shape(v: _Validator, path: str, raw, btype: str, plane: str) -> Shape
         return ShapeSpec(type="halfplane", point=point, normal=(normal[0] / norm, normal[1] / norm))
 
     kw = {"type": stype}
-    kw["offset"] = v.vec2(f"{path}.offset", t["offset"]) if "offset" in t else (0.0, 0.0)
+    kw["offset"] = v.place(f"{path}.offset", t["offset"]) if "offset" in t else (0.0, 0.0)
     kw["angle"] = v.angle(path, t)
     if stype in ("disk", "capsule"):
-        kw["radius"] = v.positive(f"{path}.radius", t["radius"])
+        kw["radius"] = v.length(f"{path}.radius", t["radius"])
     else:
-        kw["radius"] = v.nonneg(f"{path}.radius", t["radius"]) if "radius" in t else optional["radius"]
+        kw["radius"] = v.length(f"{path}.radius", t["radius"], positive=False) if "radius" in t else optional["radius"]
     if stype == "capsule":
-        kw["length"] = v.positive(f"{path}.length", t["length"])
+        kw["length"] = v.length(f"{path}.length", t["length"])
     elif stype == "box":
-        kw["width"] = v.positive(f"{path}.width", t["width"])
-        kw["height"] = v.positive(f"{path}.height", t["height"])
+        kw["width"] = v.length(f"{path}.width", t["width"])
+        kw["height"] = v.length(f"{path}.height", t["height"])
     elif stype == "polygon":
         verts = v.points(f"{path}.vertices", t["vertices"], 3)
         _check_convex_ccw(v, f"{path}.vertices", verts)
         kw["vertices"] = verts
     elif stype == "segment":
-        kw["a"] = v.vec2(f"{path}.a", t["a"])
-        kw["b"] = v.vec2(f"{path}.b", t["b"])
+        kw["a"] = v.place(f"{path}.a", t["a"])
+        kw["b"] = v.place(f"{path}.b", t["b"])
         if kw["a"] == kw["b"]:
             v.fail(f"{path}.b must differ from {path}.a, got {_show_vec(kw['b'])}")
     return ShapeSpec(**kw)
