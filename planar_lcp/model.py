@@ -19,6 +19,7 @@ from planar_lcp.spec.massprops import body_mass_properties, support_friction, su
 from planar_lcp.spec.scene import SUPPORT_MODELS, Scene, SceneError
 
 from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC,  # noqa: F401
+                                         SERVO_FORCE_DIRECTIONS, SERVO_TORQUE_DIRECTIONS,
                                          PLANE_HORIZONTAL, PLANE_VERTICAL, SHAPE_CORE, SHAPE_HALFPLANE,
                                          SUPPORT_LIMIT_SURFACE, SUPPORT_POINTS)
 # the kernels' arrays: engine/layout.py MODEL_LAYOUT
@@ -75,9 +76,18 @@ class Model:
         a = self.arrays
         return a.fric_dirs.shape[0] if a.support_model == SUPPORT_POINTS else a.ls_wrench.shape[1] + 1
 
+    def servo_unknowns(self):
+        """LCP unknowns of the force-limited kinematic bodies: their lag velocities along SERVO_FORCE_DIRECTIONS (and
+        SERVO_TORQUE_DIRECTIONS with a torque limit), in an island that needs them."""
+        a = self.arrays
+        return int(SERVO_FORCE_DIRECTIONS * np.count_nonzero(a.kin_max_force > 0.0)
+                   + SERVO_TORQUE_DIRECTIONS * np.count_nonzero(a.kin_max_torque > 0.0))
+
     def max_unknowns(self):
-        """LCP size bound: 4 per contact (normal, two friction rays, slack) plus columns + 1 per support element."""
-        return 4 * self.max_contacts() + (self.support_columns() + 1) * len(self.arrays.sup_dyn)
+        """LCP size bound: 4 per contact (normal, two friction rays, slack) plus columns + 1 per support element,
+        plus the force-limited kinematic bodies' lag velocities."""
+        return (4 * self.max_contacts() + (self.support_columns() + 1) * len(self.arrays.sup_dyn)
+                + self.servo_unknowns())
 
     def com_to_frame(self, q):
         """COM poses (..., ndyn, 3) -> body-frame origin poses, as the scene file describes bodies."""
@@ -168,6 +178,7 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
     static_pose = np.zeros((nbody, 3))
     dyn_names, kin_names = [], []
     dyn_mass, dyn_inertia, com_local, q0, v0, qk0, vk0 = [], [], [], [], [], [], []
+    kin_max_force, kin_max_torque = [], []
     kinds = {"dynamic": BODY_DYNAMIC, "static": BODY_STATIC, "kinematic": BODY_KINEMATIC}
     for i, b in enumerate(bodies):
         body_kind[i] = kinds[b.type]
@@ -188,6 +199,8 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
             kin_names.append(b.name)
             qk0.append(pose)
             vk0.append([b.velocity[0], b.velocity[1], b.angular_velocity])
+            kin_max_force.append(b.max_force or 0.0)
+            kin_max_torque.append(b.max_torque or 0.0)
         else:
             static_pose[i] = pose
 
@@ -311,6 +324,7 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
         ls_disk_node_num=arr(ls["disk_node_num"], np.int64), ls_disk_table=disk_table().copy(),
         ls_disk_step=float(DISK_TABLE_STEP),
         ls_wrench=np.zeros((len(ls_bodies), nls if support_code == SUPPORT_LIMIT_SURFACE else 0, 3)),
+        kin_max_force=arr(kin_max_force), kin_max_torque=arr(kin_max_torque),
     )
     model = Model(scene=scene, arrays=arrays, dyn_names=tuple(dyn_names), kin_names=tuple(kin_names),
                   com_local=arr(com_local, shape=(0, 2)), q0=arr(q0, shape=(0, 3)), v0=arr(v0, shape=(0, 3)),

@@ -18,7 +18,8 @@ import numpy as np
 from numba import njit
 
 from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC, MODE_SEPARATED, MODE_SLIDING,
-                                         MODE_STICKING, SUPPORT_POINTS)
+                                         MODE_STICKING, SERVO_FORCE_DIRECTIONS, SERVO_TORQUE_DIRECTIONS,
+                                         SUPPORT_POINTS)
 from planar_lcp.engine.limit_surface import unit_load_wrench
 
 
@@ -433,3 +434,155 @@ def contact_velocities(m, w, opt, vk, nci):
             w.con_mode[j] = MODE_SLIDING
         else:
             w.con_mode[j] = MODE_STICKING
+
+
+# --- force-limited kinematic bodies (a velocity servo) ------------------------------------------------------------
+# A kinematic body with max_force is massless and follows its prescribed velocity vk while the contact impulse it
+# needs stays within its limits; beyond them it lags: its velocity is vk + u, with u along the outward normal of the
+# active face of its force polygon (docs/method.md, "Force-limited kinematic bodies"). In the island's LCP, per such
+# body, one unknown a_j >= 0 per direction e_j (the lag u = sum a_j e_j, m/s or rad/s) and one row each:
+#     w_j = h F_j - e_j . C >= 0   _|_   a_j >= 0,     C = sum_c g_c z_c  the contact impulse on the body (N s),
+# where g_c is column c's generalized vector on the body's side; u enters the rows of its contacts as g_c . u (its
+# end pose moves by h u). The two blocks are minus each other's transpose, as friction's are.
+
+
+@njit(cache=True, inline='always')
+def servo_direction(j):
+    """Direction j of a servo's force polygon (exact components: two along x, two along y) or, for j >= 8, of its
+    torque: (x, y, spin)."""
+    r = 0.7071067811865476
+    if j == 0:
+        return 1.0, 0.0, 0.0
+    if j == 1:
+        return r, r, 0.0
+    if j == 2:
+        return 0.0, 1.0, 0.0
+    if j == 3:
+        return -r, r, 0.0
+    if j == 4:
+        return -1.0, 0.0, 0.0
+    if j == 5:
+        return -r, -r, 0.0
+    if j == 6:
+        return 0.0, -1.0, 0.0
+    if j == 7:
+        return r, -r, 0.0
+    return 0.0, 0.0, 1.0 if j == 8 else -1.0
+
+
+@njit(cache=True, inline='always')
+def servo_count(m, k):
+    """The lag unknowns of kinematic slot k: its force directions, and its torque's two with max_torque."""
+    return SERVO_FORCE_DIRECTIONS + (SERVO_TORQUE_DIRECTIONS if m.kin_max_torque[k] > 0.0 else 0)
+
+
+@njit(cache=True)
+def island_servo(m, w, nci, nf):
+    """The force-limited kinematic bodies of the island w.island_con[:nci] (w.island_servo[:nsb], kinematic slots)
+    and, per force column c of its contacts (normal and friction), w.column_servo[c] (the body's index among them,
+    -1: none) and w.column_gk[c] (the column's generalized vector on that body: side B of the pair, about its frame
+    origin at the linearization pose). Returns (nsb, its lag unknowns)."""
+    nsb = np.int64(0)
+    ns = np.int64(0)
+    f = np.int64(0)
+    for a in range(nci):
+        j = w.island_con[a]
+        p = w.con_pair[j]
+        frict = m.pair_mu[p] > 0.0
+        bb = m.shape_body[m.pair_b[p]]
+        idx = -1
+        if m.body_kind[bb] == BODY_KINEMATIC and m.kin_max_force[m.body_slot[bb]] > 0.0:
+            k = m.body_slot[bb]
+            for i in range(nsb):
+                if w.island_servo[i] == k:
+                    idx = i
+            if idx < 0:
+                idx = nsb
+                w.island_servo[nsb] = k
+                nsb += 1
+                ns += servo_count(m, k)
+        nx = w.con_n[j, 0]
+        ny = w.con_n[j, 1]
+        rx = w.con_p[j, 0] - w.body_pose[bb, 0]
+        ry = w.con_p[j, 1] - w.body_pose[bb, 1]
+        for c in range(3 if frict else 1):
+            u = a if c == 0 else nci + 2 * f + c - 1
+            dx, dy = (nx, ny) if c == 0 else ((-ny, nx) if c == 1 else (ny, -nx))
+            w.column_servo[u] = idx
+            # side B of the pair: the negative of the unit impulse's generalized vector
+            w.column_gk[u, 0] = -dx
+            w.column_gk[u, 1] = -dy
+            w.column_gk[u, 2] = -_cross(rx, ry, dx, dy)
+        if frict:
+            f += 1
+    return nsb, ns
+
+
+@njit(cache=True)
+def assemble_servo(m, w, nci, nf, n, nsb, h, A, b):
+    """The lag blocks of the island's force-limited bodies (above) in the (n + ns)-square LCP A, b whose first n
+    rows and columns `assemble_lcp` wrote (island_servo first). Their constants: h F_j, h T."""
+    N = A.shape[0]
+    for i in range(n, N):
+        for c in range(N):
+            A[i, c] = 0.0
+    for i in range(n):
+        for c in range(n, N):
+            A[i, c] = 0.0
+    ncol = nci + 2 * nf
+    off = n
+    for i in range(nsb):
+        k = w.island_servo[i]
+        for jd in range(servo_count(m, k)):
+            ex, ey, et = servo_direction(jd)
+            U = off + jd
+            b[U] = h * (m.kin_max_force[k] if jd < SERVO_FORCE_DIRECTIONS else m.kin_max_torque[k])
+            for c in range(ncol):
+                if w.column_servo[c] == i:
+                    g = w.column_gk[c, 0] * ex + w.column_gk[c, 1] * ey + w.column_gk[c, 2] * et
+                    A[c, U] = g
+                    A[U, c] = -g
+        off += servo_count(m, k)
+
+
+@njit(cache=True)
+def servo_within_limits(m, w, nci, nf, nsb, h, z):
+    """Whether the contact impulses z (a solution without lag unknowns) stay within every island servo's limits:
+    then its bodies keep their prescribed velocities, exactly."""
+    ncol = nci + 2 * nf
+    for i in range(nsb):
+        k = w.island_servo[i]
+        cx = cy = ct = 0.0
+        for c in range(ncol):
+            if w.column_servo[c] == i:
+                cx += w.column_gk[c, 0] * z[c]
+                cy += w.column_gk[c, 1] * z[c]
+                ct += w.column_gk[c, 2] * z[c]
+        for jd in range(servo_count(m, k)):
+            ex, ey, et = servo_direction(jd)
+            lim = h * (m.kin_max_force[k] if jd < SERVO_FORCE_DIRECTIONS else m.kin_max_torque[k])
+            if ex * cx + ey * cy + et * ct > lim:
+                return False
+    return True
+
+
+@njit(cache=True)
+def record_servo_lag(m, w, vk, n, nsb, z):
+    """Each island servo's lag u = sum a_j e_j from the LCP's lag unknowns z[n:], into w.kin_lag, and its velocity
+    vk + u into w.kin_velocity."""
+    off = n
+    for i in range(nsb):
+        k = w.island_servo[i]
+        ux = uy = ut = 0.0
+        for jd in range(servo_count(m, k)):
+            ex, ey, et = servo_direction(jd)
+            ux += z[off + jd] * ex
+            uy += z[off + jd] * ey
+            ut += z[off + jd] * et
+        off += servo_count(m, k)
+        w.kin_lag[k, 0] = ux
+        w.kin_lag[k, 1] = uy
+        w.kin_lag[k, 2] = ut
+        w.kin_velocity[k, 0] = vk[k, 0] + ux
+        w.kin_velocity[k, 1] = vk[k, 1] + uy
+        w.kin_velocity[k, 2] = vk[k, 2] + ut

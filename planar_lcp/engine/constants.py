@@ -16,3 +16,9 @@ SPARSE_MAX_BAND = 256
 SPARSE_UNKNOWNS_PER_BODY = 16
 # islands with at least this many unknowns try the sparse solver first by default (SimOptions.sparse_min_unknowns)
 SPARSE_MIN_UNKNOWNS = 128
+
+#: A force-limited kinematic body (a velocity servo, docs/method.md "Force-limited kinematic bodies"): its contact
+#: force is bounded along these many world directions (a regular polygon whose faces are max_force from the origin,
+#: two of them along x and two along y), its torque along +-z when it has max_torque.
+SERVO_FORCE_DIRECTIONS = 8
+SERVO_TORQUE_DIRECTIONS = 2

@@ -7,7 +7,7 @@ table friction) is integrated without one.
 import numpy as np
 from numba import njit
 
-from planar_lcp.engine.constants import BODY_DYNAMIC
+from planar_lcp.engine.constants import BODY_DYNAMIC, BODY_KINEMATIC
 
 
 @njit(cache=True)
@@ -18,25 +18,40 @@ def _find(parent, i):
     return i
 
 
+@njit(cache=True, inline='always')
+def _union(parent, a, b):
+    ra = _find(parent, a)
+    rb = _find(parent, b)
+    if ra != rb:
+        # the smaller root wins: island numbering does not depend on contact order
+        if ra < rb:
+            parent[rb] = ra
+        else:
+            parent[ra] = rb
+
+
 @njit(cache=True)
-def find_islands(m, ncon, con_pair, parent, island):
-    """island[d] = island id (0..K-1) of dynamic slot d. Returns K."""
+def find_islands(m, ncon, con_pair, parent, island, servo_root):
+    """island[d] = island id (0..K-1) of dynamic slot d. Returns K. Bodies joined by a contact share an island, and
+    so do the bodies a force-limited kinematic body touches (its lag velocity is one for all of them);
+    servo_root (nkin,) is work space."""
     ndyn = parent.shape[0]
     for d in range(ndyn):
         parent[d] = d
+    for k in range(servo_root.shape[0]):
+        servo_root[k] = -1
     for j in range(ncon):
         p = con_pair[j]
         ba = m.shape_body[m.pair_a[p]]
         bb = m.shape_body[m.pair_b[p]]
         if m.body_kind[ba] == BODY_DYNAMIC and m.body_kind[bb] == BODY_DYNAMIC:
-            ra = _find(parent, m.body_slot[ba])
-            rb = _find(parent, m.body_slot[bb])
-            if ra != rb:
-                # the smaller root wins: island numbering does not depend on contact order
-                if ra < rb:
-                    parent[rb] = ra
-                else:
-                    parent[ra] = rb
+            _union(parent, m.body_slot[ba], m.body_slot[bb])
+        elif m.body_kind[bb] == BODY_KINEMATIC and m.kin_max_force[m.body_slot[bb]] > 0.0:
+            k = m.body_slot[bb]
+            if servo_root[k] < 0:
+                servo_root[k] = m.body_slot[ba]
+            else:
+                _union(parent, m.body_slot[ba], servo_root[k])
     k = 0
     for d in range(ndyn):
         island[d] = -1

@@ -94,6 +94,8 @@ ls_disk_table     | f8    | ntab x 2   | -      | compile | the unit disk's (Phi
 ls_disk_step      | float | -          | -      | compile | the table's distance step, radii
 ls_wrench         | f8    | nsup x K x 3 | -, m | compile | unit-load wrenches L(t_j) of the K fixed twists, COM frame
 seed_friction_arm | int   | -          | -      | compile | 1: contact friction at the shapes' core points (the seed's)
+kin_max_force     | f8    | nkin       | N      | compile | a kinematic body's force limit (0: none, its velocity is prescribed)
+kin_max_torque    | f8    | nkin       | N m    | compile | its torque limit (0: none, its rotation is prescribed)
 """)
 
 WORK_LAYOUT = _table("""
@@ -176,11 +178,18 @@ block_dz           | f8    | unknown           | -          | block     | their 
 block_dw           | f8    | unknown           | -          | block     | the w's rates
 block_y            | f8    | unknown           | -          | block     | a row of the Schur complement's inverse update
 dense_needed       | i8    | 1                 | -          | solvers   | dense size a step asked for (NEEDS_SPACE)
-fail_size          | i8    | 4                 | -          | lemke     | the step's first island no method certified: n, nci, nsi, nf
+fail_size          | i8    | 5                 | -          | lemke     | the step's first island no method certified: n, nci, nsi, nf, ns
 fail_matrix        | f8    | dense2            | -          | lemke     | its LCP matrix (n x n, row-major), as first assembled
 fail_vector        | f8    | unknown           | m/s        | lemke     | its LCP vector, as first assembled
 fail_con           | i8    | contact           | -          | lemke     | its contacts' pair indices
 fail_sup           | i8    | support           | -          | lemke     | its support elements
+qk_hat             | f8    | kin x 3           | m, rad     | begin     | kinematic poses at the linearization: qk + h vk
+kin_velocity       | f8    | kin x 3           | m/s, rad/s | solvers   | kinematic velocities in the step: vk plus any lag
+kin_lag            | f8    | kin x 3           | m/s, rad/s | solvers   | a force-limited body's lag behind vk (its servo)
+servo_root         | i8    | kin               | -          | islands   | a dynamic slot each force-limited body touches
+island_servo       | i8    | kin               | -          | assemble  | the island's force-limited kinematic slots
+column_servo       | i8    | unknown           | -          | assemble  | the island servo index of a column's kinematic side
+column_gk          | f8    | unknown x 3       | -          | assemble  | that side's generalized vector (origin frame)
 warm_size          | i8    | dyn               | -          | lemke     | per island: last LCP's size (-1: none)
 warm_basic_z       | bool  | dyn x unknown     | -          | lemke     | per island: which z were basic in it
 warm_size_saved    | i8    | dyn               | -          | step      | warm_size before a step
@@ -235,6 +244,7 @@ STATS = (
     ("solved_velocity", True, "island LCPs solved in the velocity form's normal rows"),
     ("solved_inelastic", True, "island LCPs with restitution solved inelastically (e = 0): no elastic answer found"),
     ("pgs_uncertified", True, "islands that took PGS's uncertified answer after every certified method failed"),
+    ("servo_limited", True, "island LCPs solved with force-limited kinematic bodies at their limits (lagging)"),
 )
 Stat = IntEnum("Stat", [(name.upper(), i) for i, (name, _, _) in enumerate(STATS)], module=__name__)
 NSTAT = len(STATS)
@@ -272,6 +282,7 @@ def work_sizes(model, dense_capacity=None):
     reduced = min(2 * contact, SPARSE_UNKNOWNS_PER_BODY * dyn)
     return dict(body=a.body_kind.shape[0], vert=max(1, a.vert_local.shape[0]), pair=max(1, a.pair_a.shape[0]),
                 contact=contact, contact2=2 * contact, dyn=dyn, dyn1=dyn + 1, support=max(1, a.sup_dyn.shape[0]),
+                kin=max(1, model.nkin),
                 unknown=U, dense=D, dense1=D + 1, dense2=D * D, tableau=D * (2 * D + 2), tableau_row=2 * D + 2, reduced=reduced,
                 band=reduced * (2 * SPARSE_MAX_BAND + 1))
 

@@ -46,8 +46,8 @@ def _drive_islands(m, w, ncon, j):
     """The contact stage's kernels after the collision: the limit surfaces' re-centring and the islands
     (`prepare_contacts`, `island_members`; ncon, j: int64 counters)."""
     recentre_limit_surfaces(m, w)
-    return find_islands(m, ncon, w.con_pair, w.island_parent, w.body_island) + contact_island(m, w.body_island,
-                                                                                            w.con_pair, j)
+    nisl = find_islands(m, ncon, w.con_pair, w.island_parent, w.body_island, w.servo_root)
+    return nisl + contact_island(m, w.body_island, w.con_pair, j)
 
 
 # The drivers: each calls island solvers with the argument types of `step_pipeline`'s call (engine/step.py:

@@ -139,6 +139,9 @@ def begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats):
     for kk in range(qk.shape[0]):
         for c in range(3):
             qk_out[kk, c] = qk[kk, c] + h * vk[kk, c]
+            # the kinematic poses the position forms linearize at; qk_out moves on with a force-limited body's lag
+            w.qk_hat[kk, c] = qk_out[kk, c]
+            w.kin_velocity[kk, c] = vk[kk, c]
     for p in range(w.pair_forced.shape[0]):
         w.pair_forced[p] = False
     w.dense_needed[0] = 0
@@ -158,11 +161,14 @@ def prepare_contacts(m, w, opt, qk_lin, stats):
                          w.pair_phi, w.pair_n, w.pair_p)
     for p in range(w.pair_set_count.shape[0]):
         w.pair_set_count[p] = 0
+    for kk in range(w.kin_lag.shape[0]):
+        for c in range(3):
+            w.kin_lag[kk, c] = 0.0                  # each solve finds the force-limited bodies' lag anew
     for j in range(ncon):
         w.pair_set_count[w.con_pair[j]] += 1
         w.con_cn[j] = 0.0
         w.con_ft[j] = 0.0
-    nisl = find_islands(m, ncon, w.con_pair, w.island_parent, w.body_island)
+    nisl = find_islands(m, ncon, w.con_pair, w.island_parent, w.body_island, w.servo_root)
     stats[Stat.N_ISLANDS] = nisl
     for d in range(w.v_new.shape[0]):
         for c in range(3):
@@ -175,6 +181,17 @@ def integrate_positions(q, h, w):
     for d in range(q.shape[0]):
         for c in range(3):
             w.q_new[d, c] = q[d, c] + h * w.v_new[d, c]
+
+
+@njit(cache=True, inline='always')
+def integrate_servos(m, qk, vk, h, w, qk_out):
+    """A force-limited kinematic body moves at its prescribed velocity plus its lag (w.kin_lag, from the solve):
+    its end pose qk_out and its velocity w.kin_velocity. The others keep begin_step's, untouched."""
+    for kk in range(qk.shape[0]):
+        if m.kin_max_force[kk] > 0.0:
+            for c in range(3):
+                w.kin_velocity[kk, c] = vk[kk, c] + w.kin_lag[kk, c]
+                qk_out[kk, c] = qk[kk, c] + h * w.kin_velocity[kk, c]
 
 
 @njit(cache=True, inline='always')
@@ -304,7 +321,7 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
     save_warm_start(w, opt)
     begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats)
     # the velocity form evaluates contacts at the current configuration, the position forms at the end of the step
-    qk_lin = qk if velocity_form else qk_out
+    qk_lin = qk if velocity_form else w.qk_hat
     fp_iter = 0
     # a step fails if any of its solves had an island without a certified answer: a fixed-point iterate or an
     # active-set re-solve that starts from an uncertified answer is not trusted either, even if its own LCP solves
@@ -329,6 +346,7 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
                     return STEP_NEEDS_SPACE
                 worst = st
         integrate_positions(q, h, w)
+        integrate_servos(m, qk, vk, h, w, qk_out)
         again, it = needs_another_solve(m, w, opt, q, h, qk_out, fp_iter, stats)
         if it >= 0:
             fp_iter = it

@@ -56,6 +56,7 @@ MAX_INERTIA = MAX_MASS * MAX_LENGTH ** 2
 MAX_SPEED = 1e3                        # m/s: each velocity component
 MAX_ANGULAR_SPEED = 1e4                # rad/s
 MAX_GRAVITY = 1e3                      # m/s^2: each component of world.gravity, and world.support_gravity
+MAX_SERVO_FORCE, MAX_SERVO_TORQUE = 1e9, 1e9   # N, N m: a kinematic body's max_force, max_torque
 # A support point may lie outside the bounding box of its body's shapes by at most this fraction of the box's
 # diagonal (rounding only): a point outside would carry load where the body has no material.
 _SUPPORT_REL_TOL = 1e-6
@@ -138,6 +139,8 @@ class BodySpec:
     angular_velocity: float = 0.0
     support_friction: float | None = None
     support_points: tuple | None = None
+    max_force: float | None = None       # N: kinematic only; a force-limited velocity servo (docs/method.md)
+    max_torque: float | None = None      # N m: kinematic only; its torque limit (None: the rotation is prescribed)
 
 
 @dataclass(frozen=True)
@@ -346,7 +349,7 @@ _SIM_KEYS = ("h", "t_end", "solver", "formulation", "fixed_point_iterations", "f
 #: [sim] keys that shape the horizontal plane's table friction only
 _TABLE_KEYS = ("friction_directions", "limit_surface_twists", "limit_surface_resolution")
 _BODY_KEYS = ("name", "type", "shapes", "mass", "inertia", "position", "angle", "angle_deg", "velocity",
-              "angular_velocity", "support_friction", "support_points")
+              "angular_velocity", "support_friction", "support_points", "max_force", "max_torque")
 _PAIR_KEYS = {"friction_pairs": ("a", "b", "mu"), "restitution_pairs": ("a", "b", "e")}
 _PLACEMENT_KEYS = ("offset", "angle", "angle_deg")
 # Per shape type: (required keys, optional keys with their defaults). Placement keys are added for all but halfplane.
@@ -778,6 +781,20 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
         for key in ("mass", "inertia", "support_friction", "support_points"):
             if key in t:
                 v.fail(f"{path}.{key} is not allowed on a {btype} body, got {t[key]!r}")
+    max_force = max_torque = None
+    for key in ("max_force", "max_torque"):
+        if key in t and btype != "kinematic":
+            v.fail(f"{path}.{key} is only allowed on a kinematic body (a force-limited velocity servo), got a "
+                   f"{btype} body")
+    if "max_force" in t:
+        max_force = v.within(f"{path}.max_force", v.positive(f"{path}.max_force", t["max_force"]), None,
+                             MAX_SERVO_FORCE, "N")
+    if "max_torque" in t:
+        if "max_force" not in t:
+            v.fail(f"{path}.max_torque needs max_force on the same body (a servo limits its force first), got "
+                   f"max_torque = {t['max_torque']!r} alone")
+        max_torque = v.within(f"{path}.max_torque", v.positive(f"{path}.max_torque", t["max_torque"]), None,
+                              MAX_SERVO_TORQUE, "N m")
 
     position = v.place(f"{path}.position", t["position"]) if "position" in t else (0.0, 0.0)
     angle = v.angle(path, t)
@@ -797,7 +814,7 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
 
     return BodySpec(name=name, type=btype, shapes=shapes, mass=mass, inertia=inertia, position=position,
                     angle=angle, velocity=velocity, angular_velocity=omega, support_friction=support_friction,
-                    support_points=support_points)
+                    support_points=support_points, max_force=max_force, max_torque=max_torque)
 
 
 def _parse_shape(v: _Validator, path: str, raw, btype: str, plane: str) -> ShapeSpec:

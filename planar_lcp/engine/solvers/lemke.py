@@ -21,8 +21,9 @@ the island-solver signature of engine/step.py.
 import numpy as np
 from numba import njit
 
-from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, contact_velocities, island_is_elastic,
-                                        island_problem_size, record_impulses, support_column_count)
+from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, assemble_servo, contact_velocities,
+                                        island_is_elastic, island_problem_size, island_servo, record_impulses,
+                                        record_servo_lag, servo_within_limits, support_column_count)
 from planar_lcp.engine.layout import Stat
 from planar_lcp.engine.solvers.sparse import solve_island_sparse
 
@@ -630,16 +631,20 @@ def solve_island_lemke_small_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form
 
 
 @njit(cache=True)
-def record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf):
+def record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf, nsb, ns):
     """Keep the LCP of an island no method certified, as the chain's first try assembled it (its rows as the
-    formulation states them, with restitution), with its contacts and support elements: w.fail_* (the step's first
-    such island; begin_step forgets it). For the diagnosis of the failure (planar_lcp/infeasibility.py)."""
+    formulation states them, with restitution; with the force-limited bodies' lag blocks when ns > 0: the last n - ns
+    ... n rows), with its contacts and support elements: w.fail_* (the step's first such island; begin_step forgets
+    it). For the diagnosis of the failure (planar_lcp/infeasibility.py)."""
     A = w.lcp_matrix[:n * n].reshape((n, n))
     assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector, np.bool_(True))
+    if ns > 0:
+        assemble_servo(m, w, nci, nf, n - ns, nsb, h, A, w.lcp_vector)
     w.fail_size[0] = n
     w.fail_size[1] = nci
     w.fail_size[2] = nsi
     w.fail_size[3] = nf
+    w.fail_size[4] = ns
     for i in range(n):
         w.fail_vector[i] = w.lcp_vector[i]
         for c in range(n):
@@ -651,11 +656,74 @@ def record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf):
 
 
 @njit(cache=True, inline='always')
+def lemke_chain(m, w, opt, vk, nci, nsi, h, velocity_form, stats, A, b, n, tried_block):
+    """The LEMKE_CHAIN's tries on the island LCP (A, b) of size n (assembled in its first form, and with the
+    force-limited bodies' lag blocks after the contacts' rows when it has them: `assemble_servo`, which the tries'
+    other row constants leave as they are), until one is certified. Returns (status, pivots, residual, the stats
+    counter of the method that solved it)."""
+    # One call site for the whole chain: each inlined call of lemke_kernel costs compile time
+    status = STATUS_RAY
+    piv = 0
+    res = np.inf
+    method = LEMKE_CHAIN[0][0]
+    rows_velocity = velocity_form       # the rows (A, b) now hold
+    rows_elastic = True
+    elastic_island = island_is_elastic(m, w.island_con, nci, w.con_pair)
+    # A large island's chain runs twice: first each try capped at BLOCK_PIVOTS_PER_UNKNOWN pivots per
+    # unknown, then, if none was certified, the tries that reached that cap with the full one
+    short_cap = BLOCK_PIVOTS_PER_UNKNOWN * n + 100 if tried_block else -1
+    capped = 0                           # bit `attempt`: that try ended at the short cap
+    for sweep_attempt in range(2 * len(LEMKE_CHAIN) if tried_block else len(LEMKE_CHAIN)):
+        attempt = sweep_attempt % len(LEMKE_CHAIN)
+        second_sweep = sweep_attempt >= len(LEMKE_CHAIN)
+        if second_sweep and not (capped >> attempt) & 1:
+            continue
+        method, piv_tol, equilibrate, in_velocity_form, elastic = LEMKE_CHAIN[attempt]
+        if piv_tol < 0.0:
+            piv_tol = opt.piv_tol
+        elif piv_tol <= opt.piv_tol:
+            continue                     # not stricter than the first try
+        if not elastic and not elastic_island:
+            continue                     # without restitution the inelastic rows were tried already
+        want_velocity = in_velocity_form or velocity_form
+        if in_velocity_form and velocity_form:
+            # the velocity form's rows were the first try's (inelastic: the try before)
+            continue
+        if want_velocity != rows_velocity or elastic != rows_elastic:
+            # the island's LCP over the same contacts: only the normal rows' constants change (the lag blocks
+            # are the same)
+            assemble_lcp(m, w, vk, nci, nsi, h, want_velocity, A, w.lcp_vector, elastic)
+            rows_velocity = want_velocity
+            rows_elastic = elastic
+        if sweep_attempt > 0:
+            stats[Stat.LEMKE_RETRIES] += 1
+        status, p, res = lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate, -1 if second_sweep else short_cap)
+        piv += p
+        if status == STATUS_SOLVED:
+            break
+        if status == STATUS_MAX_PIVOTS and short_cap >= 0 and not second_sweep:
+            capped |= 1 << attempt
+    return status, piv, res, method
+
+
+@njit(cache=True, inline='always')
 def lemke_island(large_island_solver, warm_solver, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     """`solve_island_lemke`'s body; large_island_solver: solve_island_sparse, or None for a kernel without the
     large-island solvers; warm_solver: lemke_from_basis, or None for a kernel without the warm start (numba prunes
-    the branches that test them against None)."""
+    the branches that test them against None).
+
+    An island with force-limited kinematic bodies (max_force) is solved first with their velocities prescribed, as
+    any island; when that answer asks more of a servo than its limits (or there is none), the island is solved again
+    with their lag unknowns (engine/assemble.py `assemble_servo`), so that a servo within its limits gives the
+    prescribed motion bit for bit."""
     n, nf, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
+    nsb, ns = island_servo(m, w, nci, nf)
+    for i in range(nsb):
+        # prescribed until the servo solve below says otherwise (contact_velocities reads w.kin_velocity)
+        kk = w.island_servo[i]
+        for c in range(3):
+            w.kin_lag[kk, c] = 0.0
+            w.kin_velocity[kk, c] = vk[kk, c]
     k = support_column_count(m)
     status = STATUS_RAY
     piv = 0
@@ -663,8 +731,10 @@ def lemke_island(large_island_solver, warm_solver, m, w, opt, vk, isl, nci, nsi,
     warm = False
     sparse = False
     block = False
-    tried_block = False
-    if large_island_solver is not None and opt.sparse_min > 0 and n >= opt.sparse_min and nsi == 0:
+    servo = False
+    tried_block = np.bool_(False)
+    large = ns == 0 and opt.sparse_min > 0 and n >= opt.sparse_min and nsi == 0
+    if large_island_solver is not None and large:
         # a large island: its sparse reduced system first (engine/solvers/sparse.py), dense Lemke if not certified
         sparse, _, res = large_island_solver(m, w, opt, vk, nci, nsi, h, velocity_form)
         if sparse:
@@ -672,27 +742,43 @@ def lemke_island(large_island_solver, warm_solver, m, w, opt, vk, isl, nci, nsi,
             stats[Stat.SOLVED_SPARSE] += 1
         else:
             stats[Stat.SPARSE_FALLBACKS] += 1
-    if not sparse:
-        if n > w.lemke_lu.shape[0]:
+    N = n
+    # phase 0: the island's LCP; phase 1, only when its force-limited bodies cannot all keep their prescribed
+    # velocities (the answer asks more than a limit, or there is none): the LCP with their lag unknowns (one call
+    # site of the chain for both: each inlined copy costs compile time)
+    for phase in range(2):
+        if sparse:
+            break
+        if phase == 1:
+            servo = ns > 0 and (status != STATUS_SOLVED or not servo_within_limits(m, w, nci, nf, nsb, h,
+                                                                                    w.lemke_z))
+            if not servo:
+                break
+            N = n + ns
+            warm = False
+            block = False
+        if N > w.lemke_lu.shape[0]:
             # the dense buffers are too small: the step is handed back, to be run again with larger ones
-            w.dense_needed[0] = max(w.dense_needed[0], n)
+            w.dense_needed[0] = max(w.dense_needed[0], N)
             return STATUS_NEEDS_SPACE
-        A = w.lcp_matrix[:n * n].reshape((n, n))
-        b = w.lcp_vector[:n]
+        A = w.lcp_matrix[:N * N].reshape((N, N))
+        b = w.lcp_vector[:N]
         # np.bool_: every call site passes `elastic` typed alike, else numba compiles assemble_lcp once for the
         # omitted default, once for Literal[bool](True) and once for bool
         assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector, np.bool_(True))
-        if warm_solver is not None and opt.warm_start and w.warm_size[isl] == n:
+        if servo:
+            assemble_servo(m, w, nci, nf, n, nsb, h, A, w.lcp_vector)
+        if phase == 0 and warm_solver is not None and opt.warm_start and w.warm_size[isl] == n:
             # the previous step's basis for this island: contact modes rarely change from one step to the next
             warm, res = warm_solver(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu,
-                                         w.lemke_rhs, w.lemke_perm, w.lemke_basic)
+                                    w.lemke_rhs, w.lemke_perm, w.lemke_basic)
         if warm:
             status = STATUS_SOLVED
             stats[Stat.WARM_STARTS] += 1
-        elif large_island_solver is not None and opt.sparse_min > 0 and n >= opt.sparse_min and nsi == 0:
+        elif phase == 0 and large_island_solver is not None and large:
             # a large island: Lemke's path pivoted on its basis's Schur complement (block_lemke.py), O(k^2) a pivot
             # where the tableau's costs O(n^2); the tableau if it is not certified (a cycle on a degenerate tie)
-            tried_block = True
+            tried_block = np.bool_(True)
             status, p, res = block_lemke_in_work(w, A, b, n, opt)
             piv += p
             if status != STATUS_SOLVED:
@@ -702,47 +788,15 @@ def lemke_island(large_island_solver, warm_solver, m, w, opt, vk, isl, nci, nsi,
                 block = True
                 stats[Stat.SOLVED_BLOCK] += 1
         if not warm and not block:
-            # One call site for the whole chain: each inlined call of lemke_kernel costs compile time
-            status = STATUS_RAY
-            method = LEMKE_CHAIN[0][0]
-            rows_velocity = velocity_form       # the rows (A, b) now hold
-            rows_elastic = True
-            elastic_island = island_is_elastic(m, w.island_con, nci, w.con_pair)
-            # A large island's chain runs twice: first each try capped at BLOCK_PIVOTS_PER_UNKNOWN pivots per
-            # unknown, then, if none was certified, the tries that reached that cap with the full one
-            short_cap = BLOCK_PIVOTS_PER_UNKNOWN * n + 100 if tried_block else -1
-            capped = 0                           # bit `attempt`: that try ended at the short cap
-            for sweep_attempt in range(2 * len(LEMKE_CHAIN) if tried_block else len(LEMKE_CHAIN)):
-                attempt = sweep_attempt % len(LEMKE_CHAIN)
-                second_sweep = sweep_attempt >= len(LEMKE_CHAIN)
-                if second_sweep and not (capped >> attempt) & 1:
-                    continue
-                method, piv_tol, equilibrate, in_velocity_form, elastic = LEMKE_CHAIN[attempt]
-                if piv_tol < 0.0:
-                    piv_tol = opt.piv_tol
-                elif piv_tol <= opt.piv_tol:
-                    continue                     # not stricter than the first try
-                if not elastic and not elastic_island:
-                    continue                     # without restitution the inelastic rows were tried already
-                want_velocity = in_velocity_form or velocity_form
-                if in_velocity_form and velocity_form:
-                    # the velocity form's rows were the first try's (inelastic: the try before)
-                    continue
-                if want_velocity != rows_velocity or elastic != rows_elastic:
-                    # the island's LCP over the same contacts: only the normal rows' constants change
-                    assemble_lcp(m, w, vk, nci, nsi, h, want_velocity, A, w.lcp_vector, elastic)
-                    rows_velocity = want_velocity
-                    rows_elastic = elastic
-                if sweep_attempt > 0:
-                    stats[Stat.LEMKE_RETRIES] += 1
-                status, p, res = lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate, -1 if second_sweep else short_cap)
-                piv += p
-                if status == STATUS_SOLVED:
-                    break
-                if status == STATUS_MAX_PIVOTS and short_cap >= 0 and not second_sweep:
-                    capped |= 1 << attempt
+            status, p, res, method = lemke_chain(m, w, opt, vk, nci, nsi, h, velocity_form, stats, A, b, N,
+                                                 tried_block)
+            piv += p
             if status == STATUS_SOLVED:
                 stats[method] += 1
+        if servo and status == STATUS_SOLVED:
+            stats[Stat.SERVO_LIMITED] += 1
+            record_servo_lag(m, w, vk, n, nsb, w.lemke_z)
+    n = N
     stats[Stat.LCP_SIZE] += n
     stats[Stat.LCP_MAX] = max(stats[Stat.LCP_MAX], n)
     stats[Stat.PIVOTS] += piv
@@ -751,10 +805,10 @@ def lemke_island(large_island_solver, warm_solver, m, w, opt, vk, isl, nci, nsi,
         stats[Stat.LEMKE_STATUS] = max(stats[Stat.LEMKE_STATUS], status)
         w.warm_size[isl] = -1
         if w.fail_size[0] < 0 and not sparse:
-            record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf)
+            record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf, nsb, ns)
         return status
-    if sparse:
-        w.warm_size[isl] = -1                # no basis to keep
+    if sparse or servo:
+        w.warm_size[isl] = -1                # no basis to keep (a servo's: the next step tries its LCP first)
     elif not warm:
         # remember the final basis (z_i basic) for the next step's warm start
         w.warm_size[isl] = n
@@ -771,5 +825,5 @@ def lemke_island(large_island_solver, warm_solver, m, w, opt, vk, isl, nci, nsi,
                     w.warm_basic_z[isl, kb - n] = True
     apply_impulses(nci + 2 * nf + k * nsi, w.column_slot, w.column_g, w.lemke_z, m, w.v_new)
     record_impulses(m, w, nci, w.lemke_z, np.bool_(False), nci)   # np.bool_: one compilation with PGS's call
-    contact_velocities(m, w, opt, vk, nci)
+    contact_velocities(m, w, opt, w.kin_velocity, nci)
     return status
