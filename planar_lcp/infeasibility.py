@@ -29,7 +29,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planar_lcp.engine.constants import BODY_KINEMATIC, BODY_STATIC
+from planar_lcp.engine.constants import (BODY_KINEMATIC, BODY_STATIC, SERVO_FORCE_DIRECTIONS,
+                                         SERVO_TORQUE_DIRECTIONS)
 from planar_lcp.engine.solvers.lemke import lcp_scale
 
 #: a certificate is accepted when no solution exists with impulses below this many times max |q| / max |M|
@@ -229,7 +230,7 @@ def diagnose_step(sim, q, v, qk, vk):
     sim.step(q, v, qk, vk)
     sim.reset_warm_start()
     w = sim.work
-    n, nci, nsi, nf = (int(x) for x in w.fail_size)
+    n, nci, nsi, nf, ns = (int(x) for x in w.fail_size)
     if n < 0:
         return StepDiagnosis(False, "the step did not fail again when run from its state: not examined")
     M = w.fail_matrix[:n * n].reshape(n, n).copy()
@@ -248,7 +249,14 @@ def diagnose_step(sim, q, v, qk, vk):
                                     "branches of the search for a certificate): unclassified",
                              branches=search.branches)
     frictional = [c for c in range(nci) if a.pair_mu[con[c]] > 0.0]
-    owners = _row_owners(n, nci, nsi, nf, model.support_columns(), frictional)
+    owners = _row_owners(n - ns, nci, nsi, nf, model.support_columns(), frictional)
+    # the force-limited bodies' lag rows (engine/assemble.py `assemble_servo`): their own bodies
+    kin_bodies = [i for i, b in enumerate(model.scene.bodies) if b.type == "kinematic"]
+    for k in w.fail_servo:
+        if len(owners) >= n:
+            break
+        owners += [("servo", int(k))] * (SERVO_FORCE_DIRECTIONS + (SERVO_TORQUE_DIRECTIONS if a.kin_max_torque[k] > 0.0
+                                                                   else 0))
     bodies = []
     for zero_z, zero_w, y in search.leaves:
         rows = branch_system(M, b, zero_z, zero_w)[3]
@@ -257,6 +265,8 @@ def diagnose_step(sim, q, v, qk, vk):
             if kind == "contact":
                 p = con[j]
                 found = [a.shape_body[a.pair_a[p]], a.shape_body[a.pair_b[p]]]
+            elif kind == "servo":
+                found = [kin_bodies[j]]
             else:
                 found = [a.dyn_body[a.sup_dyn[sup[j]]]]
             bodies += [names[bi] for bi in found if names[bi] not in bodies]

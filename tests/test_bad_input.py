@@ -485,3 +485,14 @@ def test_each_physical_bound_is_named_with_its_value(mutation, message):
     with pytest.raises(SceneError) as e:
         parse_scene(data, "x.toml")
     assert str(e.value) == "x.toml: " + message
+
+
+def test_an_absurd_size_on_the_command_line_is_one_line_and_exit_2(tmp_path):
+    """Issue N: the disk radius of 1e308 that overflowed in spec/massprops.py, in a scene file run as a user runs it."""
+    f = tmp_path / "huge.toml"
+    f.write_text('name = "huge"\n[sim]\nh = 0.01\nt_end = 0.1\n[[bodies]]\nname = "disk"\ntype = "dynamic"\nmass = 1.0\n'
+                 '[[bodies.shapes]]\ntype = "disk"\nradius = 1e308\n')
+    r = run_cli("simulate", f, cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert r.stderr.strip() == (f"planar-lcp simulate: error: {f}: bodies[0].shapes[0].radius must be at most 10000 m "
+                                "(a physical bound), got 1e+308")

@@ -397,7 +397,7 @@ S00, S10, S20 = B0 + ("shapes", 0), B1 + ("shapes", 0), B2 + ("shapes", 0)
 SQUARE_CW = [[0, 0], [0, 1], [1, 1], [1, 0]]
 PENTAGRAM = [[math.cos(2 * math.pi * i / 5), math.sin(2 * math.pi * i / 5)] for i in (0, 2, 4, 1, 3)]
 BODY_KEYS = ("name, type, shapes, mass, inertia, position, angle, angle_deg, velocity, angular_velocity, "
-             "support_friction, support_points")
+             "support_friction, support_points, max_force, max_torque")
 
 # (id, base, mutations, message after "x.toml: ")
 CASES = [

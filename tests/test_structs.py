@@ -83,7 +83,7 @@ def test_trajectory_stats_keys_are_the_contract():
     assert sorted(tr.stats) == sorted([
         "lcp_size", "lcp_max", "pivots", "n_contacts", "n_islands", "fp_iterations", "resolves", "residual",
         "penetration", "lemke_retries", "warm_starts", "solved_sparse", "sparse_fallbacks", "solved_block", "solved_lemke",
-        "solved_equilibrated", "solved_strict", "solved_velocity", "solved_inelastic", "pgs_uncertified", "fp_change", "pgs_update", "status", "energy",
+        "solved_equilibrated", "solved_strict", "solved_velocity", "solved_inelastic", "pgs_uncertified", "servo_limited", "fp_change", "pgs_update", "status", "energy",
         "certified_infeasible", "unclassified"])
     assert tr.stats["pivots"].dtype.kind == "i" and tr.stats["residual"].dtype.kind == "f"
 

@@ -183,6 +183,7 @@ fail_matrix        | f8    | dense2            | -          | lemke     | its LC
 fail_vector        | f8    | unknown           | m/s        | lemke     | its LCP vector, as first assembled
 fail_con           | i8    | contact           | -          | lemke     | its contacts' pair indices
 fail_sup           | i8    | support           | -          | lemke     | its support elements
+fail_servo         | i8    | kin               | -          | lemke     | its force-limited kinematic slots (its lag rows)
 qk_hat             | f8    | kin x 3           | m, rad     | begin     | kinematic poses at the linearization: qk + h vk
 kin_velocity       | f8    | kin x 3           | m/s, rad/s | solvers   | kinematic velocities in the step: vk plus any lag
 kin_lag            | f8    | kin x 3           | m/s, rad/s | solvers   | a force-limited body's lag behind vk (its servo)
@@ -190,6 +191,7 @@ servo_root         | i8    | kin               | -          | islands   | a dyna
 island_servo       | i8    | kin               | -          | assemble  | the island's force-limited kinematic slots
 column_servo       | i8    | unknown           | -          | assemble  | the island servo index of a column's kinematic side
 column_gk          | f8    | unknown x 3       | -          | assemble  | that side's generalized vector (origin frame)
+servo_basis        | f8    | 3 x 3             | -          | pgs       | PGS: the directions a force-limited body lags along
 warm_size          | i8    | dyn               | -          | lemke     | per island: last LCP's size (-1: none)
 warm_basic_z       | bool  | dyn x unknown     | -          | lemke     | per island: which z were basic in it
 warm_size_saved    | i8    | dyn               | -          | step      | warm_size before a step

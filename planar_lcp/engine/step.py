@@ -177,6 +177,14 @@ def prepare_contacts(m, w, opt, qk_lin, stats):
 
 
 @njit(cache=True, inline='always')
+def kinematic_linearization(w, qk, velocity_form):
+    """The kinematic poses contacts are taken at: qk (velocity form), or qk + h vk (w.qk_hat, the position forms':
+    a force-limited body's lag moves qk_out, not them). A function, so that the osqp solver's Python pipeline reads
+    the struct's field through numba."""
+    return qk if velocity_form else w.qk_hat
+
+
+@njit(cache=True, inline='always')
 def integrate_positions(q, h, w):
     for d in range(q.shape[0]):
         for c in range(3):
@@ -321,7 +329,7 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
     save_warm_start(w, opt)
     begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats)
     # the velocity form evaluates contacts at the current configuration, the position forms at the end of the step
-    qk_lin = qk if velocity_form else w.qk_hat
+    qk_lin = kinematic_linearization(w, qk, velocity_form)
     fp_iter = 0
     # a step fails if any of its solves had an island without a certified answer: a fixed-point iterate or an
     # active-set re-solve that starts from an uncertified answer is not trusted either, even if its own LCP solves

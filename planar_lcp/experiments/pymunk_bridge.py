@@ -24,7 +24,13 @@ Mapping (docs/pymunk-comparison.md says more):
   pair, so pymunk's elasticity is the scene's per pair, not a product. Chipmunk applies it as a target normal
   velocity -e v_n with v_n the contact's normal velocity at the start of the step (before gravity), solved by its
   iterations together with the position bias; our model is Newton's law in the step's LCP (docs/method.md).
-- Kinematic bodies -> KINEMATIC pymunk bodies with the scene's constant velocity.
+- Kinematic bodies -> KINEMATIC pymunk bodies with the scene's constant velocity. A force-limited one (`max_force`,
+  `max_torque`) -> pymunk's own velocity servo (its tank.py): a KINEMATIC control body moving at the prescribed
+  velocity, and the body itself DYNAMIC, without gravity, held to it by a PivotJoint at its origin with max_bias = 0
+  and max_force = max_force (and a GearJoint with max_torque, else an unlimited one). pymunk needs a mass where our
+  servo is massless: SERVO_MASS_RATIO times the lightest dynamic body's mass, its moment that of a disk of the body's
+  extent. Its pivot is an isotropic clamp (a disk of radius max_force) where ours is an octagon whose faces are
+  max_force from the origin.
 - Horizontal plane: pymunk has no table. Each dynamic body gets one PivotJoint to the static body per support
   point p_s of `massprops.support_points` (the points and load shares w_s of our support-point model), at p_s, with
   max_bias = 0 (velocity only, no position correction) and max_force = mu m g w_s (that point's Coulomb limit;
@@ -55,6 +61,7 @@ DEFAULT_COLLISION_SLOP = 1e-4      # m: overlap pymunk leaves uncorrected (0.1 m
 DEFAULT_COLLISION_BIAS = (1.0 - 0.1) ** 60   # fraction of overlap left after 1 s (pymunk's default, time-based)
 HALFPLANE_HALF_LENGTH = 100.0      # m: a half-plane is a static segment this long each way from its point
 HALFPLANE_RADIUS = 0.5             # m: its thickness (radius); the surface is on the half-plane's boundary
+SERVO_MASS_RATIO = 1e-3            # a force-limited kinematic body's pymunk mass, times the lightest dynamic mass
 
 
 def _mu_key(a, b):
@@ -135,6 +142,7 @@ class SpaceHandles:
         per support point in `massprops.support_points` order (horizontal plane; an empty dict otherwise)
     h : the time step the space is meant to be stepped with (s)
     settings : iterations, collision_slop, collision_bias as set
+    servo_joints : force-limited kinematic body name -> (PivotJoint, GearJoint) to its control body
     """
 
     bodies: dict
@@ -150,6 +158,7 @@ class SpaceHandles:
     support_joints: dict
     h: float
     settings: dict = field(default_factory=dict)
+    servo_joints: dict = field(default_factory=dict)
 
 
 def _make_shapes(pymunk, body, spec):
@@ -215,14 +224,20 @@ def build_space(scene, *, iterations=DEFAULT_ITERATIONS, collision_slop=DEFAULT_
     fric, exact = friction_assignment(scene)
     pair_mu = contact_pairs(scene)
     pair_e = contact_pairs(scene, "restitution")
-    bodies, shapes, shape_body, com_local, joints = {}, {}, {}, {}, {}
+    bodies, shapes, shape_body, com_local, joints, servo_joints = {}, {}, {}, {}, {}, {}
     dyn, kin = [], []
+    servo_mass = SERVO_MASS_RATIO * min([float(b.mass) for b in scene.bodies if b.type == "dynamic"] or [1.0])
     for b in scene.bodies:
         if b.type == "dynamic":
             com, inertia = body_mass_properties(b)
             body = pymunk.Body(float(b.mass), float(inertia), body_type=pymunk.Body.DYNAMIC)
             dyn.append(b.name)
             com_local[b.name] = np.asarray(com, float)
+        elif b.type == "kinematic" and b.max_force is not None:
+            reach = max(float(np.max(np.linalg.norm(s.core_vertices_body(), axis=1))) + s.radius for s in b.shapes)
+            body = pymunk.Body(servo_mass, servo_mass * reach * reach / 2.0, body_type=pymunk.Body.DYNAMIC)
+            body.velocity_func = _without_gravity
+            kin.append(b.name)
         elif b.type == "kinematic":
             body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
             kin.append(b.name)
@@ -252,6 +267,20 @@ def build_space(scene, *, iterations=DEFAULT_ITERATIONS, collision_slop=DEFAULT_
         space.add(body, *made)
         bodies[b.name] = body
         shapes[b.name] = made
+        if b.type == "kinematic" and b.max_force is not None:
+            # the servo: a control body on the prescribed motion, the body held to it within its limits
+            control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            control.position, control.angle = body.position, body.angle
+            control.velocity, control.angular_velocity = tuple(vo), w
+            pivot = pymunk.PivotJoint(control, body, (0.0, 0.0), (0.0, 0.0))
+            pivot.max_bias = 0.0
+            pivot.max_force = float(b.max_force)
+            gear = pymunk.GearJoint(control, body, 0.0, 1.0)
+            gear.max_bias = 0.0
+            if b.max_torque is not None:
+                gear.max_force = float(b.max_torque)
+            space.add(control, pivot, gear)
+            servo_joints[b.name] = (pivot, gear)
 
     if horizontal:
         g = float(scene.world.support_gravity)
@@ -290,10 +319,15 @@ def build_space(scene, *, iterations=DEFAULT_ITERATIONS, collision_slop=DEFAULT_
     handles = SpaceHandles(bodies=bodies, shapes=shapes, shape_body=shape_body, dynamic_names=tuple(dyn),
                            kinematic_names=tuple(kin), com_local=com_local, friction_mode=mode, pair_mu=pair_mu,
                            pair_e=pair_e, restitution_mode="pre_solve" if bouncy else "zero", support_joints=joints,
-                           h=h,
+                           h=h, servo_joints=servo_joints,
                            settings=dict(iterations=int(iterations), collision_slop=float(collision_slop),
                                          collision_bias=float(collision_bias)))
     return space, handles
+
+
+def _without_gravity(body, gravity, damping, dt):
+    """A force-limited kinematic body's velocity update: no gravity (our servo is massless: gravity does not move it)."""
+    type(body).update_velocity(body, (0.0, 0.0), damping, dt)
 
 
 def read_state(handles):

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import dataclasses
 import math
 import os
 from dataclasses import dataclass
@@ -28,8 +29,8 @@ import numpy as np
 
 from planar_lcp.frames import rotation
 from planar_lcp.spec.massprops import body_area_properties
-from planar_lcp.spec.scene import (SceneError, _is_real, _shipped_files, _Validator, display_source, parse_scene,
-                                   parse_toml, read_document, scene_path, scenes_dir)
+from planar_lcp.spec.scene import (MAX_SERVO_FORCE, SceneError, _is_real, _shipped_files, _Validator, display_source,
+                                   parse_scene, parse_toml, read_document, scene_path, scenes_dir)
 
 #: The OMPL control planners that the 2.0.1 wheel can construct from Python (SST and PDST have no constructor
 #: there, docs/planning.md). Here, not in planners.adapter, so that tasks and the CLI check them without ompl.
@@ -37,7 +38,8 @@ PLANNERS = ("RRT", "EST", "KPIECE1", "SyclopRRT", "SyclopEST")
 DEFAULT_PLANNER = "RRT"            # the best measured on every shipped task (docs/planning.md)
 
 TASK_KEYS = ("object", "pusher", "goal", "description", "planner", "time", "control_max", "step_duration",
-             "control_steps", "workspace", "pusher_workspace", "speed_max", "omega_max", "goal_bias")
+             "control_steps", "workspace", "pusher_workspace", "speed_max", "omega_max", "goal_bias",
+             "pusher_max_force")
 GOAL_KEYS = ("x", "y", "angle_deg", "position_tol", "angle_tol_deg", "at_rest", "speed_tol", "omega_tol",
              "min_cover")
 
@@ -324,6 +326,17 @@ def parse_task(document: dict, source: str = "<dict>", name: str | None = None, 
         # a cover goal needs the pose within millimetres and degrees, which goal samples reach best (push_t:
         # docs/planning.md, "Faster planning")
         goal_bias = 0.3 if goal.min_cover is not None else 0.1
+
+    if "pusher_max_force" in t:
+        # the pusher as a force-limited velocity servo (docs/method.md): a push into a jam stalls instead of having
+        # no solution. The body's own max_force, if any, is what this replaces.
+        limit = v.positive("task.pusher_max_force", t["pusher_max_force"])
+        if limit > MAX_SERVO_FORCE:
+            v.fail(f"task.pusher_max_force must be at most {MAX_SERVO_FORCE:g} N (a physical bound), got {limit!r}")
+        i = [b.name for b in scene.bodies].index(pusher)
+        bodies_list = list(scene.bodies)
+        bodies_list[i] = dataclasses.replace(bodies_list[i], max_force=limit)
+        scene = dataclasses.replace(scene, bodies=tuple(bodies_list))
 
     return Task(name=name if name is not None else scene.name, scene=scene, source=shown, document=document,
                 sha256=document_sha256(document), object=obj, pusher=pusher, obstacles=obstacles,

@@ -653,6 +653,8 @@ def record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf, nsb, ns):
         w.fail_con[a] = w.con_pair[w.island_con[a]]
     for a in range(nsi):
         w.fail_sup[a] = w.island_sup[a]
+    for a in range(nsb):
+        w.fail_servo[a] = w.island_servo[a]
 
 
 @njit(cache=True, inline='always')

@@ -22,7 +22,9 @@ import sys
 import numpy as np
 
 from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, contact_velocities, island_problem_size,
-                                        record_impulses, support_column_count)
+                                        island_servo, record_impulses, record_servo_lag, servo_count, servo_direction,
+                                        support_column_count)
+from planar_lcp.engine.constants import SERVO_FORCE_DIRECTIONS
 from planar_lcp.engine.layout import Stat, python_view
 from planar_lcp.engine.solvers.lemke import STATUS_INACCURATE, STATUS_SOLVED
 from planar_lcp.engine.solvers.pgs import solve_island_pgs
@@ -95,6 +97,23 @@ def solve_island_osqp(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
         lo.append(-np.inf)
         hi.append(mv.sup_mu[s] * h * mv.sup_load[s])
         r += 1
+    # force-limited kinematic bodies (engine/assemble.py): the contact impulse C each takes within its polygon and
+    # torque limit, e_j . C <= h F_j; the constraints' multipliers are its lag along e_j (the LCP's lag unknowns)
+    nsb, ns = island_servo(m, w, nci, nf)
+    servo_rows = r
+    for i in range(nsb):
+        kk = wv.island_servo[i]
+        for jd in range(int(servo_count(m, kk))):
+            ex, ey, et = servo_direction(jd)
+            for col in range(nci + 2 * nf):
+                if wv.column_servo[col] == i:
+                    g = wv.column_gk[col, 0] * ex + wv.column_gk[col, 1] * ey + wv.column_gk[col, 2] * et
+                    rows.append(r)
+                    cols.append(col)
+                    vals.append(g)
+            lo.append(-np.inf)
+            hi.append(h * (mv.kin_max_force[kk] if jd < SERVO_FORCE_DIRECTIONS else mv.kin_max_torque[kk]))
+            r += 1
     C = sparse.csc_matrix((vals, (rows, cols)), shape=(r, nforce))
     solver = osqp.OSQP()
     solver.setup(P=sparse.csc_matrix(np.triu(P)), q=c, A=C, l=np.array(lo), u=np.array(hi), eps_abs=OSQP_EPS,
@@ -112,9 +131,16 @@ def solve_island_osqp(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     # the QP's own primal residual, for the step diagnostics
     stats[Stat.RESIDUAL] = max(stats[Stat.RESIDUAL], float(res.info.prim_res))
     x = np.ascontiguousarray(np.maximum(x, 0.0))  # OSQP's answer is feasible to eps: remove the -eps entries
+    if nsb > 0:
+        y = np.maximum(np.asarray(res.y, dtype=float)[servo_rows:], 0.0)
+        lag = np.zeros(max(ns, 1))
+        lag[:ns] = y
+        record_servo_lag(m, w, vk, 0, nsb, lag)
+        if y.size and y.max() > 0.0:
+            stats[Stat.SERVO_LIMITED] += 1
     apply_impulses(nforce, wv.column_slot, wv.column_g, x, m, wv.v_new)
     record_impulses(m, w, nci, x, False, nci)
-    contact_velocities(m, w, opt, vk, nci)
+    contact_velocities(m, w, opt, wv.kin_velocity, nci)
     return STATUS_SOLVED
 
 
