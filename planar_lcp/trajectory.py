@@ -39,7 +39,8 @@ class Trajectory:
         (position forms: the island's normal rows in the velocity form, so that step neither corrects penetration
         nor linearizes about q + h v; docs/method.md, "Certified solves"), solved_inelastic (an island with
         restitution whose elastic LCP had no certified answer, solved with e = 0: docs/method.md, "Restitution"),
-        pgs_uncertified (no method was certified: PGS's answer was used and the step is a failure); fp_change (the
+        pgs_uncertified (no method was certified: PGS's answer was used and the step is a failure), servo_limited
+        (island solves with force-limited kinematic bodies at their limits, lagging); fp_change (the
         fixed point's last change of the linearization pose), pgs_update (PGS's largest impulse change in its last sweep: its convergence), status
         (0 ok, 1 LCP failed, 2 non-finite); of the failed LCP steps, certified_infeasible (1: an island's contact
         LCP has no solution, certified: "no rigid solution", planar_lcp.infeasibility) and unclassified (1: no such

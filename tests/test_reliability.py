@@ -210,3 +210,25 @@ def test_the_jam_set_has_both_outcomes():
         except NoRigidSolution:
             outcomes["certified infeasible"] += 1
     assert outcomes["solved"] >= 10 and outcomes["certified infeasible"] >= 10, outcomes
+
+
+@pytest.mark.parametrize("max_force", [0.1, 10.0, 1e4])
+def test_every_jam_scene_runs_to_its_end_with_a_force_limited_pusher(max_force):
+    """Issue N: the jam set with its pusher force-limited (a velocity servo): every run of every formulation goes to
+    its end, certified (no failed step), and the limit is reached in some of them: the servo's LCP has an answer
+    where the prescribed pusher's has none."""
+    limited = 0
+    for seed in range(N_JAMS):
+        data = jam_scene(seed)
+        for b in data["bodies"]:
+            if b["name"] == "pusher":
+                b["max_force"] = max_force
+        sc = parse_scene(data, f"<jam scene {data['name']}>")
+        for formulation in FORMULATIONS:
+            try:
+                tr = simulate(sc, formulation=formulation)
+            except SimulationError as e:
+                pytest.fail(f"max_force {max_force}, formulation {formulation!r}: {e}\n{scene_to_toml(data)}")
+            assert tr.stats["pgs_uncertified"].sum() == 0
+            limited += tr.stats["servo_limited"].sum() > 0
+    assert limited >= 30, limited

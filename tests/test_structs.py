@@ -33,7 +33,8 @@ def test_the_model_arrays_have_the_shapes_the_table_declares(name):
     sc = load_scene(name)
     a = compile_scene(sc).arrays
     sizes = dict(nbody=len(sc.bodies), nshape=sum(len(b.shapes) for b in sc.bodies),
-                 ndyn=sum(b.type == "dynamic" for b in sc.bodies), nvert=a.vert_local.shape[0],
+                 ndyn=sum(b.type == "dynamic" for b in sc.bodies), nkin=sum(b.type == "kinematic" for b in sc.bodies),
+                 nvert=a.vert_local.shape[0],
                  npair=a.pair_a.shape[0], nsup=a.sup_dyn.shape[0], k=a.fric_dirs.shape[0],
                  nedge=a.ls_edge.shape[0], nnode=a.ls_node.shape[0], K=sc.sim.limit_surface_twists,
                  ndisk=a.ls_disk.shape[0], ntab=a.ls_disk_table.shape[0])
