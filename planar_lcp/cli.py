@@ -530,6 +530,7 @@ def main(argv=None):
 
 
 def _run(args):
+    kept = ""
     try:
         return args.func(args)
     except Exception as e:
@@ -542,12 +543,15 @@ def _run(args):
         # saving the unfinished function to its cache) in place of the KeyboardInterrupt. Still an interrupt.
         if not _raised_while_interrupted(e):
             raise
-    except KeyboardInterrupt:
-        pass
+    except KeyboardInterrupt as e:
+        # a command that kept something (plan-bench and tradeoff: the finished runs) says what in the interrupt's
+        # message (planar_lcp.experiments.records.BenchmarkInterrupted); a plain Ctrl-C has none
+        kept = str(e)
     # Long runs return to Python often enough for this (rollouts in chunks, a flag in the planners' termination
     # condition), so Ctrl-C ends any command within about a second: one line, exit status 130 (128 + SIGINT).
     sys.stdout.flush()
-    print(f"planar-lcp {args.command}: error: interrupted (Ctrl-C); stopped", file=sys.stderr)
+    print(f"planar-lcp {args.command}: error: interrupted (Ctrl-C); stopped{' ' + kept if kept else ''}",
+          file=sys.stderr)
     return 130
 
 
