@@ -22,10 +22,10 @@ from pathlib import Path
 import numpy as np
 from ompl import base as ob
 
-from planar_lcp.experiments.cluster import (SchedulerLost, close_cluster, host_info, local_jobs, open_cluster,
-                                            retried_runs, sigint_ignored, worker_address)
-from planar_lcp.experiments.records import (RECORDS, BenchmarkInterrupted, RecordWriter, prepare, read_records,
-                                            write_text_atomic)
+from planar_lcp.experiments.cluster import (SchedulerLost, close_cluster, host_info, local_jobs, lost_scheduler_message,
+                                            open_cluster, retried_runs, sigint_ignored, worker_address)
+from planar_lcp.experiments.records import (RECORDS, STOPPED, BenchmarkInterrupted, RecordWriter, prepare, read_records,
+                                            count_finished, stopped_message, write_text_atomic)
 
 #: OMPL's planner statuses; a run's `status ENUM` column holds the value of one of them
 STATUS = ob.PlannerStatus.PlannerStatusType
@@ -319,8 +319,8 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
                 _write_outputs(out, t, planners, planned, header, where, scheduler, jobs, partial=ended)
             except Exception as w:  # noqa: BLE001 - the records are on disk; the stop's own cause is reported
                 print(f"warning: no partial summary: {w!r}", file=sys.stderr)
-        kept = (f"after {len(done)} of {len(planned)} runs: they are kept in {path} with a partial summary; the "
-                f"same command with --resume runs the other {len(planned) - len(done)}")
+        # counted on disk: a Ctrl-C can land between a record's write and its entry in `done`
+        kept = stopped_message(count_finished(path, planned, len(done)), len(planned), path, "run", "a partial summary")
         if isinstance(e, KeyboardInterrupt):
             raise BenchmarkInterrupted(kept) from None
         if isinstance(e, SchedulerLost):
@@ -366,7 +366,7 @@ def _run_on_dask(t, todo, limit, iterations, scheduler, jobs, writer, done, t0, 
             r = f.result()
         except FutureCancelledError as e:
             # not a result of the run: the client lost its scheduler, which cancels every future it holds
-            raise SchedulerLost(f"lost the Dask scheduler {scheduler or '(local)'}: {e}") from None
+            raise SchedulerLost(lost_scheduler_message(scheduler, e)) from None
         except Exception as e:  # noqa: BLE001 - e.g. KilledWorker: the run counts as crashed, not the bench
             r = _crash_record(p, seed, repr(e), float("nan"), None)
         done[(p, seed)] = writer.run((p, seed), r, time.perf_counter() - t0)
@@ -405,7 +405,7 @@ def _write_outputs(out, t, planners, planned, header, where, scheduler, jobs, pa
     budget = f"{iterations} iterations" if iterations else f"{limit:g} s"
     md = summary_markdown(t.name, rows, runs, budget, where)
     if partial:
-        md = (f"**Partial: {len(records)} of {len(planned)} runs finished** (the benchmark was {partial}); "
+        md = (f"**Partial: {len(records)} of {len(planned)} runs finished** ({STOPPED[partial]}); "
               f"`planar-lcp plan-bench ... --resume` with the same settings runs the other "
               f"{len(planned) - len(records)}.\n\n" + md)
     wrote.append(write_text_atomic(out / "summary.md", md))

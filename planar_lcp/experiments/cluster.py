@@ -22,6 +22,15 @@ def local_jobs(jobs, ntasks=None):
     return n if ntasks is None else max(1, min(n, ntasks))
 
 
+def lost_scheduler_message(scheduler, error):
+    """One line for a benchmark whose client lost its scheduler (`error`: the FutureCancelledError of a run)."""
+    where = f"at {scheduler}" if scheduler else "of the local cluster"
+    if getattr(error, "reason", None) == "scheduler-connection-lost":
+        # distributed cancels every future at once when the connection closes (and then tries to reconnect)
+        return f"lost the Dask scheduler {where}: the connection to it closed, which cancelled the runs"
+    return f"lost the Dask scheduler {where}: its runs were cancelled ({getattr(error, 'reason', error)})"
+
+
 def open_cluster(scheduler=None, jobs=1, timeout=30):
     """(client, local cluster or None): a client of the Dask scheduler at `scheduler`, or of a new local cluster of
     `jobs` worker processes, one thread each (the numba kernels and OMPL's solve() hold the GIL). A scheduler that
@@ -33,6 +42,9 @@ def open_cluster(scheduler=None, jobs=1, timeout=30):
     import logging
 
     from distributed import Client, LocalCluster
+    # the client logs its connection's errors (e.g. the reconnection's, for 30 s, when the scheduler is gone), which
+    # the commands report themselves in one line (SchedulerLost)
+    logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
     if scheduler:
         try:
             return Client(scheduler, timeout=timeout), None

@@ -29,6 +29,8 @@ from pathlib import Path
 
 #: the record file's name in a benchmark's output directory
 RECORDS = "records.jsonl"
+#: how a session that ended before its benchmark did is told in the partial outputs, by its end line's "ended"
+STOPPED = {"interrupted": "interrupted by Ctrl-C", "failed": "stopped by an error or a lost scheduler"}
 
 
 class RecordFileError(Exception):
@@ -214,7 +216,7 @@ class RecordWriter:
         self._f.close()
 
 
-def prepare(out, header, differences, resume, command):
+def prepare(out, header, differences, resume, command, unit="run"):
     """Before any work: the record file of a benchmark in `out`, checked against `header`.
 
     Parameters
@@ -231,6 +233,8 @@ def prepare(out, header, differences, resume, command):
         it anew).
     command : str
         The command's name, for the messages.
+    unit : str
+        What a record is, for the messages ("run", "setting").
 
     Returns
     -------
@@ -266,16 +270,34 @@ def prepare(out, header, differences, resume, command):
         n = None
     if n == 0:
         return None          # a header alone (a benchmark stopped before its first run): nothing to lose
-    held = "records that cannot be read" if n is None else f"{n} finished run{'s' if n != 1 else ''}"
+    held = "records that cannot be read" if n is None else f"{n} finished {unit}{'s' if n != 1 else ''}"
     raise RecordFileError(f"--out {out} holds {held} of an earlier {command} ({path}): add --resume to finish that "
                           "benchmark, or pick another --out (nothing was overwritten)")
 
 
-def write_text_atomic(path, text):
-    """Write `text` to `path` through a temporary file renamed over it: an interrupted write leaves the old file or
-    the new one, never half of one."""
+def count_finished(path, keys, otherwise):
+    """How many of the items `keys` the record file at `path` holds (`otherwise` if it cannot be read)."""
+    keys = set(keys)
+    try:
+        return sum(1 for k in read_records(path).runs if k in keys)
+    except RecordFileError:
+        return otherwise
+
+
+def stopped_message(done, planned, path, unit, outputs):
+    """What a stopped benchmark kept, for its one line: `done` of `planned` `unit`s ("run", "setting") finished, kept
+    in the record file `path` with `outputs` (what was written from them)."""
+    if not done:
+        return f"after 0 of {planned} {unit}s: none had finished"
+    return (f"after {done} of {planned} {unit}s: {'it is' if done == 1 else 'they are'} kept in {path} with "
+            f"{outputs}; the same command with --resume runs the other {planned - done}")
+
+
+def write_text_atomic(path, text, newline=None):
+    """Write `text` to `path` (with `newline` as open() takes it) through a temporary file renamed over it: an
+    interrupted write leaves the old file or the new one, never half of one."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
+    tmp.write_text(text, newline=newline)
     os.replace(tmp, path)
     return path
