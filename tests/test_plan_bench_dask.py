@@ -317,7 +317,7 @@ def test_resume_redoes_a_run_whose_line_was_cut_short_and_keeps_the_others(finis
     assert _deterministic(out) == _deterministic(done)
 
 
-@pytest.mark.slow  # about 15 s
+@pytest.mark.slow  # 15 to 30 s
 def test_a_lost_scheduler_keeps_the_finished_runs_and_resume_finishes_elsewhere(cluster, tmp_path):
     """The scheduler killed after the first run was recorded: one line naming it and what was kept, exit status 1,
     the finished runs on disk with a partial summary; --resume on a local cluster runs the others."""
