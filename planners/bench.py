@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from ompl import base as ob
 
+from planar_lcp.cli import raised_while_interrupted
 from planar_lcp.experiments.cluster import (SchedulerLost, close_cluster, host_info, local_jobs, lost_scheduler_message,
                                             open_cluster, retried_runs, sigint_ignored, worker_address)
 from planar_lcp.experiments.records import (RECORDS, STOPPED, BenchmarkInterrupted, RecordWriter, prepare, read_records,
@@ -312,7 +313,9 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
                 live["bar"].leave = False      # the interrupted bar is cleared: the command's one line stays alone
                 live["bar"].close()
             close_cluster(live["client"], live["cluster"], live["futures"], quiet=True)
-            ended = "interrupted" if isinstance(e, KeyboardInterrupt) else "failed"
+            # an error raised while a Ctrl-C was handled (e.g. by distributed, starting the cluster) is the interrupt
+            interrupted = isinstance(e, KeyboardInterrupt) or raised_while_interrupted(e)
+            ended = "interrupted" if interrupted else "failed"
             writer.end(ended, time.perf_counter() - t0, **session)
             writer.close()
             try:
@@ -321,7 +324,7 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
                 print(f"warning: no partial summary: {w!r}", file=sys.stderr)
         # counted on disk: a Ctrl-C can land between a record's write and its entry in `done`
         kept = stopped_message(count_finished(path, planned, len(done)), len(planned), path, "run", "a partial summary")
-        if isinstance(e, KeyboardInterrupt):
+        if interrupted:
             raise BenchmarkInterrupted(kept) from None
         if isinstance(e, SchedulerLost):
             raise SchedulerLost(f"{e}; stopped {kept}") from None

@@ -40,6 +40,7 @@ def open_cluster(scheduler=None, jobs=1, timeout=30):
     that took it died printing tracebacks (about 60 lines) while the command handled the interrupt itself; the
     command alone stops them (close_cluster)."""
     import logging
+    import warnings
 
     from distributed import Client, LocalCluster
     # the client logs its connection's errors (e.g. the reconnection's, for 30 s, when the scheduler is gone), which
@@ -50,6 +51,9 @@ def open_cluster(scheduler=None, jobs=1, timeout=30):
             return Client(scheduler, timeout=timeout), None
         except OSError as e:
             raise SchedulerUnreachable(f"--scheduler {scheduler}: {e}") from None
+    # without a dashboard the scheduler still serves its health and metrics pages (on 127.0.0.1), at port 8787 if it
+    # is free: another benchmark running already has it, and the warning that says so is not the command's
+    warnings.filterwarnings("ignore", message=r"Port 8787 is already in use", category=UserWarning)
     cluster = LocalCluster(n_workers=0, threads_per_worker=1, processes=True, host="127.0.0.1",
                            dashboard_address=None, silence_logs=logging.ERROR)
     client = None

@@ -35,6 +35,7 @@ import sys
 import time
 from pathlib import Path
 
+from planar_lcp.cli import raised_while_interrupted
 from planar_lcp.experiments.accuracy import table1_errors
 from planar_lcp.experiments.cluster import (SchedulerLost, SchedulerUnreachable, close_cluster, local_jobs,
                                             lost_scheduler_message, open_cluster, sigint_ignored)
@@ -243,7 +244,9 @@ def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progres
                 live["bar"].leave = False      # the interrupted bar is cleared: the command's one line stays alone
                 live["bar"].close()
             close_cluster(live["client"], live["cluster"], live["futures"], quiet=True)
-            ended = "interrupted" if isinstance(e, KeyboardInterrupt) else "failed"
+            # an error raised while a Ctrl-C was handled (e.g. by distributed, starting the cluster) is the interrupt
+            interrupted = isinstance(e, KeyboardInterrupt) or raised_while_interrupted(e)
+            ended = "interrupted" if interrupted else "failed"
             writer.end(ended, time.perf_counter() - t0)
             writer.close()
             try:
@@ -254,7 +257,7 @@ def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progres
         finished = count_finished(path, [k for k, *_ in planned], len(done))
         kept = stopped_message(finished, len(planned), path, "setting",
                                "tradeoff.csv, summary.json and the plots of their rows")
-        if isinstance(e, KeyboardInterrupt):
+        if interrupted:
             raise BenchmarkInterrupted(kept) from None
         if isinstance(e, SchedulerLost):
             raise SchedulerLost(f"{e}; stopped {kept}") from None
