@@ -98,6 +98,8 @@ def close_cluster(client, cluster, futures=(), quiet=False):
     import logging
 
     if quiet:
+        # for good, not only while closing: the event loop's thread and distributed's exit handlers still log after
+        # close() returns, and the command's one line must stay the last
         for name in ("distributed", "tornado", "asyncio"):
             logging.getLogger(name).setLevel(logging.CRITICAL + 1)
     try:
