@@ -207,6 +207,7 @@ def quick_sweep(tmp_path_factory):
     return out
 
 
+@pytest.mark.needs_jit  # the fixture's sweep
 @pytest.mark.parametrize("argv, was, got", [
     (["--quick", "--scenes", "box_push"], "scenes falling_rod", "scenes box_push"),
     (["--quick", "--scenes", "falling_rod", "box_push"], "scenes falling_rod", "scenes falling_rod box_push"),
@@ -225,6 +226,7 @@ def test_resume_of_another_sweep_is_refused_before_any_work(quick_sweep, argv, w
     assert _files(quick_sweep) == before
 
 
+@pytest.mark.needs_jit  # the fixture's sweep
 def test_a_sweep_into_an_out_holding_rows_is_refused_and_resume_rewrites_it(quick_sweep, tmp_path):
     """Without --resume an --out that holds a sweep's rows is refused (one line naming --resume and another --out,
     exit status 2, nothing overwritten); with it, a finished sweep runs nothing and writes the same outputs."""
