@@ -507,7 +507,7 @@ def build_parser():
     return p
 
 
-def _raised_while_interrupted(e):
+def raised_while_interrupted(e):
     """Whether an exception was raised while a KeyboardInterrupt was being handled (its __context__ chain)."""
     seen = set()
     while e is not None and id(e) not in seen:
@@ -519,7 +519,12 @@ def _raised_while_interrupted(e):
 
 
 def main(argv=None):
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except KeyboardInterrupt:
+        # Ctrl-C while the commands' modules load (about a second): the one line of any interrupt
+        print("planar-lcp: error: interrupted (Ctrl-C); stopped", file=sys.stderr)
+        return 130
     from planar_lcp.engine.compile_notice import announce_compilation, uninstall
     # one line on stderr before a cold numba cache's wait (nothing when the cache is warm)
     notice = announce_compilation(f"planar-lcp {args.command}")
@@ -530,6 +535,7 @@ def main(argv=None):
 
 
 def _run(args):
+    kept = ""
     try:
         return args.func(args)
     except Exception as e:
@@ -540,14 +546,17 @@ def _run(args):
             return 2
         # Ctrl-C while numba compiles: numba's clean-up then raises its own error ("no compiled object yet", while
         # saving the unfinished function to its cache) in place of the KeyboardInterrupt. Still an interrupt.
-        if not _raised_while_interrupted(e):
+        if not raised_while_interrupted(e):
             raise
-    except KeyboardInterrupt:
-        pass
+    except KeyboardInterrupt as e:
+        # a command that kept something (plan-bench and tradeoff: the finished runs) says what in the interrupt's
+        # message (planar_lcp.experiments.records.BenchmarkInterrupted); a plain Ctrl-C has none
+        kept = str(e)
     # Long runs return to Python often enough for this (rollouts in chunks, a flag in the planners' termination
     # condition), so Ctrl-C ends any command within about a second: one line, exit status 130 (128 + SIGINT).
     sys.stdout.flush()
-    print(f"planar-lcp {args.command}: error: interrupted (Ctrl-C); stopped", file=sys.stderr)
+    print(f"planar-lcp {args.command}: error: interrupted (Ctrl-C); stopped{' ' + kept if kept else ''}",
+          file=sys.stderr)
     return 130
 
 

@@ -22,8 +22,11 @@ from pathlib import Path
 import numpy as np
 from ompl import base as ob
 
-from planar_lcp.experiments.cluster import (close_cluster, host_info, local_jobs, open_cluster, retried_runs,
-                                            worker_address)
+from planar_lcp.cli import raised_while_interrupted
+from planar_lcp.experiments.cluster import (SchedulerLost, close_cluster, host_info, local_jobs, lost_scheduler_message,
+                                            open_cluster, retried_runs, sigint_ignored, worker_address)
+from planar_lcp.experiments.records import (RECORDS, STOPPED, BenchmarkInterrupted, RecordWriter, prepare, read_records,
+                                            count_finished, stopped_message, write_text_atomic)
 
 #: OMPL's planner statuses; a run's `status ENUM` column holds the value of one of them
 STATUS = ob.PlannerStatus.PlannerStatusType
@@ -142,8 +145,7 @@ def write_log(path, t, planners, records, host, cpuinfo, time_limit, total_time)
             vals = [_fmt(r.get(k)) if k else "0" for _, k in RUN_FIELDS]
             lines.append("; ".join(vals) + "; ")
         lines.append(".")
-    Path(path).write_text("\n".join(lines) + "\n")
-    return Path(path)
+    return write_text_atomic(path, "\n".join(lines) + "\n")
 
 
 def make_database(logs, db):
@@ -202,10 +204,10 @@ def box_plots(records, planners, time_limit, path, task):
     axs = fig.subplots(1, 3)
     # time: unsolved runs count at the time limit (as OMPL's plots do; with an iteration budget: at their own time)
     data_t = [[r["solve_time"] if r["exact"] or time_limit is None else time_limit for r in records
-               if r["planner"] == p] for p in planners]
+               if r["planner"] == p] or [np.nan] for p in planners]
     data_d = [[r["path_duration"] for r in records if r["planner"] == p and r["exact"]] or [np.nan]
               for p in planners]
-    data_s = [[r["steps_per_second"] for r in records if r["planner"] == p] for p in planners]
+    data_s = [[r["steps_per_second"] for r in records if r["planner"] == p] or [np.nan] for p in planners]
     for ax, data, lab in ((axs[0], data_t, "time to exact solution [s]\n(unsolved = time limit)"),
                           (axs[1], data_d, "path duration [s] (exact runs)"),
                           (axs[2], data_s, "simulated steps per second")):
@@ -218,77 +220,220 @@ def box_plots(records, planners, time_limit, path, task):
     fig.savefig(path)
 
 
-def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iterations=None, scheduler=None):
+def bench_header(t, planners, runs, time_limit, iterations):
+    """The record file's header of a benchmark: what --resume compares (the task by name and by its document's
+    hash, the planners as a set, the runs, the budget)."""
+    return dict(command="plan-bench", task=t.name, task_sha256=t.sha256, task_source=t.source, planners=list(planners),
+                runs=runs, time_limit=time_limit, iterations=iterations)
+
+
+def _budget(h):
+    return (f"a budget of {h.get('iterations')} iterations per run" if h.get("iterations")
+            else f"a budget of {h.get('time_limit'):g} s per run" if isinstance(h.get("time_limit"), (int, float))
+            else f"a budget of {h.get('time_limit')!r}")
+
+
+def header_differences(old, new):
+    """What differs between the benchmark a record file was written for (`old`, its header) and the one asked
+    (`new`): a list of (the file's, the command's) phrases, empty for the same benchmark."""
+    if old.get("command") != new["command"]:
+        return [(f"planar-lcp {old.get('command')}", f"planar-lcp {new['command']}")]
+    out = []
+    if old.get("task") != new["task"]:
+        out.append((f"task '{old.get('task')}'", f"task '{new['task']}'"))
+    elif old.get("task_sha256") != new["task_sha256"]:
+        out.append((f"task '{old['task']}' as its file read then (document sha256 {str(old.get('task_sha256'))[:12]})",
+                    f"the task file as it reads now ({new['task_source']}: document sha256 "
+                    f"{new['task_sha256'][:12]})"))
+    if sorted(old.get("planners") or []) != sorted(new["planners"]):
+        out.append((f"planners {', '.join(old.get('planners') or [])}", f"planners {', '.join(new['planners'])}"))
+    if old.get("runs") != new["runs"]:
+        out.append((f"{old.get('runs')} runs per planner", f"{new['runs']} runs per planner"))
+    if (old.get("time_limit"), old.get("iterations")) != (new["time_limit"], new["iterations"]):
+        out.append((_budget(old), _budget(new)))
+    return out
+
+
+def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iterations=None, scheduler=None,
+              resume=False):
     """Run the benchmark of `task` (a Task, a shipped task's name or a task file; each worker gets the validated
     Task itself) with a time limit or, with `iterations`, an iteration budget per run, on Dask; write the log,
-    database, summaries and box plots into `out`. Returns the summary rows."""
-    from distributed import as_completed
-    from tqdm import tqdm
+    database, summaries and box plots into `out`. Returns the summary rows.
 
+    Each finished run is appended to `out`/records.jsonl as its result arrives (planar_lcp.experiments.records),
+    and the outputs are made from those records: at the end, and also when Ctrl-C, a lost scheduler or an error
+    stops the benchmark (then partial: they say how many runs finished of how many). `resume`: the runs already
+    in the record file are kept and only the others run; the file must be of the same benchmark (task, planners,
+    runs, budget), which is checked before any work, as is, without `resume`, that the file holds no run.
+
+    Raises
+    ------
+    RecordFileError
+        Before any work: the record file is of another benchmark (`resume`) or holds runs (not `resume`).
+    BenchmarkInterrupted
+        Ctrl-C: the cluster stopped, the finished runs kept with partial outputs; its message says what was kept.
+    SchedulerLost
+        The scheduler went away during the benchmark; the finished runs are kept as after Ctrl-C.
+    """
     from .tasks import load_task
 
     t = load_task(task)
-    task = t.name
     out = Path(out)
-    jobs = local_jobs(jobs, runs * len(planners))
     limit = None if iterations else float(time_limit)
-    todo = [(t, p, s, limit, iterations) for s in range(1, runs + 1) for p in planners]
-    t0 = time.perf_counter()
-    records = []
-    client, cluster = open_cluster(scheduler, jobs)
-    workers_at_start = set(client.scheduler_info()["workers"])
-    print(f"cluster        {scheduler or 'local'}: {len(workers_at_start)} worker(s) "
-          f"({', '.join(sorted(workers_at_start))})", flush=True)
-    futs = []
-    try:
-        # pure=False: every run is its own task, even with equal arguments. A run whose worker is lost is run again
-        # on another by the scheduler itself (up to Dask's distributed.scheduler.allowed-failures times)
-        futs = [client.submit(_run_one, *a, pure=False) for a in todo]
-        args_of = {f.key: a for f, a in zip(futs, todo)}
-        with tqdm(total=len(futs), desc=f"plan-bench {task}", unit="run") as bar:
-            for f in as_completed(futs):
-                try:
-                    r = f.result()
-                except Exception as e:  # noqa: BLE001 - e.g. KilledWorker: the run counts as crashed, not the bench
-                    _, p, seed, _, _ = args_of[f.key]
-                    r = _crash_record(p, seed, repr(e), float("nan"), None)
-                records.append(r)
-                bar.set_postfix_str(f"{r['planner']} seed {r['seed']}: {'exact' if r['exact'] else 'no'}")
-                bar.update()
-        retried = retried_runs(client, [f.key for f in futs])
-        lost = sorted(workers_at_start - set(client.scheduler_info()["workers"]))
-    except KeyboardInterrupt:
-        # cancel what is queued or running, stop the local workers now (a run holds its worker up to --time)
-        close_cluster(client, cluster, futs)
-        raise
-    close_cluster(client, cluster)
-    total = time.perf_counter() - t0
-    records.sort(key=lambda r: (planners.index(r["planner"]), r["seed"]))
-    # OMPL's log has a time limit per run; with an iteration budget, the longest run's time stands for it
-    logs = write_logs(out, t, planners, records, limit if limit is not None else
-                      max((r["solve_time"] for r in records), default=0.0), total)
-    wrote = list(logs)
-    try:
-        wrote.append(make_database(logs, out / f"{task}.db"))
-    except (RuntimeError, OSError) as e:
-        print(f"warning: no database: {e}", file=sys.stderr)
-    rows = summarize(records, planners, limit)
-    budget = f"{iterations} iterations" if iterations else f"{limit:g} s"
+    header = bench_header(t, planners, runs, limit, iterations)
+    previous = prepare(out, header, header_differences, resume, "plan-bench")     # before any work
+    planned = [(p, s) for s in range(1, runs + 1) for p in planners]
+    done = {k: r for k, r in (previous.runs.items() if previous else ()) if k in set(planned)}
+    todo = [k for k in planned if k not in done]
+    # the local cluster as an uninterrupted benchmark sizes it (one worker per run at most), so that a resumed
+    # benchmark's summary says the same
+    jobs = local_jobs(jobs, len(planned))
     where = f"the Dask cluster at {scheduler}" if scheduler else f"{jobs} worker processes"
-    md = summary_markdown(task, rows, runs, budget, where)
-    (out / "summary.md").write_text(md)
-    hosts = {r["host"]: r["cpuinfo"] for r in records if r.get("host")}
-    (out / "summary.json").write_text(json.dumps(dict(
-        task=task, task_source=t.source, task_sha256=t.sha256, runs=runs, time_limit=limit, iterations=iterations, jobs=None if scheduler else jobs,
-        scheduler=scheduler or "local", workers=sorted({r["worker"] for r in records if r["worker"]}),
-        lost_workers=lost, retried_runs=retried, total_time=total, hosts=hosts, summary=rows,
-        records=[{k: v for k, v in r.items() if k != "cpuinfo"} for r in records]), indent=1))
-    box_plots(records, planners, limit, out / "boxplots.png", task)
-    wrote += [out / "summary.md", out / "summary.json", out / "boxplots.png"]
+    path = out / RECORDS
+    if previous is not None:
+        print(f"resume         {path}: {len(done)} of {len(planned)} runs finished before; "
+              + (f"running the other {len(todo)}" if todo else "nothing left to run: writing the outputs"), flush=True)
+        if previous.torn:
+            print(f"note           {previous.torn}", flush=True)
+    elif resume:
+        print(f"resume         {path}: no record file yet; running every run", flush=True)
+    writer = RecordWriter(path, header, resume=previous)
+    t0 = time.perf_counter()
+    session = dict(lost_workers=[], retried_runs=0)
+    live = dict(client=None, cluster=None, futures=[], bar=None)       # what _run_on_dask opened, to close
+    try:
+        if todo:
+            _run_on_dask(t, todo, limit, iterations, scheduler, jobs, writer, done, t0, session, live)
+            close_cluster(live["client"], live["cluster"])
+    except BaseException as e:
+        # Ctrl-C, a lost scheduler, any error: stop the runs quietly and leave the finished ones with a summary of
+        # what ran; a second Ctrl-C meanwhile would cut that short, so it waits (seconds)
+        with sigint_ignored():
+            if live["bar"] is not None:
+                live["bar"].leave = False      # the interrupted bar is cleared: the command's one line stays alone
+                live["bar"].close()
+            close_cluster(live["client"], live["cluster"], live["futures"], quiet=True)
+            # an error raised while a Ctrl-C was handled (e.g. by distributed, starting the cluster) is the interrupt
+            interrupted = isinstance(e, KeyboardInterrupt) or raised_while_interrupted(e)
+            ended = "interrupted" if interrupted else "failed"
+            writer.end(ended, time.perf_counter() - t0, **session)
+            writer.close()
+            try:
+                _write_outputs(out, t, planners, planned, header, where, scheduler, jobs, partial=ended)
+            except Exception as w:  # noqa: BLE001 - the records are on disk; the stop's own cause is reported
+                print(f"warning: no partial summary: {w!r}", file=sys.stderr)
+        # counted on disk: a Ctrl-C can land between a record's write and its entry in `done`
+        kept = stopped_message(count_finished(path, planned, len(done)), len(planned), path, "run", "a partial summary")
+        if interrupted:
+            raise BenchmarkInterrupted(kept) from None
+        if isinstance(e, SchedulerLost):
+            raise SchedulerLost(f"{e}; stopped {kept}") from None
+        raise
+    if live["bar"] is not None:
+        live["bar"].close()
+    writer.end("complete", time.perf_counter() - t0, **session)
+    writer.close()
+    rows, md, wrote = _write_outputs(out, t, planners, planned, header, where, scheduler, jobs)
     print(md)
+    lost, retried = session["lost_workers"], session["retried_runs"]
     if lost or retried:
         print(f"{len(lost)} worker(s) lost during the benchmark ({', '.join(lost) or 'none'}); {retried} run(s) "
               "were run again on another worker; every run completed")
     for w in wrote:
         print(f"wrote {w}")
     return rows
+
+
+def _run_on_dask(t, todo, limit, iterations, scheduler, jobs, writer, done, t0, session, live):
+    """Submit the runs `todo` ((planner, seed) each) and append each finished run to the record file (`writer`) and
+    to `done` as it arrives; the lost workers and retried runs go to `session`. What it opens (client, cluster,
+    futures, progress bar) goes to `live` as soon as it exists: the caller closes it, also after Ctrl-C."""
+    from distributed import as_completed
+    from distributed.client import FutureCancelledError
+    from tqdm import tqdm
+
+    client, cluster = live["client"], live["cluster"] = open_cluster(scheduler, jobs)
+    workers_at_start = set(client.scheduler_info()["workers"])
+    print(f"cluster        {scheduler or 'local'}: {len(workers_at_start)} worker(s) "
+          f"({', '.join(sorted(workers_at_start))})", flush=True)
+    # pure=False: every run is its own task, even with equal arguments. A run whose worker is lost is run again on
+    # another by the scheduler itself (up to Dask's distributed.scheduler.allowed-failures times)
+    futs = live["futures"] = [client.submit(_run_one, t, p, s, limit, iterations, pure=False) for p, s in todo]
+    key_of = {f.key: k for f, k in zip(futs, todo)}
+    # on a terminal only (disable=None): a log or a pipe gets no bar frames
+    bar = live["bar"] = tqdm(total=len(done) + len(todo), initial=len(done), desc=f"plan-bench {t.name}",
+                             unit="run", disable=None)
+    for f in as_completed(futs):
+        p, seed = key_of[f.key]
+        try:
+            r = f.result()
+        except FutureCancelledError as e:
+            # not a result of the run: the client lost its scheduler, which cancels every future it holds
+            raise SchedulerLost(lost_scheduler_message(scheduler, e)) from None
+        except Exception as e:  # noqa: BLE001 - e.g. KilledWorker: the run counts as crashed, not the bench
+            r = _crash_record(p, seed, repr(e), float("nan"), None)
+        done[(p, seed)] = writer.run((p, seed), r, time.perf_counter() - t0)
+        bar.set_postfix_str(f"{p} seed {seed}: {'exact' if r['exact'] else 'no'}")
+        bar.update()
+    session["retried_runs"] = retried_runs(client, [f.key for f in futs])
+    session["lost_workers"] = sorted(workers_at_start - set(client.scheduler_info()["workers"]))
+
+
+def _write_outputs(out, t, planners, planned, header, where, scheduler, jobs, partial=None):
+    """The log(s), database, summary.md, summary.json and box plots of the runs in the record file `out`/records.jsonl,
+    in this command's planner order; `partial` ("interrupted", "failed"): the benchmark stopped before its end, and
+    the summaries say how many runs finished of how many. Returns (summary rows, summary.md's text, paths
+    written)."""
+    contents = read_records(out / RECORDS)
+    planned_set = set(planned)
+    records = [r for k, r in contents.runs.items() if k in planned_set]
+    records.sort(key=lambda r: (planners.index(r["planner"]), r["seed"]))
+    limit, iterations, runs = header["time_limit"], header["iterations"], header["runs"]
+    total = sum(contents.session_times().values())
+    ends = list(contents.sessions.values())
+    lost = sorted({w for e in ends for w in e["info"].get("lost_workers", [])})
+    retried = sum(e["info"].get("retried_runs", 0) for e in ends)
+    wrote = []
+    # OMPL's log has a time limit per run; with an iteration budget, the longest run's time stands for it
+    logs = write_logs(out, t, planners, records, limit if limit is not None else
+                      max((r["solve_time"] for r in records), default=0.0), total) if records else []
+    _remove_stale_logs(out, logs)
+    wrote += logs
+    if logs:
+        try:
+            wrote.append(make_database(logs, out / f"{t.name}.db"))
+        except (RuntimeError, OSError) as e:
+            print(f"warning: no database: {e}", file=sys.stderr)
+    rows = summarize(records, planners, limit)
+    budget = f"{iterations} iterations" if iterations else f"{limit:g} s"
+    md = summary_markdown(t.name, rows, runs, budget, where)
+    if partial:
+        md = (f"**Partial: {len(records)} of {len(planned)} runs finished** ({STOPPED[partial]}); "
+              f"`planar-lcp plan-bench ... --resume` with the same settings runs the other "
+              f"{len(planned) - len(records)}.\n\n" + md)
+    wrote.append(write_text_atomic(out / "summary.md", md))
+    hosts = {r["host"]: r["cpuinfo"] for r in records if r.get("host")}
+    wrote.append(write_text_atomic(out / "summary.json", json.dumps(dict(
+        task=t.name, task_source=t.source, task_sha256=t.sha256, runs=runs, time_limit=limit, iterations=iterations,
+        jobs=None if scheduler else jobs, scheduler=scheduler or "local",
+        workers=sorted({r["worker"] for r in records if r["worker"]}), lost_workers=lost, retried_runs=retried,
+        total_time=total, planned_runs=len(planned), finished_runs=len(records), complete=not partial,
+        sessions=contents.last_session, records_file=RECORDS, logs=[p.name for p in logs], hosts=hosts,
+        summary=rows, records=[{k: v for k, v in r.items() if k != "cpuinfo"} for r in records]), indent=1)))
+    if records:
+        box_plots(records, planners, limit, out / "boxplots.png", t.name)
+        wrote.append(out / "boxplots.png")
+    return rows, md, wrote
+
+
+def _remove_stale_logs(out, logs):
+    """Remove the logs an earlier write of this benchmark's outputs listed (summary.json's "logs") that this one
+    does not write: a benchmark resumed on more hosts has one log per host, not the one of the first hosts alone."""
+    try:
+        before = json.loads((out / "summary.json").read_text()).get("logs") or []
+    except (OSError, ValueError, AttributeError):
+        return
+    keep = {Path(p).name for p in logs}
+    for name in before:
+        if isinstance(name, str) and name not in keep and Path(name).name == name and name.endswith(".log"):
+            (out / name).unlink(missing_ok=True)

@@ -49,7 +49,8 @@ def register(sub):
         "plan-bench", help="benchmark planners on a task (Dask, OMPL benchmark log and database)",
         description="Run each planner --runs times with seeds 1..N as Dask tasks, on the cluster at --scheduler or "
                     "on a local cluster of --jobs worker processes (127.0.0.1); write an OMPL benchmark log, its "
-                    "SQLite database, summary.md / summary.json and box plots into --out."))
+                    "SQLite database, summary.md / summary.json and box plots into --out. Each finished run is kept "
+                    "in --out as it arrives: after Ctrl-C or a lost scheduler, --resume finishes the benchmark."))
     b.add_argument("task", metavar="TASK", help=TASK_HELP)
     b.add_argument("--planners", nargs="+", default=list(PLANNERS), metavar="NAME",
                    help=f"planners to compare (default: all of {', '.join(PLANNERS)})")
@@ -65,6 +66,10 @@ def register(sub):
                    help="run on the Dask cluster at ADDRESS (e.g. tcp://127.0.0.1:8786) instead of a local one "
                         "(docs/planning.md: a one-machine and a multi-machine recipe, and how to secure it)")
     b.add_argument("--out", default=None, metavar="DIR", help="output directory (default ./bench_TASK)")
+    b.add_argument("--resume", action="store_true",
+                   help="finish the benchmark whose finished runs --out holds (records.jsonl, written as each run "
+                        "finishes): only the missing runs run; the task, planners, --runs and budget must be the "
+                        "same")
     b.set_defaults(func=cmd_bench)
 
 
@@ -163,7 +168,8 @@ def cmd_replay(args):
 
 def cmd_bench(args):
     from planar_lcp.cli import require
-    from planar_lcp.experiments.cluster import SchedulerUnreachable
+    from planar_lcp.experiments.cluster import SchedulerLost, SchedulerUnreachable
+    from planar_lcp.experiments.records import RecordFileError
 
     require("distributed")                 # the runs are Dask tasks: checked before any work
     from .bench import run_bench
@@ -175,6 +181,9 @@ def cmd_bench(args):
             check_planner(p)
     except TaskError as e:
         return _err("plan-bench", e)
+    if len(set(args.planners)) != len(args.planners):
+        # a run is named by its planner and seed (records.jsonl, --resume)
+        return _err("plan-bench", f"--planners must be distinct, got {' '.join(args.planners)}")
     if args.time is not None and args.iterations is not None:
         return _err("plan-bench", f"give --time or --iterations, not both: got --time {args.time:g} and "
                                   f"--iterations {args.iterations}")
@@ -187,7 +196,9 @@ def cmd_bench(args):
         return _err("plan-bench", f"--out {out}: cannot create the directory ({e.strerror or e})")
     try:
         run_bench(task, args.planners, runs=args.runs, time_limit=task.time if args.time is None else args.time,
-                  jobs=args.jobs, out=out, iterations=args.iterations, scheduler=args.scheduler)
-    except SchedulerUnreachable as e:
+                  jobs=args.jobs, out=out, iterations=args.iterations, scheduler=args.scheduler, resume=args.resume)
+    except RecordFileError as e:
+        return _err("plan-bench", e)               # checked before any work: nothing was written
+    except (SchedulerUnreachable, SchedulerLost) as e:
         return _err("plan-bench", str(e), 1)
     return 0

@@ -50,3 +50,45 @@ def interrupt_cli(args, started, tmp_path, wait=1.0):
     finally:
         if p.poll() is None:
             p.kill()
+
+
+def ctrl_c_cli(args, ready, cwd, timeout=300):
+    """Run `planar-lcp ARGS` in a process group of its own, wait until `ready()` is true, then press Ctrl-C as a
+    terminal does: SIGINT to the whole foreground group, the command and every process it started (a local Dask
+    cluster's workers too). Returns a subprocess.CompletedProcess (returncode, stdout, stderr) with `seconds` from
+    the signal to the exit and `group_left`: whether any process of the group outlived the command by 10 s."""
+    p = subprocess.Popen(CLI + [str(a) for a in args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         cwd=cwd, env=cli_env(PYTHONUNBUFFERED="1"), start_new_session=True)
+    try:
+        t0 = time.monotonic()
+        while not ready():
+            if p.poll() is not None:
+                out, err = p.communicate()
+                raise AssertionError(f"the command ended (exit status {p.returncode}) before it was ready to be "
+                                     f"interrupted\n{out[-3000:]}\n{err[-3000:]}")
+            assert time.monotonic() - t0 < timeout, "never ready to be interrupted"
+            time.sleep(0.05)
+        assert p.poll() is None, "the command finished before it could be interrupted"
+        t1 = time.perf_counter()
+        os.killpg(p.pid, signal.SIGINT)
+        out, err = p.communicate(timeout=60)
+        seconds = time.perf_counter() - t1
+        t2 = time.monotonic()
+        group_left = True
+        while time.monotonic() - t2 < 10:
+            try:
+                os.killpg(p.pid, 0)          # any process left in the group?
+            except ProcessLookupError:
+                group_left = False
+                break
+            time.sleep(0.1)
+        r = subprocess.CompletedProcess(p.args, p.returncode, out, err)
+        r.seconds, r.group_left = seconds, group_left
+        return r
+    finally:
+        if p.poll() is None:
+            p.kill()
+        try:
+            os.killpg(p.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass

@@ -348,28 +348,50 @@ def test_replay_pymunk(plan_file, tmp_path):
     assert r.returncode == (0 if holds else 1)
 
 
+def check_records(p, runs):
+    """A record file (planar_lcp.experiments.records): every line JSON, a header first, `runs` runs."""
+    lines = [json.loads(line) for line in Path(p).read_text().splitlines()]
+    assert "header" in lines[0] and sum(1 for line in lines if "run" in line) == runs, p
+    return lines
+
+
 @covers("plan-bench")
 def test_plan_bench(tmp_path):
     out = tmp_path / "pb"
-    r = run_cli("plan-bench", "tip_box", "--planners", "RRT", "--runs", "1", "--time", "3", "--jobs", "1", "--out", out,
-            cwd=tmp_path)
+    argv = ["plan-bench", "tip_box", "--planners", "RRT", "--runs", "1", "--time", "3", "--jobs", "1", "--out", out]
+    r = run_cli(*argv, cwd=tmp_path)
     ok(r)
-    check_dir(out, ["tip_box.log", "tip_box.db", "summary.md", "summary.json", "boxplots.png"])
+    check_dir(out, ["tip_box.log", "tip_box.db", "summary.md", "summary.json", "boxplots.png", "records.jsonl"])
     d = check_json(out / "summary.json", ["task", "runs", "time_limit", "summary", "records"])
     assert d["task"] == "tip_box" and d["runs"] == 1 and len(d["records"]) == 1
     assert [s["planner"] for s in d["summary"]] == ["RRT"]
     check_text(out / "tip_box.log", "RRT")
+    check_records(out / "records.jsonl", 1)
+    # [--resume]: the benchmark is finished, so nothing runs and the outputs are written again from its records
+    r = run_cli(*argv, "--resume", cwd=tmp_path)
+    ok(r)
+    assert "1 of 1 runs finished before; nothing left to run" in r.stdout and "cluster" not in r.stdout
+    assert check_json(out / "summary.json", ["records"])["records"] == d["records"]
+    check_dir(out, ["tip_box.log", "tip_box.db", "summary.md", "summary.json", "boxplots.png", "records.jsonl"])
 
 
 @covers("tradeoff")
 def test_tradeoff_quick(tmp_path):
     out = tmp_path / "to"
-    r = run_cli("tradeoff", "--quick", "--scenes", "falling_rod", "--out", out, "--no-progress", cwd=tmp_path)
+    argv = ["tradeoff", "--quick", "--scenes", "falling_rod", "--out", out, "--no-progress"]
+    r = run_cli(*argv, cwd=tmp_path)
     ok(r)
-    check_dir(out, ["tradeoff.csv", "pareto_falling_rod.png"])
+    check_dir(out, ["tradeoff.csv", "pareto_falling_rod.png", "summary.json", "records.jsonl"])
     header, rows = check_csv(out / "tradeoff.csv", first="scene",
                              numeric=["h", "velocity_error", "max_penetration", "cpu_s_per_sim_s"])
     assert {row[0] for row in rows} == {"falling_rod"} and len(rows) >= 2
+    check_records(out / "records.jsonl", len(rows))
+    assert check_json(out / "summary.json", ["complete"])["complete"] is True
+    # [--resume]: the sweep is finished, so nothing runs and the same CSV is written again from its records
+    csv_before = (out / "tradeoff.csv").read_bytes()
+    r = run_cli(*argv, "--resume", cwd=tmp_path)
+    ok(r)
+    assert "nothing left to run" in r.stdout and (out / "tradeoff.csv").read_bytes() == csv_before
 
 
 @covers("bench")

@@ -1,6 +1,7 @@
 """planar-lcp tradeoff: the sweep's measurements and the Pareto front."""
 
 import csv
+import json
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -178,3 +179,112 @@ def test_quick_sweep_writes_csv_and_plots(tmp_path, capsys):
 def test_unknown_scene_is_an_error(capsys):
     assert main(["tradeoff", "--quick", "--scenes", "nosuch"]) == 2
     assert "unknown scene 'nosuch'" in capsys.readouterr().err
+
+
+# --- issue N: a sweep that loses nothing (records.jsonl, --resume, Ctrl-C) ---------------------------------------
+
+#: the CSV columns a setting's seed-free simulation decides (all but the cost, a clock's)
+DETERMINISTIC_COLUMNS = [c for c in DOCUMENTED_COLUMNS if c != "cpu_s_per_sim_s"]
+
+
+def _csv_rows(out):
+    with open(out / "tradeoff.csv", newline="") as f:
+        return [tuple(r[c] for c in DETERMINISTIC_COLUMNS) for r in csv.DictReader(f)]
+
+
+def _files(out):
+    return {p.name: (p.read_bytes(), p.stat().st_mtime_ns) for p in sorted(out.iterdir())}
+
+
+@pytest.fixture(scope="module")
+def quick_sweep(tmp_path_factory):
+    """A finished `tradeoff --quick --scenes falling_rod` (seconds): its --out."""
+    pytest.importorskip("distributed")
+    from cli_helpers import run_cli
+    out = tmp_path_factory.mktemp("quick_sweep") / "out"
+    r = run_cli("tradeoff", "--quick", "--scenes", "falling_rod", "--jobs", "2", "--no-progress", "--out", out)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+@pytest.mark.needs_jit  # the fixture's sweep
+@pytest.mark.parametrize("argv, was, got", [
+    (["--quick", "--scenes", "box_push"], "scenes falling_rod", "scenes box_push"),
+    (["--quick", "--scenes", "falling_rod", "box_push"], "scenes falling_rod", "scenes falling_rod box_push"),
+    (["--scenes", "falling_rod"], "the --quick sweep", "the full sweep (no --quick)"),
+])
+def test_resume_of_another_sweep_is_refused_before_any_work(quick_sweep, argv, was, got):
+    """Issue N, item 5: --resume with other scenes or without --quick: one line naming the file and the difference
+    (the file's and the command's), exit status 2, nothing written."""
+    from cli_helpers import run_cli
+    before = _files(quick_sweep)
+    r = run_cli("tradeoff", *argv, "--resume", "--no-progress", "--out", quick_sweep)
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr == (f"planar-lcp tradeoff: error: --resume: {quick_sweep / 'records.jsonl'} was written for {was}; "
+                        f"got {got} (give the benchmark's own settings to finish it, or another --out for a new "
+                        "benchmark)\n"), r.stderr
+    assert _files(quick_sweep) == before
+
+
+@pytest.mark.needs_jit  # the fixture's sweep
+def test_a_sweep_into_an_out_holding_rows_is_refused_and_resume_rewrites_it(quick_sweep, tmp_path):
+    """Without --resume an --out that holds a sweep's rows is refused (one line naming --resume and another --out,
+    exit status 2, nothing overwritten); with it, a finished sweep runs nothing and writes the same outputs."""
+    import shutil
+
+    from cli_helpers import run_cli
+    before = _files(quick_sweep)
+    argv = ["tradeoff", "--quick", "--scenes", "falling_rod", "--no-progress"]
+    r = run_cli(*argv, "--out", quick_sweep)
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr == (f"planar-lcp tradeoff: error: --out {quick_sweep} holds 4 finished settings of an earlier "
+                        f"tradeoff ({quick_sweep / 'records.jsonl'}): add --resume to finish that benchmark, or pick "
+                        "another --out (nothing was overwritten)\n"), r.stderr
+    assert _files(quick_sweep) == before
+    out = tmp_path / "out"
+    shutil.copytree(quick_sweep, out)
+    r = run_cli(*argv, "--resume", "--out", out)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith(f"resume: {out / 'records.jsonl'}: 4 of 4 settings finished before; nothing left to "
+                               "run: writing the outputs\n"), r.stdout
+    assert (out / "tradeoff.csv").read_bytes() == (quick_sweep / "tradeoff.csv").read_bytes()
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["planned_settings"], summary["finished_settings"], summary["complete"]) == (4, 4, True)
+
+
+@pytest.mark.slow  # about 70 s: the full falling_rod sweep interrupted, its --resume and an uninterrupted one
+def test_ctrl_c_keeps_the_finished_settings_and_resume_ends_as_an_uninterrupted_sweep(tmp_path):
+    """Issue N, item 4, for the trade-off sweep: Ctrl-C (at a terminal: the whole process group) after the first row
+    is recorded leaves the finished rows on disk with a partial CSV, summary and plot and prints one line, no worker
+    traceback; --resume runs only the others and ends with the rows of an uninterrupted sweep."""
+    import re
+
+    pytest.importorskip("distributed")
+    from cli_helpers import ctrl_c_cli, run_cli
+    argv = ["tradeoff", "--scenes", "falling_rod", "--jobs", "2"]
+    out = tmp_path / "out"
+    rec = out / "records.jsonl"
+    r = ctrl_c_cli([*argv, "--out", out], lambda: rec.exists() and '"run"' in rec.read_text(), tmp_path)
+    assert r.returncode == 130, r.stderr
+    lines = r.stderr.splitlines()
+    m = re.fullmatch(r"planar-lcp tradeoff: error: interrupted \(Ctrl-C\); stopped after (\d+) of 75 settings: (it "
+                     rf"is|they are) kept in {re.escape(str(rec))} with tradeoff.csv, summary.json and the plots of "
+                     r"their rows; the same command with --resume runs the other \d+", lines[0])
+    assert len(lines) == 1 and m, r.stderr
+    assert "Traceback" not in r.stdout + r.stderr and "distributed" not in r.stdout + r.stderr
+    assert r.seconds < 10.0 and not r.group_left
+    n = int(m.group(1))
+    assert 1 <= n < 75 and len(_csv_rows(out)) == n
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["planned_settings"], summary["finished_settings"], summary["complete"], summary["stopped"]) == (
+        75, n, False, "interrupted by Ctrl-C")
+    assert (out / "pareto_falling_rod.png").stat().st_size > 10000
+    resumed = run_cli(*argv, "--no-progress", "--resume", "--out", out)
+    assert resumed.returncode == 0, resumed.stderr
+    assert resumed.stdout.startswith(f"resume: {rec}: {n} of 75 settings finished before; running the other "
+                                     f"{75 - n}\n"), resumed.stdout
+    whole = run_cli(*argv, "--no-progress", "--out", tmp_path / "whole")
+    assert whole.returncode == 0, whole.stderr
+    assert _csv_rows(out) == _csv_rows(tmp_path / "whole") and len(_csv_rows(out)) == 75
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in (tmp_path / "whole").iterdir())
+    assert json.loads((out / "summary.json").read_text())["complete"] is True

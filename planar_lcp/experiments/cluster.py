@@ -2,11 +2,17 @@
 "Distributed benchmarks"): an existing one at a scheduler's address, or a local one started and stopped here,
 listening on 127.0.0.1 only and without a dashboard. `distributed` is imported inside the functions."""
 
+import contextlib
 import os
 
 
 class SchedulerUnreachable(OSError):
     """No Dask scheduler answered at the address given (--scheduler)."""
+
+
+class SchedulerLost(OSError):
+    """The Dask scheduler went away during a benchmark (its process or machine gone): the client's futures were
+    cancelled. The message says what the benchmark kept."""
 
 
 def local_jobs(jobs, ntasks=None):
@@ -16,30 +22,130 @@ def local_jobs(jobs, ntasks=None):
     return n if ntasks is None else max(1, min(n, ntasks))
 
 
+def lost_scheduler_message(scheduler, error):
+    """One line for a benchmark whose client lost its scheduler (`error`: the FutureCancelledError of a run)."""
+    where = f"at {scheduler}" if scheduler else "of the local cluster"
+    if getattr(error, "reason", None) == "scheduler-connection-lost":
+        # distributed cancels every future at once when the connection closes (and then tries to reconnect)
+        return f"lost the Dask scheduler {where}: the connection to it closed, which cancelled the runs"
+    return f"lost the Dask scheduler {where}: its runs were cancelled ({getattr(error, 'reason', error)})"
+
+
 def open_cluster(scheduler=None, jobs=1, timeout=30):
     """(client, local cluster or None): a client of the Dask scheduler at `scheduler`, or of a new local cluster of
     `jobs` worker processes, one thread each (the numba kernels and OMPL's solve() hold the GIL). A scheduler that
-    does not answer within `timeout` s raises SchedulerUnreachable (distributed's own OSError, named)."""
+    does not answer within `timeout` s raises SchedulerUnreachable (distributed's own OSError, named).
+
+    The local workers ignore SIGINT: Ctrl-C at a terminal signals the whole foreground process group, and workers
+    that took it died printing tracebacks (about 60 lines) while the command handled the interrupt itself; the
+    command alone stops them (close_cluster)."""
     import logging
+    import warnings
 
     from distributed import Client, LocalCluster
+    # the client logs its connection's errors (e.g. the reconnection's, for 30 s, when the scheduler is gone), which
+    # the commands report themselves in one line (SchedulerLost)
+    logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
     if scheduler:
         try:
             return Client(scheduler, timeout=timeout), None
         except OSError as e:
             raise SchedulerUnreachable(f"--scheduler {scheduler}: {e}") from None
-    cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, host="127.0.0.1",
+    # without a dashboard the scheduler still serves its health and metrics pages (on 127.0.0.1), at port 8787 if it
+    # is free: another benchmark running already has it, and the warning that says so is not the command's
+    warnings.filterwarnings("ignore", message=r"Port 8787 is already in use", category=UserWarning)
+    cluster = LocalCluster(n_workers=0, threads_per_worker=1, processes=True, host="127.0.0.1",
                            dashboard_address=None, silence_logs=logging.ERROR)
-    return Client(cluster), cluster
+    client = None
+    try:
+        _spawn_ignoring_sigint(cluster, jobs, timeout)
+        client = Client(cluster)
+        client.wait_for_workers(jobs, timeout=timeout)
+    except BaseException:
+        close_cluster(client, cluster, quiet=True)
+        raise
+    return client, cluster
 
 
-def close_cluster(client, cluster, futures=()):
-    """Cancel `futures` (if any still run), close the client and stop a local cluster."""
-    if futures:
-        client.cancel(list(futures), force=True)
-    client.close()
-    if cluster is not None:
-        cluster.close()
+def _spawn_ignoring_sigint(cluster, jobs, timeout):
+    """Start the `jobs` worker processes of `cluster` with SIGINT ignored, a disposition a child process inherits
+    and keeps (Python installs its KeyboardInterrupt handler only over the default one). This process ignores it
+    only until the processes exist (milliseconds: the cluster's event-loop thread starts them), not until they
+    connect (a second or more), so that a Ctrl-C meanwhile is not lost."""
+    import multiprocessing
+    import signal
+    import threading
+    import time
+
+    if threading.current_thread() is not threading.main_thread():
+        cluster.scale(jobs)                 # signal.signal works in the main thread only: these workers take Ctrl-C
+        return
+    before = set(multiprocessing.active_children())
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        cluster.scale(jobs)
+        t0 = time.monotonic()
+        while len(set(multiprocessing.active_children()) - before) < jobs and time.monotonic() - t0 < timeout:
+            time.sleep(0.005)
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def close_cluster(client, cluster, futures=(), quiet=False):
+    """Cancel `futures` (if any still run), close the client and stop a local cluster. `quiet` (after Ctrl-C or a
+    failure): nothing of distributed's reaches the terminal, whose last line is the command's own (a worker stopped
+    inside a run, or a scheduler already gone, makes distributed log errors while it closes)."""
+    import logging
+
+    if quiet:
+        # for good, not only while closing: the event loop's thread and distributed's exit handlers still log after
+        # close() returns, and the command's one line must stay the last
+        for name in ("distributed", "tornado", "asyncio"):
+            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+    try:
+        if client is not None:
+            if futures:
+                client.cancel(list(futures), force=True)
+            client.close()
+    except Exception:  # noqa: BLE001 - closing after a lost scheduler: nothing is left to close
+        if not quiet:
+            raise
+    finally:
+        if cluster is not None:
+            if quiet:
+                try:
+                    # a worker inside a run does not stop before the run's end (a planning run holds its one thread
+                    # for up to --time): a short grace, then its process is terminated (the default waits 4 s)
+                    cluster.sync(_stop_workers, cluster, STOP_GRACE_S)
+                except Exception:  # noqa: BLE001 - cluster.close() below stops whatever is left
+                    pass
+            cluster.close()
+
+
+#: seconds a local worker is given to stop by itself when a stopped benchmark closes its cluster
+STOP_GRACE_S = 0.5
+
+
+async def _stop_workers(cluster, timeout):
+    import asyncio
+    await asyncio.gather(*[w.close(timeout=timeout) for w in list(cluster.workers.values())], return_exceptions=True)
+
+
+@contextlib.contextmanager
+def sigint_ignored():
+    """Ctrl-C ignored inside (in the main thread; elsewhere it cannot be caught anyway): for the seconds in which a
+    stopped benchmark closes its cluster and writes what it kept, which a second Ctrl-C would cut short."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 def retried_runs(client, keys):

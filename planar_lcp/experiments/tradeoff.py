@@ -26,13 +26,21 @@ REPEATS warm runs (1 with --quick), divided by t_end. The clock counts no time t
 """
 
 import csv
+import hashlib
+import io
 import itertools
+import json
 import math
+import sys
 import time
 from pathlib import Path
 
+from planar_lcp.cli import raised_while_interrupted
 from planar_lcp.experiments.accuracy import table1_errors
-from planar_lcp.experiments.cluster import SchedulerUnreachable, close_cluster, local_jobs, open_cluster
+from planar_lcp.experiments.cluster import (SchedulerLost, SchedulerUnreachable, close_cluster, local_jobs,
+                                            lost_scheduler_message, open_cluster, sigint_ignored)
+from planar_lcp.experiments.records import (RECORDS, STOPPED, BenchmarkInterrupted, RecordFileError, RecordWriter,
+                                            count_finished, prepare, read_records, stopped_message, write_text_atomic)
 from planar_lcp.spec.scene import FORMULATIONS, SOLVERS, SimSpec
 
 DEFAULT_SCENES = ("falling_rod", "four_disks", "box_push")
@@ -53,6 +61,9 @@ REPEATS = 3
 COLUMNS = ["scene", "h", "solver", "pgs_iterations", "formulation", "support_model", "limit_surface_twists",
            "friction_directions", "velocity_error", "position_error", "max_penetration", "energy_drift",
            "cpu_s_per_sim_s", "failed_steps", "reference"]
+#: the keys of a setting (None: not set), which with the scene name one setting's run in the record file
+SETTING_KEYS = ("h", "solver", "pgs_iterations", "formulation", "support_model", "limit_surface_twists",
+                "friction_directions")
 
 
 def _support(model, knob):
@@ -123,57 +134,223 @@ def _support_label(s):
     return ""
 
 
-def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progress=True, jobs=None, scheduler=None):
-    """Run the sweep; write tradeoff.csv and one Pareto plot per scene into out_dir. Returns the rows.
+def _item(name, s):
+    """A setting's key in the record file: the scene and the setting's keys."""
+    return (name, *(s[k] for k in SETTING_KEYS))
+
+
+def _scene_sha256(sc):
+    """The hash of a scene's file as parsed (its TOML document in canonical JSON: comments and layout do not count),
+    the scene's source itself when it is not a file."""
+    from planar_lcp.spec.scene import parse_toml
+    try:
+        text = Path(sc.source).read_text()
+    except OSError:
+        text = None
+    doc = parse_toml(text, sc.source) if text is not None else {"source": sc.source}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+def tradeoff_header(plans, quick, repeats):
+    """The record file's header of a sweep: what --resume compares (the scenes by name and by their files' hash, the
+    sweep's settings, --quick)."""
+    items = sorted(json.dumps(_item(name, st)) for name, _, settings, _ in plans for st in settings)
+    return dict(command="tradeoff", scenes=[name for name, *_ in plans],
+                scene_sha256={name: _scene_sha256(sc) for name, sc, _, _ in plans}, quick=bool(quick),
+                repeats=repeats, settings=len(items),
+                settings_sha256=hashlib.sha256("\n".join(items).encode()).hexdigest())
+
+
+def header_differences(old, new):
+    """What differs between the sweep a record file was written for (`old`, its header) and the one asked (`new`):
+    a list of (the file's, the command's) phrases, empty for the same sweep."""
+    if old.get("command") != new["command"]:
+        return [(f"planar-lcp {old.get('command')}", f"planar-lcp {new['command']}")]
+    out = []
+    if sorted(old.get("scenes") or []) != sorted(new["scenes"]):
+        out.append((f"scenes {' '.join(old.get('scenes') or [])}", f"scenes {' '.join(new['scenes'])}"))
+    if old.get("quick") != new["quick"]:
+        out.append(("the --quick sweep" if old.get("quick") else "the full sweep (no --quick)",
+                    "the --quick sweep" if new["quick"] else "the full sweep (no --quick)"))
+    if out:
+        return out
+    for name in new["scenes"]:
+        was = (old.get("scene_sha256") or {}).get(name)
+        if was != new["scene_sha256"][name]:
+            out.append((f"scene {name} as its file read then (sha256 {str(was)[:12]})",
+                        f"scene {name} as it reads now (sha256 {new['scene_sha256'][name][:12]})"))
+    if not out and (old.get("settings_sha256"), old.get("repeats")) != (new["settings_sha256"], new["repeats"]):
+        out.append((f"a sweep of {old.get('settings')} settings, {old.get('repeats')} timed run(s) each (sha256 "
+                    f"{str(old.get('settings_sha256'))[:12]})",
+                    f"this version's sweep of {new['settings']} settings, {new['repeats']} timed run(s) each "
+                    f"(sha256 {new['settings_sha256'][:12]})"))
+    return out
+
+
+def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progress=True, jobs=None, scheduler=None,
+                 resume=False):
+    """Run the sweep; write tradeoff.csv, summary.json and one Pareto plot per scene into out_dir. Returns the rows.
 
     Every setting (and each scene's reference) is a Dask task: on the cluster at `scheduler`, else on a local
-    cluster of `jobs` worker processes (default: the CPUs). A task's cost is its own worker's thread CPU time."""
-    from distributed import as_completed
-    from tqdm import tqdm
+    cluster of `jobs` worker processes (default: the CPUs). A task's cost is its own worker's thread CPU time.
+
+    Each setting's row is appended to `out_dir`/records.jsonl as soon as it is measured against its scene's
+    reference (planar_lcp.experiments.records), and the outputs are made from those rows: at the end, and also
+    when Ctrl-C, a lost scheduler or an error stops the sweep (then partial: summary.json says how many settings
+    finished of how many). `resume`: the rows already in the record file are kept and only the other settings run
+    (with their scenes' references again); the file must be of the same sweep, which is checked before any work,
+    as is, without `resume`, that the file holds no row.
+
+    Raises
+    ------
+    RecordFileError
+        Before any work: the record file is of another sweep (`resume`) or holds rows (not `resume`).
+    BenchmarkInterrupted
+        Ctrl-C: the cluster stopped, the finished rows kept with partial outputs; its message says what was kept.
+    SchedulerLost
+        The scheduler went away during the sweep; the finished rows are kept as after Ctrl-C.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     repeats = 1 if quick else REPEATS
     plans = [(name, *_settings(name, quick)) for name in scenes]
-    total = sum(len(s) + 1 for _, _, s, _ in plans)
-    client, cluster = open_cluster(scheduler, local_jobs(jobs))
-    futs, runs = [], {}
+    header = tradeoff_header(plans, quick, repeats)
+    previous = prepare(out, header, header_differences, resume, "tradeoff", "setting")     # before any work
+    planned = [(_item(name, st), name, sc, st, ref) for name, sc, settings, ref in plans for st in settings]
+    keys = {k for k, *_ in planned}
+    done = {k: r for k, r in (previous.runs.items() if previous else ()) if k in keys}
+    todo = [p for p in planned if p[0] not in done]
+    path = out / RECORDS
+    if previous is not None:
+        print(f"resume: {path}: {len(done)} of {len(planned)} settings finished before; "
+              + (f"running the other {len(todo)}" if todo else "nothing left to run: writing the outputs"),
+              flush=True)
+        if previous.torn:
+            print(f"note: {previous.torn}", flush=True)
+    elif resume:
+        print(f"resume: {path}: no record file yet; running every setting", flush=True)
+    writer = RecordWriter(path, header, resume=previous)
+    t0 = time.perf_counter()
+    live = dict(client=None, cluster=None, futures=[], bar=None)       # what _sweep_on_dask opened, to close
     try:
-        refs = {name: client.submit(_run, sc, ref, sc.sim.t_end, 1, pure=False) for name, sc, _, ref in plans}
-        futs += list(refs.values())
-        for name, sc, settings, ref in plans:
-            for st in settings:
-                f = client.submit(_run, sc, st, sc.sim.t_end, repeats, pure=False)
-                runs[f.key] = (name, sc, st, ref)
-                futs.append(f)
-        rows_by = {}
-        with tqdm(total=total, disable=not progress, desc="tradeoff", unit="run") as bar:
-            ref_tr = {name: f.result()[0] for name, f in refs.items()}
-            bar.update(len(refs))
-            for f in as_completed(futs[len(refs):]):
-                name, sc, s, ref_setting = runs[f.key]
-                tr, cpu = f.result()
-                t_end = sc.sim.t_end
-                ref_label = f"lemke/fixed_point h={ref_setting['h']:g} {_support_label(ref_setting)}".rstrip()
-                verr, qerr = table1_errors(tr, ref_tr[name], t_end)
-                e = tr.stats["energy"]
-                rows_by[f.key] = dict(scene=name, **{k: "" if v is None else v for k, v in s.items()},
-                                      velocity_error=verr, position_error=qerr,
-                                      max_penetration=float(tr.stats["penetration"].max()),
-                                      energy_drift=float(max(0.0, (e - e[0]).max())), cpu_s_per_sim_s=cpu / t_end,
-                                      failed_steps=len(tr.failures), reference=ref_label)
-                bar.set_postfix_str(f"{name} {s['solver']} {s['formulation']} h={s['h']:g} {_support_label(s)}")
-                bar.update(1)
-    except KeyboardInterrupt:
-        close_cluster(client, cluster, futs)
+        if todo:
+            _sweep_on_dask(todo, repeats, progress, jobs, scheduler, writer, done, t0, live, len(planned))
+            close_cluster(live["client"], live["cluster"])
+    except BaseException as e:
+        # Ctrl-C, a lost scheduler, any error: stop the runs quietly and leave the finished rows with what they
+        # are of; a second Ctrl-C meanwhile would cut that short, so it waits (seconds)
+        with sigint_ignored():
+            if live["bar"] is not None:
+                live["bar"].leave = False      # the interrupted bar is cleared: the command's one line stays alone
+                live["bar"].close()
+            close_cluster(live["client"], live["cluster"], live["futures"], quiet=True)
+            # an error raised while a Ctrl-C was handled (e.g. by distributed, starting the cluster) is the interrupt
+            interrupted = isinstance(e, KeyboardInterrupt) or raised_while_interrupted(e)
+            ended = "interrupted" if interrupted else "failed"
+            writer.end(ended, time.perf_counter() - t0)
+            writer.close()
+            try:
+                _write_outputs(out, scenes, planned, partial=ended)
+            except Exception as w:  # noqa: BLE001 - the rows are on disk; the stop's own cause is reported
+                print(f"warning: no partial outputs: {w!r}", file=sys.stderr)
+        # counted on disk: a Ctrl-C can land between a record's write and its entry in `done`
+        finished = count_finished(path, [k for k, *_ in planned], len(done))
+        kept = stopped_message(finished, len(planned), path, "setting",
+                               "tradeoff.csv, summary.json and the plots of their rows")
+        if interrupted:
+            raise BenchmarkInterrupted(kept) from None
+        if isinstance(e, SchedulerLost):
+            raise SchedulerLost(f"{e}; stopped {kept}") from None
         raise
-    close_cluster(client, cluster)
-    rows = [rows_by[f.key] for f in futs[len(refs):]]      # in the sweep's order, whatever order they finished in
-    with open(out / "tradeoff.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=COLUMNS)
-        w.writeheader()
-        w.writerows(rows)
+    if live["bar"] is not None:
+        live["bar"].close()
+    writer.end("complete", time.perf_counter() - t0)
+    writer.close()
+    return _write_outputs(out, scenes, planned)
+
+
+def _sweep_on_dask(todo, repeats, progress, jobs, scheduler, writer, done, t0, live, total):
+    """Run the settings `todo` ((key, scene name, scene, setting, reference setting) each) and their scenes'
+    references; append each setting's row to the record file (`writer`) and to `done` once both its run and its
+    reference have arrived. What it opens goes to `live` as soon as it exists: the caller closes it."""
+    from distributed import as_completed
+    from distributed.client import FutureCancelledError
+    from tqdm import tqdm
+
+    client, cluster = live["client"], live["cluster"] = open_cluster(scheduler, local_jobs(jobs))
+    refs = {}
+    for _, name, sc, _, ref in todo:
+        if name not in refs:
+            refs[name] = (sc, ref)
+    futs = live["futures"] = []
+    what = {}
+    for name, (sc, ref) in refs.items():
+        f = client.submit(_run, sc, ref, sc.sim.t_end, 1, pure=False)
+        what[f.key] = ("reference", name)
+        futs.append(f)
+    for item in todo:
+        f = client.submit(_run, item[2], item[3], item[2].sim.t_end, repeats, pure=False)
+        what[f.key] = ("setting", item)
+        futs.append(f)
+    # disable=None: on a terminal only (a log or a pipe gets no bar frames)
+    bar = live["bar"] = tqdm(total=total, initial=total - len(todo), disable=None if progress else True,
+                             desc="tradeoff", unit="setting")
+    ref_tr = {}
+    waiting = {name: [] for name in refs}      # settings run before their scene's reference arrived
+
+    def measured(item, tr, cpu):
+        key, name, sc, s, ref_setting = item
+        t_end = sc.sim.t_end
+        ref_label = f"lemke/fixed_point h={ref_setting['h']:g} {_support_label(ref_setting)}".rstrip()
+        verr, qerr = table1_errors(tr, ref_tr[name], t_end)
+        e = tr.stats["energy"]
+        row = dict(scene=name, **{k: "" if v is None else v for k, v in s.items()}, velocity_error=verr,
+                   position_error=qerr, max_penetration=float(tr.stats["penetration"].max()),
+                   energy_drift=float(max(0.0, (e - e[0]).max())), cpu_s_per_sim_s=cpu / t_end,
+                   failed_steps=len(tr.failures), reference=ref_label)
+        done[key] = writer.run(key, row, time.perf_counter() - t0)
+        bar.set_postfix_str(f"{name} {s['solver']} {s['formulation']} h={s['h']:g} {_support_label(s)}")
+        bar.update(1)
+
+    for f in as_completed(futs):
+        kind, item = what[f.key]
+        try:
+            tr, cpu = f.result()
+        except FutureCancelledError as e:
+            # not a result of the run: the client lost its scheduler, which cancels every future it holds
+            raise SchedulerLost(lost_scheduler_message(scheduler, e)) from None
+        if kind == "reference":
+            ref_tr[item] = tr
+            for args in waiting.pop(item):
+                measured(*args)
+        elif item[1] in ref_tr:
+            measured(item, tr, cpu)
+        else:
+            waiting[item[1]].append((item, tr, cpu))
+
+
+def _write_outputs(out, scenes, planned, partial=None):
+    """tradeoff.csv (the rows in the sweep's order), summary.json and each scene's Pareto plot from the rows of the
+    record file `out`/records.jsonl; `partial` ("interrupted", "failed"): the sweep stopped before its end, and
+    summary.json says how many settings finished of how many. Returns the rows."""
+    contents = read_records(out / RECORDS)
+    rows = [contents.runs[k] for k, *_ in planned if k in contents.runs]
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=COLUMNS)
+    w.writeheader()
+    w.writerows(rows)
+    write_text_atomic(out / "tradeoff.csv", buf.getvalue(), newline="")    # the csv module's own line ends
+    per_scene = {name: dict(planned=sum(1 for _, n, *_ in planned if n == name),
+                            finished=sum(1 for r in rows if r["scene"] == name)) for name in scenes}
+    write_text_atomic(out / "summary.json", json.dumps(dict(
+        command="tradeoff", scenes=list(scenes), quick=contents.header.get("quick"), planned_settings=len(planned),
+        finished_settings=len(rows), complete=not partial, stopped=STOPPED.get(partial),
+        sessions=contents.last_session,
+        wall_time=sum(contents.session_times().values()), records_file=RECORDS, per_scene=per_scene), indent=1))
     for name in scenes:
-        plot_pareto([r for r in rows if r["scene"] == name], out / f"pareto_{name}.png", name)
+        sub = [r for r in rows if r["scene"] == name]
+        if sub:
+            plot_pareto(sub, out / f"pareto_{name}.png", name)
     return rows
 
 
@@ -263,8 +440,6 @@ def plot_pareto(rows, path, title):
 
 
 def _cmd(args):
-    import sys
-
     from planar_lcp.cli import InputError, prepare_output_dir, require
     from planar_lcp.spec.scene import list_scenes
     require("distributed")                 # the runs are Dask tasks: checked before any work
@@ -272,6 +447,10 @@ def _cmd(args):
     bad = [n for n in args.scenes if n not in known]
     if bad:
         print(f"planar-lcp tradeoff: error: unknown scene {bad[0]!r} (shipped: {', '.join(known)})", file=sys.stderr)
+        return 2
+    if len(set(args.scenes)) != len(args.scenes):
+        # a row is named by its scene and setting (records.jsonl, --resume)
+        print(f"planar-lcp tradeoff: error: --scenes must be distinct, got {' '.join(args.scenes)}", file=sys.stderr)
         return 2
     if args.scheduler is not None and args.jobs is not None:
         print(f"planar-lcp tradeoff: error: --jobs sizes the local cluster: not with --scheduler {args.scheduler}",
@@ -284,8 +463,12 @@ def _cmd(args):
         return 2
     try:
         rows = run_tradeoff(scenes=tuple(args.scenes), quick=args.quick, out_dir=args.out,
-                            progress=not args.no_progress, jobs=args.jobs, scheduler=args.scheduler)
-    except SchedulerUnreachable as e:
+                            progress=not args.no_progress, jobs=args.jobs, scheduler=args.scheduler,
+                            resume=args.resume)
+    except RecordFileError as e:
+        print(f"planar-lcp tradeoff: error: {e}", file=sys.stderr)        # before any work: nothing was written
+        return 2
+    except (SchedulerUnreachable, SchedulerLost) as e:
         print(f"planar-lcp tradeoff: error: {e}", file=sys.stderr)
         return 1
     print(f"{len(rows)} settings; wrote {Path(args.out) / 'tradeoff.csv'} and the Pareto plots")
@@ -315,4 +498,7 @@ def register(sub):
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on the Dask cluster at ADDRESS instead of a local one (docs/planning.md, "
                         "\"Distributed benchmarks\")")
+    p.add_argument("--resume", action="store_true",
+                   help="finish the sweep whose finished rows --out holds (records.jsonl, written as each setting "
+                        "finishes): only the missing settings run; --scenes and --quick must be the same")
     p.set_defaults(func=_cmd)
