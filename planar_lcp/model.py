@@ -161,10 +161,14 @@ def _fill_fixed_columns(model, bodies, nls):
 
 
 def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=False, support_model=None,
-                  limit_surface_twists=None, limit_surface_resolution=None) -> Model:
+                  limit_surface_twists=None, limit_surface_resolution=None, single_kernel=False) -> Model:
     """Flatten a validated Scene into a Model. `friction_directions`, `limit_surface_twists` and
     `limit_surface_resolution` override the scene's [sim] keys, `support_model` its world.support_model (the
     horizontal plane's table friction: docs/method.md, "Table friction").
+
+    single_kernel: the model will run with the single kernel (`SimOptions(single_kernel=True)` or the warm start, as
+    the planners run it): on a cold numba cache, the second process compiles that kernel's island solvers first
+    (engine/precompile.py). Nothing else depends on it.
 
     seed_friction_arm: apply contact friction at each shape's core point (a capsule's end-cap centre) instead of the
     contact point, reproducing the seed paper's friction vectors d = [+-1, 0, +-(l/2) sin theta] (for comparison only;
@@ -332,6 +336,6 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
     if ls_bodies:
         _fill_fixed_columns(model, ls_bodies, nls)
     # on a cold numba cache, the island solvers' kernels compile in a second process meanwhile (engine/precompile.py)
-    start_if_cold(model)
+    start_if_cold(model, single_kernel)
     _check_start_overlaps(scene, model)
     return model

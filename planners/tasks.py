@@ -55,7 +55,7 @@ class TaskModel:
 
         self.task = task = load_task(task)
         self.scene = scene = task.scene
-        self.model = model = compile_scene(scene)
+        self.model = model = compile_scene(scene, single_kernel=True)     # the kernel self.sim runs
         want = [task.object, *task.obstacles]
         # the scene's index of each body in the flat state's order (object first, then the obstacles)
         self.dyn_order = np.array([model.dyn_names.index(b) for b in want])

@@ -41,6 +41,24 @@ def _run(body, cache, **env):
 
 
 @pytest.mark.slow
+def test_a_planners_helper_caches_the_kernels_its_propagations_load(tmp_path):
+    """The helper's work for a planner's model (compile_scene's single_kernel hint) on an empty cache, then a
+    planner's propagations on that cache in another process: none of the kernels the helper compiled is compiled
+    again."""
+    pytest.importorskip("shapely")
+    helper = json.loads(_run("from planar_lcp.engine.precompile import compile_kinds\n"
+                             "compile_kinds(['lemke_small', 'pgs', 'projection'])", tmp_path)[-1])
+    ours = {f for f in helper if f.startswith("planar_lcp.") and "._drive" not in f}
+    assert {"planar_lcp.engine.solvers.lemke.lemke_kernel", "planar_lcp.engine.assemble.assemble_lcp"} <= ours
+    lines = _run("from planners.tasks import TaskModel\n"
+                 "tm = TaskModel('push_box')\n"
+                 "x, ok = tm.advance(tm.initial_state(), (0.1, 0.0), tm.steps_per_prop)\n"
+                 "assert ok", tmp_path)
+    again = set(json.loads(lines[-1])) & ours
+    assert again <= {"planar_lcp.engine.layout._new_struct"}, sorted(again)
+
+
+@pytest.mark.slow
 def test_the_helpers_kernels_are_the_ones_the_step_loads_and_step_alike(tmp_path):
     """The helper's work on an empty cache, then `simulate` on that cache in another process: none of the planar_lcp
     kernels the helper compiled is compiled again (a driver typed unlike the step's call would leave them unused),
@@ -105,6 +123,15 @@ def test_the_helper_starts_only_on_a_cold_cache(monkeypatch):
     started.clear()
     precompile.start_if_cold(tower)
     assert started[0][0][3:] == ["lemke_cold", "pgs", "lemke", "projection"]            # a large model's solvers
+    # a model that will run the single kernel (a planner's TaskModel): no cold variant, its own kernel is checked
+    monkeypatch.setattr(precompile, "_helper", None)
+    started.clear()
+    checked = []
+    monkeypatch.setattr(precompile, "_cached", lambda dispatcher: checked.append(dispatcher) and False)
+    compile_scene(load_scene("push_box"), single_kernel=True)
+    assert started[0][0][3:] == ["lemke_small", "pgs", "projection"]
+    from planar_lcp.engine import rollout
+    assert checked == [rollout.rollout_lemke_full_small]
 
 
 

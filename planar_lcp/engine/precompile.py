@@ -116,11 +116,19 @@ def compile_kinds(kinds):
 _helper = None
 
 
-def _rollout_kernel(model):
-    """The rollout kernel `simulate` runs for `model` with the defaults, and the island solvers' kind it needs."""
+def _rollout_kernel(model, single_kernel):
+    """The rollout kernel a run of `model` starts with (`simulate`'s defaults, or the single kernel with the warm
+    start's code, as the planners run it: sim.py `_kernels`), and the island solvers' kinds (keys of _DRIVERS) to
+    compile for it, in order: the first kernel's, then what the fallback kernel adds (PGS, the warm start, the
+    velocity form's projection), which shares the rest. A single-kernel run (a planner's) needs no cold variant:
+    compiling it first cost the first `plan` about 7 s of the helper's CPU time (docs/performance.md)."""
     from planar_lcp.engine import rollout
     small = model.max_unknowns() < SPARSE_MIN_UNKNOWNS
-    return (rollout.rollout_lemke_small, "lemke_small") if small else (rollout.rollout_lemke, "lemke")
+    kind = "lemke_small" if small else "lemke"
+    if single_kernel:
+        return (rollout.rollout_lemke_full_small if small else rollout.rollout_lemke_full), [kind, "pgs", "projection"]
+    return (rollout.rollout_lemke_small if small else rollout.rollout_lemke), [kind + "_cold", "pgs", kind,
+                                                                                "projection"]
 
 
 def _cached(dispatcher):
@@ -142,22 +150,20 @@ def _cpus():
         return os.cpu_count() or 1
 
 
-def start_if_cold(model):
+def start_if_cold(model, single_kernel=False):
     """Start the helper (module docstring) for `model`'s kernels if the cache is cold; at most once per process.
-    Returns the helper's Popen, or None."""
+    single_kernel: the run starts with the single kernel (compile_scene's hint). Returns the helper's Popen, or
+    None."""
     global _helper
     if _helper is not None or os.environ.get(ENV_SWITCH, "1") == "0" or numba.config.DISABLE_JIT or _cpus() < 2:
         return None
-    kernel, kind = _rollout_kernel(model)
+    kernel, kinds = _rollout_kernel(model, single_kernel)
     if _cached(kernel):
         return None
     env = dict(os.environ, **{ENV_SWITCH: "0"})
     if numba.config.CACHE_DIR:
         env["NUMBA_CACHE_DIR"] = numba.config.CACHE_DIR
     try:
-        # the default's kernels first (`simulate`), then what the fallback kernel adds (a planner's: PGS, the warm
-        # start, the velocity form's projection), which shares the rest
-        kinds = [kind + "_cold", "pgs", kind, "projection"]
         _helper = subprocess.Popen([sys.executable, "-m", __name__, *kinds], env=env, stdin=subprocess.DEVNULL,
                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     except OSError:
