@@ -121,6 +121,7 @@ class PushTEnv(gym.Env):
         self._goal = np.array(GOAL_POSE)
         self._goal_poly = None
         self._last_action = None
+        self._background = {}
         self._q = self._v = self._qk = None
 
     # ---- the scene ----------------------------------------------------------------------------------------------
@@ -309,6 +310,19 @@ class PushTEnv(gym.Env):
         return d
 
     def _draw(self, r, action=False):
+        # the goal and the walls change only at a reset: drawn once per reset and raster
+        key = (id(r), self._goal.tobytes())
+        if self._background.get(id(r), (None,))[0] != key:
+            self._background[id(r)] = (key, self._draw_background(r))
+        img = self._background[id(r)][1].copy()
+        r.disk(img, self.agent_pos(), self.pusher_radius, ROYAL_BLUE)
+        for box in self.t_world_corners(self.block_pose()):     # the T over the pusher, as gym-pusht draws them
+            r.convex(img, box, SLATE_GRAY)
+        if action and self._last_action is not None:
+            r.cross(img, self._last_action, 8 / 96 * min(r.width, r.height), RED)
+        return img
+
+    def _draw_background(self, r):
         img = r.blank(WHITE)
         for box in self.t_world_corners(self._goal):
             r.convex(img, box, LIGHT_GREEN)
@@ -318,11 +332,6 @@ class PushTEnv(gym.Env):
         for a, b in (((lo, lo), (hi, lo + 2 * w)), ((lo, hi - 2 * w), (hi, hi)),
                      ((lo, lo), (lo + 2 * w, hi)), ((hi - 2 * w, lo), (hi, hi))):
             r.convex(img, [a, (b[0], a[1]), b, (a[0], b[1])], LIGHT_GRAY)
-        r.disk(img, self.agent_pos(), self.pusher_radius, ROYAL_BLUE)
-        for box in self.t_world_corners(self.block_pose()):     # the T over the pusher, as gym-pusht draws them
-            r.convex(img, box, SLATE_GRAY)
-        if action and self._last_action is not None:
-            r.cross(img, self._last_action, 8 / 96 * min(r.width, r.height), RED)
         return img
 
     def render(self):

@@ -31,9 +31,7 @@ class Raster:
         return np.stack([col, row], axis=1)
 
     def blank(self, color):
-        img = np.empty((self.height, self.width, 3), dtype=np.uint8)
-        img[...] = color
-        return img
+        return np.full((self.height, self.width, 3), np.asarray(color, dtype=np.uint8), dtype=np.uint8)
 
     def _box(self, cmin, cmax, rmin, rmax):
         c0, c1 = max(math.ceil(cmin), 0), min(math.floor(cmax), self.width - 1)
@@ -42,18 +40,23 @@ class Raster:
 
     def convex(self, img, verts, color):
         """Fill the convex polygon with vertices `verts` (n, 2) in the plane (either winding) into img."""
-        p = self.to_pixels(verts)
-        c0, c1, r0, r1 = self._box(p[:, 0].min(), p[:, 0].max(), p[:, 1].min(), p[:, 1].max())
+        p = self.to_pixels(verts).tolist()
+        cs, rs = [c for c, _ in p], [r for _, r in p]
+        c0, c1, r0, r1 = self._box(min(cs), max(cs), min(rs), max(rs))
         if c0 > c1 or r0 > r1:
             return
         cols = np.arange(c0, c1 + 1, dtype=np.float64)[None, :]
         rows = np.arange(r0, r1 + 1, dtype=np.float64)[:, None]
-        q = np.roll(p, -1, axis=0)
+        n = len(p)
         # twice the signed area: the sign of the winding in pixel coordinates
-        sign = 1.0 if np.sum(p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]) >= 0.0 else -1.0
-        inside = np.ones((r1 - r0 + 1, c1 - c0 + 1), dtype=bool)
-        for (ax, ay), (bx, by) in zip(p, q):
-            inside &= sign * ((bx - ax) * (rows - ay) - (by - ay) * (cols - ax)) >= 0.0
+        sign = 1.0 if sum(cs[i] * rs[i - n + 1] - cs[i - n + 1] * rs[i] for i in range(n)) >= 0.0 else -1.0
+        inside = None
+        for i in range(n):
+            (ax, ay), (bx, by) = p[i], p[i - n + 1]
+            # the pixel centre (c, r) is on the inner side of edge a -> b: cross(b - a, (c, r) - a) has the sign
+            ea, eb = -sign * (by - ay), sign * (bx - ax)
+            side = (ea * cols + (-ea * ax - eb * ay)) + eb * rows >= 0.0
+            inside = side if inside is None else inside & side
         img[r0:r1 + 1, c0:c1 + 1][inside] = color
 
     def disk(self, img, centre, radius, color):

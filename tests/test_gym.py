@@ -292,3 +292,31 @@ def pusht_python():
         pytest.skip("gym-pusht's interpreter not given: set PLANAR_LCP_PUSHT_PYTHON to the python of a virtualenv "
                     "with gym-pusht==0.1.8 (docs/gym.md)")
     return exe
+
+
+def test_raster_fills_exactly_the_pixel_centres_inside_each_shape():
+    # oracle: shapely's point-in-polygon at every pixel centre, and the disk's distance test
+    import shapely
+    from shapely.geometry import MultiPoint
+
+    from planners.raster import Raster
+    rng = np.random.default_rng(0)
+    for y_down in (True, False):
+        r = Raster(37, 29, -1.0, 2.0, 0.5, 3.0, y_down=y_down)
+        gx, gy = r.grid()
+        X, Y = np.meshgrid(gx, gy)
+        for _ in range(20):
+            hull = MultiPoint(rng.uniform([-1.5, 0.0], [2.5, 3.5], (6, 2))).convex_hull
+            verts = np.array(hull.exterior.coords)[:-1]
+            if rng.random() < 0.5:
+                verts = verts[::-1]                              # either winding
+            img = r.blank((0, 0, 0))
+            r.convex(img, verts, (255, 0, 0))
+            want = shapely.contains_xy(hull, X, Y)
+            # a centre within rounding of an edge may go either way; none does here
+            assert np.all(shapely.distance(hull.exterior, shapely.points(X, Y)) > 1e-9)
+            assert np.array_equal(img[..., 0] == 255, want)
+        c, rad = rng.uniform([-0.5, 1.0], [1.5, 2.5]), 0.7
+        img = r.blank((0, 0, 0))
+        r.disk(img, c, rad, (0, 255, 0))
+        assert np.array_equal(img[..., 1] == 255, (X - c[0]) ** 2 + (Y - c[1]) ** 2 <= rad ** 2)
