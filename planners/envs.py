@@ -58,6 +58,32 @@ def _push_t_bodies():
     return scene, t, boxes, float(pusher.shapes[0].radius)
 
 
+def t_box_corners():
+    """(2, 4, 2) corners (mm) of the T's two boxes in its frame (gym-pusht's), in gym-pusht's keypoint order."""
+    _, _, boxes, _ = _push_t_bodies()
+    out = []
+    for w, h, ox, oy in boxes:
+        hw, hh, cx, cy = 500.0 * w, 500.0 * h, 1000.0 * ox, 1000.0 * oy
+        out.append([(cx - hw, cy - hh), (cx + hw, cy - hh), (cx + hw, cy + hh), (cx - hw, cy + hh)])
+    return np.array(out)
+
+
+def place_corners(corners, pose):
+    """corners (..., 2) of a body frame placed at pose (x, y, angle rad)."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    p = corners
+    return np.stack([pose[0] + c * p[..., 0] - s * p[..., 1], pose[1] + s * p[..., 0] + c * p[..., 1]], axis=-1)
+
+
+def coverage(corners, pose, goal):
+    """gym-pusht's coverage: the fraction of the goal T's area (at frame pose `goal`) that the T at `pose` covers.
+    The two boxes of each T meet only on an edge, so the overlap of the unions is the sum of the boxes' overlaps."""
+    import shapely
+    t = shapely.polygons(place_corners(corners, pose))
+    g = shapely.polygons(place_corners(corners, goal))
+    return float(shapely.area(shapely.intersection(t[:, None], g[None, :])).sum() / shapely.area(g).sum())
+
+
 class PushTEnv(gym.Env):
     """gym-pusht's Push-T (docs/gym.md) on our physics: the T on a table with limit-surface friction.
 
@@ -105,21 +131,13 @@ class PushTEnv(gym.Env):
         self.rec = self.sim.recording(SUBSTEPS)
         self.vk_seq = np.zeros((SUBSTEPS, self.model.nkin, 3))
         self.com_local1 = self.model.com_local[:1].copy()
-        # the T's boxes as (2, 4, 2) corners in its frame, mm, in gym-pusht's keypoint order
-        corners = []
-        for w, h, ox, oy in self.boxes:
-            hw, hh = 500.0 * w, 500.0 * h
-            cx, cy = 1000.0 * ox, 1000.0 * oy
-            corners.append([(cx - hw, cy - hh), (cx + hw, cy - hh), (cx + hw, cy + hh), (cx - hw, cy + hh)])
-        self.t_corners = np.array(corners)
+        self.t_corners = t_box_corners()
         self.pusher_radius = 1000.0 * self.pusher_radius_m
-        self.t_area = float(sum(1e6 * w * h for w, h, _, _ in self.boxes))
         self.obs_raster = Raster(observation_width, observation_height, 0.0, ARENA, 0.0, ARENA)
         self.vis_raster = Raster(visualization_width, visualization_height, 0.0, ARENA, 0.0, ARENA)
         self.action_space = spaces.Box(low=0.0, high=ARENA, shape=(2,), dtype=np.float32)
         self.observation_space = self._observation_space(observation_width, observation_height)
         self._goal = np.array(GOAL_POSE)
-        self._goal_poly = None
         self._last_action = None
         self._background = {}
         self._q = self._v = self._qk = None
@@ -190,9 +208,7 @@ class PushTEnv(gym.Env):
 
     def t_world_corners(self, pose):
         """(2, 4, 2) corners (mm) of the T's boxes at frame pose (x, y mm, angle rad)."""
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        p = self.t_corners
-        return np.stack([pose[0] + c * p[..., 0] - s * p[..., 1], pose[1] + s * p[..., 0] + c * p[..., 1]], axis=-1)
+        return place_corners(self.t_corners, pose)
 
     def why_not_start(self, agent, pose):
         """'' if the pusher and the T at these poses overlap neither each other nor the walls, else why."""
@@ -208,14 +224,10 @@ class PushTEnv(gym.Env):
 
     def coverage(self):
         """The fraction of the goal T's area that the T covers (gym-pusht's coverage)."""
-        import shapely
-        t = shapely.polygons(self.t_world_corners(self.block_pose()))
-        # the two boxes of each T meet only on an edge, so the overlap of the unions is the sum of the box overlaps
-        return float(shapely.area(shapely.intersection(t[:, None], self._goal_poly[None, :])).sum()) / self.t_area
+        return coverage(self.t_corners, self.block_pose(), self._goal)
 
     # ---- gymnasium ----------------------------------------------------------------------------------------------
     def reset(self, *, seed=None, options=None):
-        import shapely
         super().reset(seed=seed)
         options = options or {}
         rng = self.np_random
@@ -234,7 +246,6 @@ class PushTEnv(gym.Env):
         else:
             goal = np.array(GOAL_POSE)
         self._goal = goal
-        self._goal_poly = shapely.polygons(self.t_world_corners(goal))
         state = options.get("reset_to_state")
         if state is not None:
             state = np.asarray(state, dtype=np.float64)

@@ -320,3 +320,77 @@ def test_raster_fills_exactly_the_pixel_centres_inside_each_shape():
         img = r.blank((0, 0, 0))
         r.disk(img, c, rad, (0, 255, 0))
         assert np.array_equal(img[..., 1] == 255, (X - c[0]) ** 2 + (Y - c[1]) ** 2 <= rad ** 2)
+
+
+# ---- docs/gym.md's commands, end to end -----------------------------------------------------------------------
+GYM_MD = (ROOT / "docs" / "gym.md").read_text()
+
+
+def run(args, python=sys.executable, timeout=600, **kw):
+    return subprocess.run([python, *args], capture_output=True, text=True, cwd=ROOT, timeout=timeout, **kw)
+
+
+def test_the_python_example_of_gym_md_runs(tmp_path):
+    import re
+    code = re.findall(r"```python\n(.*?)```", GYM_MD, re.S)[0]
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert r.returncode == 0, r.stderr
+
+
+def test_the_scripted_policy_command_prints_what_gym_md_says(tmp_path):
+    out = tmp_path / "pusht_policy.gif"
+    r = run(["examples/gym_pusht_policy.py", "--seed", "0", "--steps", "300", "--out", str(out)])
+    assert r.returncode == 0, r.stderr
+    documented = ("seed 0: cover 0.266 at the start, 0.777 after 300 actions (no success); wrote "
+                  "docs/figures/gym/pusht_policy.gif (301 frames)")
+    assert "python examples/gym_pusht_policy.py --seed 0 --steps 300 --out docs/figures/gym/pusht_policy.gif" in GYM_MD
+    assert " ".join(GYM_MD.split()).count(documented) == 1
+    assert r.stdout.strip() == documented.replace("docs/figures/gym/pusht_policy.gif", str(out))
+    from PIL import Image, ImageSequence
+    with Image.open(out) as im:
+        # Pillow merges repeated frames into one of the summed duration: 301 frames of 0.1 s
+        assert im.size == (256, 256) and im.n_frames > 100
+        assert sum(f.info["duration"] for f in ImageSequence.Iterator(im)) == 301 * 100
+
+
+def test_the_gym_commands_fail_in_one_line_without_gym_pusht():
+    env = {k: v for k, v in os.environ.items() if k != "PLANAR_LCP_PUSHT_PYTHON"}
+    r = run(["examples/gym_side_by_side.py"], env=env)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1
+    assert "--pusht-python (or $PLANAR_LCP_PUSHT_PYTHON) must name the python" in r.stderr
+    try:
+        import gym_pusht  # noqa: F401
+    except ImportError:
+        r = run(["examples/gym_speed.py", "--rounds", "1"])
+        assert r.returncode == 2 and r.stderr.count("\n") == 1 and "gym_pusht is not importable" in r.stderr
+
+
+def test_side_by_side_with_gym_pusht_prints_gym_mds_table(tmp_path):
+    """The same start states and actions in gym-pusht (its own virtualenv) and here: the pusher paths agree to
+    rounding, the starts exactly, and the table in docs/gym.md is this command's output."""
+    py = pusht_python()
+    js = tmp_path / "sbs.json"
+    r = run(["examples/gym_side_by_side.py", "--pusht-python", py, "--json", str(js)])
+    assert r.returncode == 0, r.stderr
+    start = GYM_MD.index("<!-- side-by-side table: the command's output (tests/test_gym.py checks it) -->\n")
+    start = GYM_MD.index("\n", start) + 1
+    documented = GYM_MD[start:GYM_MD.index("<!-- end of the side-by-side table -->")]
+    assert r.stdout.strip() == documented.strip()
+    data = json.loads(js.read_text())
+    for ep in data["episodes"]:
+        theirs = np.array(ep["gym_pusht"]["state"])
+        for setting, mine in ep["ours"].items():
+            mine = np.array(mine["state"])
+            assert np.array_equal(mine[0], theirs[0]) or np.allclose(mine[0], theirs[0], rtol=0, atol=1e-9)
+            assert np.abs(mine[:, :2] - theirs[:, :2]).max() < 1e-9        # the pusher: the same PD law
+
+
+def test_speed_command_runs_beside_gym_pusht():
+    py = pusht_python()
+    probe = run(["-c", "import planners, gym_pusht"], python=py)
+    if probe.returncode != 0:
+        pytest.skip(f"planar_lcp is not installed in gym-pusht's virtualenv {py} (docs/gym.md, 'Speed')")
+    r = run(["examples/gym_speed.py", "--rounds", "2", "--steps", "20"], python=py)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.count("ours / gym-pusht steps per second: median") == 2
+    assert "/work/venv_pusht/bin/python examples/gym_speed.py" in GYM_MD
