@@ -172,7 +172,8 @@ def main(argv=None):
             rec["ours"][setting] = mine
             k, dp, da, dpush = parting(mine["state"], th["state"])
             if "goal" in ep:
-                cov = f"{cover_of(mine['state'][-1][2:], ep['goal']):.3f} / {cover_of(th['state'][-1][2:], ep['goal']):.3f}"
+                ours_end, theirs_end = mine["state"][-1][2:], th["state"][-1][2:]
+                cov = f"{cover_of(ours_end, ep['goal']):.3f} / {cover_of(theirs_end, ep['goal']):.3f}"
             else:
                 cov = f"{mine['coverage'][-1]:.3f} / {th['coverage'][-1]:.3f}"
             print(f"| {ep['name']} | {len(ep['actions'])} | {setting} | {'-' if k is None else k} | {dp:.1f} | "
@@ -183,8 +184,9 @@ def main(argv=None):
         out["episodes"].append(rec)
     if "planned_end" in eps[-1]:
         ep = eps[-1]
-        print(f"\nThe plan's own end (our push_t scene, velocity-driven pusher): cover {cover_of(ep['planned_end'], ep['goal']):.3f} "
-              "of its goal; the cover column above is of the same goal, after the plan's actions and 1 s of holding still.")
+        print("\nThe plan's own end (our push_t scene, velocity-driven pusher): cover "
+              f"{cover_of(ep['planned_end'], ep['goal']):.3f} of its goal; the cover column above is of the same goal, "
+              "after the plan's actions and 1 s of holding still.")
     if args.json:
         Path(args.json).write_text(json.dumps(out))
     return 0

@@ -108,8 +108,8 @@ class PushTEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
     def __init__(self, obs_type="state", render_mode="rgb_array", table_friction=None, contact_friction=None,
-                 random_goal=False, pusher_max_force=PUSHER_MAX_FORCE, observation_width=96, observation_height=96, visualization_width=680,
-                 visualization_height=680):
+                 random_goal=False, pusher_max_force=PUSHER_MAX_FORCE, observation_width=96, observation_height=96,
+                 visualization_width=680, visualization_height=680):
         super().__init__()
         if obs_type not in OBS_TYPES:
             raise ValueError(f"PushT-v0: obs_type must be one of {', '.join(OBS_TYPES)}, got {obs_type!r}")
@@ -191,15 +191,13 @@ class PushTEnv(gym.Env):
     def agent_pos(self):
         return self._qk[0, :2] / MM
 
-    def _set_state(self, agent, block, pose_about_cog=True):
-        """Place the pusher at `agent` (mm) and the T at `block` = (x, y, angle): read as gym-pusht reads
-        reset_to_state (the T's frame put at (x, y) at angle 0, then turned about PUSHT_COG) when pose_about_cog,
-        else as the frame's pose. Velocities zero."""
+    def _set_state(self, agent, block):
+        """Place the pusher at `agent` (mm) and the T at `block` = (x, y, angle) read as gym-pusht reads
+        reset_to_state: the T's frame put at (x, y) at angle 0, then turned about PUSHT_COG. Velocities zero."""
         x, y, a = (float(b) for b in block)
-        if pose_about_cog:
-            cx, cy = x + PUSHT_COG[0], y + PUSHT_COG[1]
-            c, s = math.cos(a), math.sin(a)
-            x, y = cx - (c * PUSHT_COG[0] - s * PUSHT_COG[1]), cy - (s * PUSHT_COG[0] + c * PUSHT_COG[1])
+        cx, cy = x + PUSHT_COG[0], y + PUSHT_COG[1]
+        c, s = math.cos(a), math.sin(a)
+        x, y = cx - (c * PUSHT_COG[0] - s * PUSHT_COG[1]), cy - (s * PUSHT_COG[0] + c * PUSHT_COG[1])
         self._q = frame_to_com(np.array([[x * MM, y * MM, a]]), self.com_local1)
         self._v = np.zeros((1, 3))
         self._qk = self.model.qk0.copy()
@@ -231,21 +229,7 @@ class PushTEnv(gym.Env):
         super().reset(seed=seed)
         options = options or {}
         rng = self.np_random
-        goal = options.get("goal")
-        if goal is not None:
-            goal = np.asarray(goal, dtype=np.float64)
-            if goal.shape != (3,) or not np.isfinite(goal).all():
-                raise ValueError(f"PushT-v0: options['goal'] must be 3 finite numbers (x, y mm, angle rad), got "
-                                 f"{goal.tolist()}")
-        elif self.random_goal:
-            while True:
-                goal = np.array([rng.uniform(100, 400), rng.uniform(100, 400), rng.uniform(-np.pi, np.pi)])
-                c = self.t_world_corners(goal)
-                if c.min() >= WALL_LINES[0] + WALL_HALF and c.max() <= WALL_LINES[1] - WALL_HALF:
-                    break
-        else:
-            goal = np.array(GOAL_POSE)
-        self._goal = goal
+        # the start first: gym-pusht's draws in its order, so that a seed gives its start state (random goal or not)
         state = options.get("reset_to_state")
         if state is not None:
             state = np.asarray(state, dtype=np.float64)
@@ -264,6 +248,21 @@ class PushTEnv(gym.Env):
                 self._set_state(state[:2], state[2:])
                 if not self.why_not_start(self.agent_pos(), self.block_pose()):
                     break
+        goal = options.get("goal")
+        if goal is not None:
+            goal = np.asarray(goal, dtype=np.float64)
+            if goal.shape != (3,) or not np.isfinite(goal).all():
+                raise ValueError(f"PushT-v0: options['goal'] must be 3 finite numbers (x, y mm, angle rad), got "
+                                 f"{goal.tolist()}")
+        elif self.random_goal:
+            while True:
+                goal = np.array([rng.uniform(100, 400), rng.uniform(100, 400), rng.uniform(-np.pi, np.pi)])
+                c = self.t_world_corners(goal)
+                if c.min() >= WALL_LINES[0] + WALL_HALF and c.max() <= WALL_LINES[1] - WALL_HALF:
+                    break
+        else:
+            goal = np.array(GOAL_POSE)
+        self._goal = goal
         self._last_action = None
         self.failed_steps = 0
         info = self._info()
