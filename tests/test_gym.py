@@ -407,3 +407,19 @@ def test_speed_command_runs_beside_gym_pusht():
     assert r.returncode == 0, r.stderr
     assert r.stdout.count("ours / gym-pusht steps per second: median") == 2
     assert "/work/venv_pusht/bin/python examples/gym_speed.py" in GYM_MD
+
+
+@pytest.mark.slow
+def test_the_push_t_plan_of_gym_md_is_the_command_s(tmp_path):
+    """docs/figures/gym/push_t_plan/plan.json is what the documented `planar-lcp plan` command writes: the same
+    controls and states (a seeded run with an iteration budget is reproducible)."""
+    from cli_helpers import run_cli
+    assert ("planar-lcp plan push_t --seed 1 --iterations 3000 --out docs/figures/gym/push_t_plan"
+            in " ".join(GYM_MD.split()))
+    r = run_cli("plan", "push_t", "--seed", "1", "--iterations", "3000", "--no-gif", "--out", tmp_path)
+    assert r.returncode == 0, r.stderr
+    new = json.loads((tmp_path / "plan.json").read_text())
+    old = json.loads((ROOT / "docs" / "figures" / "gym" / "push_t_plan" / "plan.json").read_text())
+    assert new["exact"] and new["goal"]["cover"] == old["goal"]["cover"]
+    for key in ("controls", "steps", "states", "task_sha256"):
+        assert new[key] == old[key]
