@@ -36,12 +36,12 @@ import time
 import numpy as np
 
 #: shortening stops after this many simulated candidates (each re-simulates the plan from its change point)
-MAX_CANDIDATES = 2000
+MAX_CANDIDATES = 4000
 #: ... or after this many rejected candidates in a row
-PATIENCE = 500
+PATIENCE = 1000
 #: the share of each kind of candidate (straight, faster, retarget)
 KINDS = ("straight", "faster", "retarget")
-KIND_P = (0.5, 0.25, 0.25)
+KIND_P = (0.6, 0.3, 0.1)
 
 
 def per_step(controls, steps):
@@ -106,11 +106,18 @@ class Shortener:
     def _goal(self, x):
         return self.tm.goal_distance(x) <= 1.0 and self.tm.admissible(x)
 
-    def simulate(self, a, U_new):
-        """States from X[a] under the per-step controls U_new (`TaskModel.execute`, stopping at the first failed step
+    def simulate(self, x, U_new):
+        """States from x under the per-step controls U_new (`TaskModel.execute`, stopping at the first failed step
         or inadmissible state); (states (k+1, d), whole) with whole False when it stopped early."""
-        _, dense, ok = self.tm.execute(self.X[a], U_new, np.ones(len(U_new), int), valid=self.tm.admissible)
+        _, dense, ok = self.tm.execute(x, U_new, np.ones(len(U_new), int), valid=self.tm.admissible)
         return dense, ok
+
+    def diverged(self, x, y):
+        """Whether the object's pose in x is farther from y's than the goal's tolerances (position_tol, angle_tol):
+        the rest of the plan, open loop, would then rarely still reach the goal."""
+        g = self.tm.task.goal
+        return (math.hypot(x[0] - y[0], x[1] - y[1]) > g.position_tol
+                or abs((x[2] - y[2] + math.pi) % (2 * math.pi) - math.pi) > g.angle_tol)
 
     def truncate_at_goal(self, start=1):
         """Cut the plan at its first state from `start` on where the goal holds (if its controls still split into
@@ -171,10 +178,21 @@ class Shortener:
         """Simulate U[:a] + new + U[b:] from X[a]; keep it when it is valid, reaches the goal and is shorter.
         Returns True when kept."""
         U_new = np.concatenate([self.U[:a], new, self.U[b:]])
-        if len(U_new) >= len(self.U):
+        if len(U_new) >= len(self.U) or compress(U_new, self.min_steps, self.max_steps) is None:
             return False
-        seg, whole = self.simulate(a, U_new[a:])
-        if not whole or not self._goal(seg[-1]) or compress(U_new, self.min_steps, self.max_steps) is None:
+        seg, whole = self.simulate(self.X[a], new)
+        if not whole:
+            return False
+        if b < len(self.U):
+            # a stretch that leaves the object far from where the rest of the plan expects it is rejected without
+            # simulating the rest (a pruning only: what is kept is judged by the whole simulation below)
+            if self.diverged(seg[-1], self.X[b]):
+                return False
+            rest, whole = self.simulate(seg[-1], self.U[b:])
+            if not whole:
+                return False
+            seg = np.concatenate([seg, rest[1:]])
+        if not self._goal(seg[-1]):
             return False
         self.U, self.X = U_new, np.concatenate([self.X[:a], seg])
         self.truncate_at_goal(a + 1)
