@@ -42,7 +42,7 @@ RUN_FIELDS = [("time REAL", "solve_time"), ("memory REAL", None), ("status ENUM"
               ("first solution length REAL", "first_path_duration"), ("pusher path length REAL", "pusher_path_length"),
               ("first pusher path length REAL", "first_pusher_path_length"),
               ("object path length REAL", "object_path_length"),
-              ("first object path length REAL", "first_object_path_length"), ("shortening time REAL", "shorten_time"),
+              ("first object path length REAL", "first_object_path_length"), ("shorten time REAL", "shorten_time"),
               ("solution segments INTEGER", "segments"), ("graph motions INTEGER", "propagations"),
               ("iterations INTEGER", "iterations"), ("simulated steps INTEGER", "sim_steps"),
               ("simulated steps per second REAL", "steps_per_second")]
