@@ -21,7 +21,9 @@ cannot be built from the 2.0.1 wheel: docs/planning.md). `shorten` rewrites such
   this equals a re-simulation from the start bit for bit (tests/test_shorten.py checks it on the final plan). It is
   accepted only when every propagation step succeeds, every state is admissible (`TaskModel.admissible`: the
   validity the planner checks after each propagation step), the goal holds at the end and the plan has fewer
-  steps. A plan whose goal holds before its end is cut there (checked at the start and after each acceptance).
+  steps. A stretch that leaves the object farther from where the rest of the plan expects it than the goal's
+  tolerances is rejected without simulating the rest (a pruning: what is kept is always judged whole). A plan whose
+  goal holds before its end is cut there (checked at the start and after each acceptance).
 - Bounded and deterministic: a numpy Generator seeded from the plan's seed draws the candidates; shortening stops
   after `max_candidates` simulated candidates or `patience` rejected ones in a row, or at `deadline` (a wall-clock
   time: the rest of a --time budget; under --iterations none, so that the plan is the same on any machine).
