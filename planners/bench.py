@@ -39,9 +39,18 @@ STATUS_ENUM = "status|" + "|".join(STATUS_LABELS)
 RUN_FIELDS = [("time REAL", "solve_time"), ("memory REAL", None), ("status ENUM", "status"),
               ("solved BOOLEAN", "exact"), ("approximate solution BOOLEAN", "approximate"),
               ("solution difference REAL", "goal_distance"), ("solution length REAL", "path_duration"),
+              ("first solution length REAL", "first_path_duration"), ("pusher path length REAL", "pusher_path_length"),
+              ("first pusher path length REAL", "first_pusher_path_length"),
+              ("object path length REAL", "object_path_length"),
+              ("first object path length REAL", "first_object_path_length"), ("shorten time REAL", "shorten_time"),
               ("solution segments INTEGER", "segments"), ("graph motions INTEGER", "propagations"),
               ("iterations INTEGER", "iterations"), ("simulated steps INTEGER", "sim_steps"),
               ("simulated steps per second REAL", "steps_per_second")]
+
+
+#: the costs a run reports, of the final (shortened) plan and, with first_, of the planner's first exact plan
+COST_KEYS = ("path_duration", "pusher_path_length", "object_path_length", "first_path_duration",
+             "first_pusher_path_length", "first_object_path_length")
 
 
 def _crash_record(planner, seed, error, solve_time, worker, host=None, cpuinfo=None):
@@ -49,6 +58,7 @@ def _crash_record(planner, seed, error, solve_time, worker, host=None, cpuinfo=N
     no worker and no host."""
     return dict(planner=planner, seed=seed, exact=False, approximate=False, solve_time=solve_time,
                 status=STATUS.CRASH.value, error=error, goal_distance=float("nan"), path_duration=float("nan"),
+                **{k: float("nan") for k in COST_KEYS if k != "path_duration"}, shorten_time=float("nan"),
                 segments=0, propagations=0, iterations=0, sim_steps=0, steps_per_second=float("nan"), replayed=None,
                 worker=worker,
                 host=host, cpuinfo=cpuinfo)
@@ -78,7 +88,8 @@ def _run_one(task, planner, seed, time_limit, iterations=None):
                 status=(STATUS.EXACT_SOLUTION if exact else STATUS.APPROXIMATE_SOLUTION if approx
                         else STATUS.TIMEOUT).value,       # the time limit ended a run without a solution
                 goal_distance=plan.get("goal", {}).get("goal_distance", float("nan")),
-                path_duration=plan["path_duration"] if (exact or approx) else float("nan"),
+                **{k: plan[k] if (exact or approx) else float("nan") for k in COST_KEYS},
+                shorten_time=plan["shorten"]["time"],
                 segments=len(plan["controls"]), propagations=plan["propagations"], iterations=plan["iterations"],
                 sim_steps=plan["sim_steps"], steps_per_second=plan["steps_per_second"], replayed=replayed,
                 worker=worker, host=host, cpuinfo=cpuinfo)
@@ -174,11 +185,18 @@ def summarize(records, planners, time_limit):
         rs = [r for r in records if r["planner"] == p]
         ex = [r for r in rs if r["exact"]]
         ts = np.array([r["solve_time"] for r in ex])
-        ds = np.array([r["path_duration"] for r in ex])
         sps = np.array([r["steps_per_second"] for r in rs if np.isfinite(r["steps_per_second"])])
+        # records written before issue 25 have no first_ costs: their plan was the first plan
+        cost = {k: _quartiles(np.array([r.get(k, r.get(k[len("first_"):], float("nan"))) for r in ex]))
+                for k in COST_KEYS}
         rows.append(dict(planner=p, runs=len(rs), exact=len(ex), success_rate=len(ex) / max(len(rs), 1),
                          replayed=sum(1 for r in ex if r.get("replayed")),
-                         time_q1_med_q3=_quartiles(ts), duration_q1_med_q3=_quartiles(ds),
+                         time_q1_med_q3=_quartiles(ts), duration_q1_med_q3=cost["path_duration"],
+                         first_duration_q1_med_q3=cost["first_path_duration"],
+                         pusher_path_q1_med_q3=cost["pusher_path_length"],
+                         first_pusher_path_q1_med_q3=cost["first_pusher_path_length"],
+                         object_path_q1_med_q3=cost["object_path_length"],
+                         first_object_path_q1_med_q3=cost["first_object_path_length"],
                          steps_per_second_median=float(np.median(sps)) if len(sps) else float("nan")))
     return rows
 
@@ -186,14 +204,20 @@ def summarize(records, planners, time_limit):
 def summary_markdown(task, rows, runs, budget, where):
     """budget: "60 s" or "5000 iterations" per run; where: "2 worker processes" or "the Dask cluster at ADDRESS"."""
     out = [f"Task `{task}`: {runs} runs per planner (seeds 1..{runs}), {budget} each, {where}.", "",
-           "| planner | exact | exact plans replayed to the goal | time to exact solution [s] median (q1-q3) | "
-           "path duration [s] median (q1-q3) | sim steps/s (median) |", "|---|---|---|---|---|---|"]
+           "| planner | exact | exact plans replayed to the goal | time to first exact solution [s] median (q1-q3) | "
+           "first path duration [s] median (q1-q3) | final path duration [s] median (q1-q3) | "
+           "pusher path [m] first, final (medians) | object path [m] first, final (medians) | sim steps/s (median) |",
+           "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        t, d = r["time_q1_med_q3"], r["duration_q1_med_q3"]
-        ft = f"{t[1]:.2f} ({t[0]:.2f}-{t[2]:.2f})" if r["exact"] else "-"
-        fd = f"{d[1]:.2f} ({d[0]:.2f}-{d[2]:.2f})" if r["exact"] else "-"
-        out.append(f"| {r['planner']} | {r['exact']}/{r['runs']} | {r['replayed']}/{r['exact']} | {ft} | {fd} | "
-                   f"{r['steps_per_second_median']:.0f} |")
+        def q(k, f=".2f"):
+            v = r[k]
+            return f"{v[1]:{f}} ({v[0]:{f}}-{v[2]:{f}})" if r["exact"] else "-"
+
+        def m(k):
+            return f"{r['first_' + k][1]:.3f}, {r[k][1]:.3f}" if r["exact"] else "-"
+        out.append(f"| {r['planner']} | {r['exact']}/{r['runs']} | {r['replayed']}/{r['exact']} | "
+                   f"{q('time_q1_med_q3')} | {q('first_duration_q1_med_q3')} | {q('duration_q1_med_q3')} | "
+                   f"{m('pusher_path_q1_med_q3')} | {m('object_path_q1_med_q3')} | {r['steps_per_second_median']:.0f} |")
     return "\n".join(out) + "\n"
 
 
@@ -209,7 +233,7 @@ def box_plots(records, planners, time_limit, path, task):
               for p in planners]
     data_s = [[r["steps_per_second"] for r in records if r["planner"] == p] or [np.nan] for p in planners]
     for ax, data, lab in ((axs[0], data_t, "time to exact solution [s]\n(unsolved = time limit)"),
-                          (axs[1], data_d, "path duration [s] (exact runs)"),
+                          (axs[1], data_d, "final path duration [s] (exact runs)"),
                           (axs[2], data_s, "simulated steps per second")):
         ax.boxplot(data)
         ax.set_xticks(range(1, len(planners) + 1), planners)

@@ -33,6 +33,9 @@ def register(sub):
                    help="OMPL random seed (>= 1, default 1)")
     p.add_argument("--out", default="plan_out", metavar="DIR", help="output directory (default ./plan_out)")
     p.add_argument("--no-gif", action="store_true", help="skip plan.gif")
+    p.add_argument("--no-shorten", action="store_true",
+                   help="keep the planner's first exact plan as it is; by default it is shortened after the planner "
+                        "stops (docs/planning.md, \"Shorter plans\")")
     p.set_defaults(func=cmd_plan)
 
     r = one_line_errors(sub.add_parser(
@@ -101,13 +104,21 @@ def cmd_plan(args):
     print(f"task           {task.name} ({task.source}): {task.description or 'no description'}")
     print(f"planner        {planner} (seed {args.seed}, budget {budget})")
     data = plan_task(task, planner, seed=args.seed, time_limit=None if args.iterations else tlim,
-                     iterations=args.iterations, tm=tm)
+                     iterations=args.iterations, tm=tm, shorten=not args.no_shorten)
     p = Plan(data, task)            # a fresh TaskModel for the drawings: the planner's is warm-started state
     status = "exact" if p.exact else ("approximate" if data["approximate"] else "none")
     print(f"solution       {status} after {data['solve_time']:.2f} s, {data['iterations']} iterations, "
           f"{data['sim_steps']} simulated steps ({data['steps_per_second']:.0f} steps/s)")
     wrote = [out / "plan.json"]
     p.save(out / "plan.json")
+    sh = data["shorten"]
+    if "first_plan" in data:
+        print(f"first plan     {len(data['first_plan']['controls'])} controls, {data['first_path_duration']:.2f} s, "
+              f"pusher path {data['first_pusher_path_length']:.3f} m, object path "
+              f"{data['first_object_path_length']:.3f} m")
+        print(f"shortened      {sh['accepted']} of {sh['candidates']} candidates accepted in {sh['time']:.2f} s: "
+              f"{data['path_duration']:.2f} s, pusher path {data['pusher_path_length']:.3f} m, object path "
+              f"{data['object_path_length']:.3f} m")
     if data["controls"]:
         print(f"path           {len(data['controls'])} controls, {p.path_duration:.2f} s; goal: "
               + ", ".join(_show(k, v) for k, v in p.goal_report.items()))

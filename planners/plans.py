@@ -8,6 +8,7 @@ from its own copy). Only `plan_task` imports ompl (inside the function).
 
 import json
 import math
+import time
 from pathlib import Path
 
 import numpy as np
@@ -21,9 +22,14 @@ from .tasks import TaskError, TaskModel, check_planner
 PLAN_FORMAT = 2
 
 
-def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=None):
+def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=None, shorten=True):
     """Solve `task` (a Task, a shipped task's name or a task file) with `planner` (default: the task's). Returns
-    the plan as a dict (the plan file's contents, `Plan.data`); `tm` may reuse a TaskModel of the task."""
+    the plan as a dict (the plan file's contents, `Plan.data`); `tm` may reuse a TaskModel of the task.
+
+    `shorten`: an exact plan is then shortened (planners.shorten: a bounded number of candidates, and under a time
+    limit no later than the budget's end); the planner's own plan's costs are kept as first_path_duration,
+    first_pusher_path_length, first_object_path_length and its controls as first_plan. False: the planner's plan
+    as it is (what `plan` made before issue 25, bit for bit)."""
     import gc
 
     from ompl import util as ou
@@ -52,6 +58,8 @@ def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=N
     ou.setLogLevel(ou.LOG_ERROR)
     prob = Problem(t, planner, tm=tm)
     res = prob.solve(time_limit=time_limit, iterations=iterations)
+    # the rest of a time budget bounds the shortening too (an iteration budget: the candidate counts alone)
+    deadline = None if time_limit is None else time.perf_counter() + max(time_limit - res["solve_time"], 0.0)
     plan = dict(format=PLAN_FORMAT, task=t.name, task_source=t.source, task_sha256=t.sha256,
                 task_document=t.document, planner=planner, seed=seed,
                 time_limit=time_limit, iterations_budget=iterations, solve_time=res["solve_time"],
@@ -68,7 +76,33 @@ def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=N
                     durations=(steps * t.step_duration).tolist(), states=states.tolist(),
                     path_duration=float(steps.sum() * t.step_duration),
                     goal=tm.goal_report(states[-1]))
+    first = _costs(tm, plan)
+    plan.update(pusher_path_length=first["pusher_path_length"], object_path_length=first["object_path_length"])
+    plan.update({f"first_{k}": v for k, v in first.items()})
+    plan["shorten"] = dict(enabled=bool(shorten), candidates=0, accepted=0, time=0.0)
+    if shorten and res["exact"]:
+        from .shorten import MAX_CANDIDATES, PATIENCE
+        from .shorten import shorten as shorten_plan
+        plan["first_plan"] = dict(controls=plan["controls"], steps=plan["steps"])
+        r = shorten_plan(tm, plan["start"], controls, steps, seed, deadline=deadline)
+        bound, _, _ = tm.execute(plan["start"], r["controls"], r["steps"])    # the replay's states
+        plan.update(controls=r["controls"].tolist(), steps=r["steps"].tolist(),
+                    durations=(r["steps"] * t.step_duration).tolist(), states=bound.tolist(),
+                    path_duration=float(r["steps"].sum() * t.step_duration), goal=tm.goal_report(bound[-1]))
+        plan.update(_costs(tm, plan))
+        plan["shorten"] = dict(enabled=True, candidates=r["candidates"], accepted=r["accepted"],
+                               accepted_by_kind=r["accepted_by_kind"], truncated=r["truncated"], time=r["time"],
+                               max_candidates=MAX_CANDIDATES, patience=PATIENCE,
+                               stopped_by_deadline=bool(deadline is not None and time.perf_counter() > deadline))
     return plan
+
+
+def _costs(tm, plan):
+    """The costs of the plan dict's controls: path_duration, pusher_path_length and object_path_length
+    (planners.shorten.costs)."""
+    from .shorten import costs
+    _, dense, _ = tm.execute(plan["start"], plan["controls"], plan["steps"])
+    return costs(tm, plan["steps"], dense)
 
 
 class Plan:
@@ -171,7 +205,7 @@ class Plan:
                 f"{self.path_duration:.2f} s of pushing")
 
 
-def plan(task, planner=None, time=None, iterations=None, seed=1):
+def plan(task, planner=None, time=None, iterations=None, seed=1, shorten=True):
     """Plan a task with OMPL, our simulator as the forward model.
 
     Parameters
@@ -186,17 +220,21 @@ def plan(task, planner=None, time=None, iterations=None, seed=1):
     iterations : int, optional
         An iteration budget instead of a time limit: with `seed`, the plan is the same on any machine.
     seed : int
-        OMPL's random seed, >= 1.
+        OMPL's random seed, >= 1 (it seeds the shortening too).
+    shorten : bool
+        Shorten the first exact plan (planners.shorten, docs/planning.md "Shorter plans"); False: the planner's
+        first exact plan as it is.
 
     Returns
     -------
     Plan
-        `.exact` is True when the goal is reached; planning stops at the first exact solution.
+        `.exact` is True when the goal is reached; the planner stops at the first exact solution, which is then
+        shortened (`.data["first_path_duration"]` is its duration).
     """
     tm = TaskModel(task)
     if time is None and iterations is None:
         time = tm.task.time
-    data = plan_task(tm.task, planner, seed=seed, time_limit=time, iterations=iterations, tm=tm)
+    data = plan_task(tm.task, planner, seed=seed, time_limit=time, iterations=iterations, tm=tm, shorten=shorten)
     return Plan(data, tm.task, tm=tm)
 
 

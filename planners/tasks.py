@@ -224,11 +224,14 @@ class TaskModel:
         y[ip + 1] = rec.qk[done, self.ipusher, 1]
         return y, ok and bool(np.isfinite(y).all())
 
-    def execute(self, x0, controls, steps):
+    def execute(self, x0, controls, steps, valid=None):
         """Replay controls open loop exactly as the planner propagated them.
 
         controls (n, 2) m/s; steps (n,) propagation steps each. Returns (states at control boundaries (n+1, d),
-        dense states (1 + total sim steps / steps_per_prop, d) at every propagation step, ok); d = Task.state_dim."""
+        dense states (1 + total sim steps / steps_per_prop, d) at every propagation step, ok); d = Task.state_dim.
+        With `valid` (a function of a state, e.g. `admissible`: the planner's check after each propagation step) the
+        replay stops at the first failed step or state `valid` rejects, with ok False (planners.shorten judges
+        candidates so, without simulating the rest)."""
         x = np.asarray(x0, float).copy()
         bound, dense, ok = [x.copy()], [x.copy()], True
         for u, k in zip(np.asarray(controls, float), np.asarray(steps, int)):
@@ -236,6 +239,8 @@ class TaskModel:
                 x, good = self.advance(x, u, self.steps_per_prop)
                 ok = ok and good
                 dense.append(x.copy())
+                if valid is not None and not (good and valid(x)):
+                    return np.array(bound), np.array(dense), False
             bound.append(x.copy())
         return np.array(bound), np.array(dense), ok
 

@@ -414,9 +414,10 @@ def test_the_push_t_plan_of_gym_md_is_the_command_s(tmp_path):
     """docs/figures/gym/push_t_plan/plan.json is what the documented `planar-lcp plan` command writes: the same
     controls and states (a seeded run with an iteration budget is reproducible)."""
     from cli_helpers import run_cli
-    assert ("planar-lcp plan push_t --seed 1 --iterations 3000 --out docs/figures/gym/push_t_plan"
+    assert ("planar-lcp plan push_t --seed 1 --iterations 3000 --no-shorten --out docs/figures/gym/push_t_plan"
             in " ".join(GYM_MD.split()))
-    r = run_cli("plan", "push_t", "--seed", "1", "--iterations", "3000", "--no-gif", "--out", tmp_path)
+    r = run_cli("plan", "push_t", "--seed", "1", "--iterations", "3000", "--no-shorten", "--no-gif", "--out",
+                tmp_path)
     assert r.returncode == 0, r.stderr
     new = json.loads((tmp_path / "plan.json").read_text())
     old = json.loads((ROOT / "docs" / "figures" / "gym" / "push_t_plan" / "plan.json").read_text())

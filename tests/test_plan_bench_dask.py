@@ -143,7 +143,10 @@ def test_ctrl_c_cancels_plan_bench_cleanly(tmp_path, port_8787_taken):
 
 #: the fields of a run's record that its seed and iteration budget decide (not its times, worker or host)
 DETERMINISTIC = ("planner", "seed", "exact", "approximate", "status", "goal_distance", "path_duration", "segments",
-                 "propagations", "iterations", "sim_steps", "replayed", "error")
+                 "propagations", "iterations", "sim_steps", "replayed", "error", "first_path_duration",
+                 "pusher_path_length", "object_path_length", "first_pusher_path_length", "first_object_path_length")
+#: the run records' fields that are times (the OMPL log's columns of these vary from run to run)
+TIMED = ("solve_time", "shorten_time", "steps_per_second")
 
 
 def _deterministic(out):
@@ -154,15 +157,18 @@ def _deterministic(out):
     runs = [json.dumps([r.get(k) for k in DETERMINISTIC]) for r in d["records"]]
     rows = [json.dumps({k: v for k, v in row.items() if k not in ("time_q1_med_q3", "steps_per_second_median")})
             for row in d["summary"]]
-    md = [line.rsplit("|", 4)[0] if line.startswith("| RRT") else line
-          for line in (out / "summary.md").read_text().splitlines()]
+    # summary.md's run rows without the time to the first exact solution (the 4th column) and the steps per second (the last)
+    md = [" | ".join(c for i, c in enumerate(line.split(" | ")) if i not in (3, 8)) if line.startswith("| RRT")
+          else line for line in (out / "summary.md").read_text().splitlines()]
+    from planners.bench import RUN_FIELDS
+    timed = [i for i, (_, key) in enumerate(RUN_FIELDS) if key in TIMED]
     log = []
     for line in (out / f"{d['task']}.log").read_text().splitlines():
         if line.startswith("Starting at") or line.endswith(("seconds per run", "seconds spent to collect the data")):
             continue
-        if line.count("; ") > 5:             # a run: its time (first) and simulated steps per second (last) vary
+        if line.count("; ") > 5:             # a run: its times (solve, shortening) and simulated steps per second vary
             f = line.split("; ")
-            line = "; ".join(f[1:-2])
+            line = "; ".join(v for i, v in enumerate(f[:-1]) if i not in timed)
         log.append(line)
     keep = ("task", "task_source", "task_sha256", "runs", "time_limit", "iterations", "jobs", "scheduler",
             "planned_runs", "finished_runs", "complete", "hosts", "logs")

@@ -179,6 +179,10 @@ def test_demo(tmp_path):
     plan = check_json(out / "plan.json", ["task", "planner", "seed", "exact", "controls", "states"])
     assert plan["task"] == "push_box" and plan["exact"] is True
     assert "an exact plan in" in r.stdout
+    # the demo's plan is the shortened one behind docs/planning.md's figure (issue 25), bit for bit
+    doc = json.loads((ROOT / "docs" / "figures" / "planning" / "push_box" / "plan.json").read_text())
+    assert plan["shorten"]["enabled"] and plan["path_duration"] < plan["first_path_duration"]
+    assert (plan["controls"], plan["steps"], plan["states"]) == (doc["controls"], doc["steps"], doc["states"])
 
 
 @pytest.mark.slow
@@ -292,7 +296,9 @@ def test_compare(tmp_path):
     assert {row[header.index("simulator")] for row in rows} == {"planar_lcp", "pymunk"}
 
 
-PLAN_KEYS = ["format", "task", "planner", "seed", "exact", "start", "controls", "steps", "durations", "states", "goal"]
+PLAN_KEYS = ["format", "task", "planner", "seed", "exact", "start", "controls", "steps", "durations", "states", "goal",
+             "path_duration", "pusher_path_length", "object_path_length", "first_path_duration",
+             "first_pusher_path_length", "first_object_path_length", "solve_time", "shorten"]
 
 
 def check_plan_dir(out, task):
@@ -309,8 +315,16 @@ def test_plan(tmp_path):
     r = run_cli("plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--out", out,
             cwd=tmp_path)
     ok(r)
-    check_plan_dir(out, "tip_box")
+    plan = check_plan_dir(out, "tip_box")
     check_gif(out / "plan.gif")
+    assert plan["shorten"]["enabled"] and plan["path_duration"] < plan["first_path_duration"]
+    # [--no-shorten]: the planner's first exact plan, the one the default shortened
+    r = run_cli("plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--no-shorten", "--out",
+                tmp_path / "first", "--no-gif", cwd=tmp_path)
+    ok(r)
+    first = check_plan_dir(tmp_path / "first", "tip_box")
+    assert not first["shorten"]["enabled"] and first["path_duration"] == plan["first_path_duration"]
+    assert dict(controls=first["controls"], steps=first["steps"]) == plan["first_plan"]
 
 
 @pytest.fixture
@@ -365,6 +379,10 @@ def test_plan_bench(tmp_path):
     d = check_json(out / "summary.json", ["task", "runs", "time_limit", "summary", "records"])
     assert d["task"] == "tip_box" and d["runs"] == 1 and len(d["records"]) == 1
     assert [s["planner"] for s in d["summary"]] == ["RRT"]
+    rec = d["records"][0]
+    assert rec["exact"] and rec["path_duration"] <= rec["first_path_duration"]    # the first and the shortened plan
+    check_text(out / "summary.md", "first path duration [s]")
+    check_text(out / "summary.md", "final path duration [s]")
     check_text(out / "tip_box.log", "RRT")
     check_records(out / "records.jsonl", 1)
     # [--resume]: the benchmark is finished, so nothing runs and the outputs are written again from its records
