@@ -16,6 +16,7 @@ import numpy as np
 from planar_lcp.spec.scene import SceneError, read_document, scenes_dir
 from planar_lcp.spec.task import document_sha256, parse_task
 
+from .shorten import costs
 from .tasks import TaskError, TaskModel, check_planner
 
 #: 2: the plan holds its task's document (task files); 1 (before) named a built-in task only
@@ -85,11 +86,11 @@ def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=N
         from .shorten import shorten as shorten_plan
         plan["first_plan"] = dict(controls=plan["controls"], steps=plan["steps"])
         r = shorten_plan(tm, plan["start"], controls, steps, seed, deadline=deadline)
-        bound, _, _ = tm.execute(plan["start"], r["controls"], r["steps"])    # the replay's states
+        bound, dense, _ = tm.execute(plan["start"], r["controls"], r["steps"])    # the replay's states
         plan.update(controls=r["controls"].tolist(), steps=r["steps"].tolist(),
                     durations=(r["steps"] * t.step_duration).tolist(), states=bound.tolist(),
-                    path_duration=float(r["steps"].sum() * t.step_duration), goal=tm.goal_report(bound[-1]))
-        plan.update(_costs(tm, plan))
+                    goal=tm.goal_report(bound[-1]))
+        plan.update(costs(tm, r["steps"], dense))
         plan["shorten"] = dict(enabled=True, candidates=r["candidates"], accepted=r["accepted"],
                                accepted_by_kind=r["accepted_by_kind"], truncated=r["truncated"], time=r["time"],
                                max_candidates=MAX_CANDIDATES, patience=PATIENCE,
@@ -100,7 +101,6 @@ def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=N
 def _costs(tm, plan):
     """The costs of the plan dict's controls: path_duration, pusher_path_length and object_path_length
     (planners.shorten.costs)."""
-    from .shorten import costs
     _, dense, _ = tm.execute(plan["start"], plan["controls"], plan["steps"])
     return costs(tm, plan["steps"], dense)
 
