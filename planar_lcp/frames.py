@@ -18,15 +18,17 @@ def rotation(theta):
     return np.array([[c, -s], [s, c]])
 
 
+def _origin_offset(theta, com_local):
+    """The body-frame origin less the COM, in the world frame: -R(theta) com_local, as (x, y), each (..., nbody)."""
+    c, s = np.cos(theta), np.sin(theta)
+    cx, cy = com_local[:, 0], com_local[:, 1]
+    return -(c * cx - s * cy), -(s * cx + c * cy)
+
+
 def com_to_frame(q_com, com_local):
     """COM poses (..., nbody, 3) -> body-frame origin poses."""
     q_com = np.asarray(q_com, dtype=float)
-    out = q_com.copy()
-    c, s = np.cos(q_com[..., 2]), np.sin(q_com[..., 2])
-    cx, cy = com_local[:, 0], com_local[:, 1]
-    out[..., 0] = q_com[..., 0] - (c * cx - s * cy)
-    out[..., 1] = q_com[..., 1] - (s * cx + c * cy)
-    return out
+    return frame_state(q_com, None, com_local)[0]
 
 
 def frame_to_com(q_frame, com_local):
@@ -42,13 +44,25 @@ def frame_to_com(q_frame, com_local):
 
 def frame_velocity(q_com, v_com, com_local):
     """Velocity of the body-frame origin from the COM pose and velocity: v_o = v_c + omega x (o - c)."""
-    v = v_com.copy()
-    c, s = np.cos(q_com[..., 2]), np.sin(q_com[..., 2])
-    cx, cy = com_local[:, 0], com_local[:, 1]
-    rx, ry = -(c * cx - s * cy), -(s * cx + c * cy)
-    v[..., 0] = v_com[..., 0] - v_com[..., 2] * ry
-    v[..., 1] = v_com[..., 1] + v_com[..., 2] * rx
-    return v
+    return frame_state(q_com, v_com, com_local)[1]
+
+
+def frame_state(q_com, v_com, com_local):
+    """Body-frame origin poses and velocities (v_o = v_c + omega x (o - c)) from COM poses and velocities
+    (..., nbody, 3), with one rotation of com_local for both (a Trajectory's q and v); v_com None: poses only
+    (None in its place). Bodies whose COM is their frame's origin (com_local all zero: every symmetric shape) are
+    copies."""
+    q = q_com.copy()
+    v = None if v_com is None else v_com.copy()
+    if not com_local.any():
+        return q, v
+    rx, ry = _origin_offset(q_com[..., 2], com_local)
+    q[..., 0] += rx
+    q[..., 1] += ry
+    if v is not None:
+        v[..., 0] = v_com[..., 0] - v_com[..., 2] * ry
+        v[..., 1] = v_com[..., 1] + v_com[..., 2] * rx
+    return q, v
 
 
 def com_velocity(angle, velocity, angular_velocity, com):

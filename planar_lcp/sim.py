@@ -26,7 +26,7 @@ from planar_lcp.model import Model, compile_scene
 from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
 from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, restitution_setting, sim_settings,
                                    support_model_setting)
-from planar_lcp.frames import frame_velocity
+from planar_lcp.frames import frame_state
 from planar_lcp.infeasibility import diagnose_step
 from planar_lcp.trajectory import Trajectory, energy
 
@@ -492,7 +492,7 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     contacts = {key_names.get(k, k[4:]): out[k][:done] for k in ("con_count", "con_pair", "con_phi", "con_n", "con_p",
                                                              "con_cn", "con_ft", "con_vt", "con_mode")}
     contacts["shape_pairs"] = pairs
-    return Trajectory(t=np.arange(T) * h, q=model.com_to_frame(q_com),
-                      v=frame_velocity(q_com, v_com, model.com_local), q_com=q_com, v_com=v_com, qk=out["qk"][:T],
+    q_frame, v_frame = frame_state(q_com, v_com, model.com_local)
+    return Trajectory(t=np.arange(T) * h, q=q_frame, v=v_frame, q_com=q_com, v_com=v_com, qk=out["qk"][:T],
                       body_names=model.dyn_names, kinematic_names=model.kin_names, stats=stats, contacts=contacts,
                       options=opts, scene=scene, failures=failures)

@@ -62,3 +62,23 @@ def test_shape_geometry_has_the_exact_area(name):
             g = shape_geometry(s, quad_segs=64)
             assert g.area == pytest.approx(shape_area(s), rel=2e-4, abs=1e-12)
             assert shape_geometry(s, quad_segs=8).area <= g.area     # inscribed arcs: coarser is smaller
+
+
+def test_frame_state_is_both_conversions_with_one_rotation():
+    """A Trajectory's q and v (`frame_state`): the frame origin o = c - R(theta) com_local and its velocity
+    v_c + omega x (o - c), against the rotation written out; a body whose COM is its origin gets copies."""
+    from planar_lcp.frames import frame_state
+    rng = np.random.default_rng(3)
+    q, v = rng.normal(size=(7, 2, 3)), rng.normal(size=(7, 2, 3))
+    com = np.array([[0.1, -0.2], [0.0, 0.0]])
+    qf, vf = frame_state(q, v, com)
+    for t in range(7):
+        for b in range(2):
+            r = rotation(q[t, b, 2]) @ com[b]
+            assert np.allclose(qf[t, b], [q[t, b, 0] - r[0], q[t, b, 1] - r[1], q[t, b, 2]], rtol=0, atol=1e-15)
+            w = v[t, b, 2]
+            assert np.allclose(vf[t, b], [v[t, b, 0] + w * r[1], v[t, b, 1] - w * r[0], w], rtol=0, atol=1e-15)
+    assert np.array_equal(qf, com_to_frame(q, com)) and np.array_equal(vf, frame_velocity(q, v, com))
+    q0, v0 = frame_state(q, v, np.zeros((2, 2)))
+    assert np.array_equal(q0, q) and np.array_equal(v0, v)
+    assert not np.shares_memory(q0, q) and not np.shares_memory(v0, v)
