@@ -94,7 +94,7 @@ def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=N
         plan["shorten"] = dict(enabled=True, candidates=r["candidates"], accepted=r["accepted"],
                                accepted_by_kind=r["accepted_by_kind"], truncated=r["truncated"], time=r["time"],
                                max_candidates=MAX_CANDIDATES, patience=PATIENCE,
-                               stopped_by_deadline=bool(deadline is not None and time.perf_counter() > deadline))
+                               stopped_by_deadline=r["stopped_by_deadline"])
     return plan
 
 

@@ -222,13 +222,14 @@ def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patien
     Returns
     -------
     dict
-        controls (m, 2), steps (m,), the counts `candidates`, `accepted` (and by kind), `time` (s), and
-        `exact_input` (False when the given plan did not reach the goal: it is returned unchanged).
+        controls (m, 2), steps (m,), the counts `candidates`, `accepted` (and by kind), `time` (s),
+        `stopped_by_deadline`, and `exact_input` (False when the given plan did not reach the goal: it is returned
+        unchanged).
     """
     t0 = time.perf_counter()
     s = Shortener(tm, x0, controls, steps)
     stats = dict(candidates=0, accepted=0, accepted_by_kind={k: 0 for k in KINDS}, truncated=False,
-                 exact_input=s.ok)
+                 stopped_by_deadline=False, exact_input=s.ok)
     if not s.ok:
         stats.update(controls=np.asarray(controls, float).reshape(-1, 2), steps=np.asarray(steps, int),
                      time=time.perf_counter() - t0)
@@ -238,6 +239,7 @@ def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patien
     rejected = draws = 0
     while stats["candidates"] < max_candidates and rejected < patience and draws < 20 * max_candidates:
         if deadline is not None and time.perf_counter() > deadline:
+            stats["stopped_by_deadline"] = True
             break
         draws += 1
         K = len(s.U)

@@ -105,9 +105,9 @@ def test_the_budget_bounds_the_shortening(tip):
     from planners.shorten import shorten
     tm, plan = tip
     r = shorten(tm, plan["start"], plan["controls"], plan["steps"], seed=7, deadline=0.0)   # long past
-    assert r["candidates"] == 0
+    assert r["candidates"] == 0 and r["stopped_by_deadline"]
     r = shorten(tm, plan["start"], plan["controls"], plan["steps"], seed=7, max_candidates=5)
-    assert r["candidates"] == 5
+    assert r["candidates"] == 5 and not r["stopped_by_deadline"]
 
 
 def test_path_lengths_are_the_polylines_through_the_propagation_steps(tip):
