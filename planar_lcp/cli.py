@@ -6,7 +6,10 @@ import importlib.metadata
 import importlib.util
 import math
 import os
+import signal
 import sys
+
+from planar_lcp.interrupt import catch_sigint, clear, interrupted, raise_if_interrupted
 
 #: Optional packages -> the extra of pyproject.toml ([project.optional-dependencies]) that installs each.
 OPTIONAL_PACKAGES = {"matplotlib": "plot", "shapely": "plot", "osqp": "osqp", "scipy": "osqp", "pymunk": "compare",
@@ -519,6 +522,18 @@ def raised_while_interrupted(e):
 
 
 def main(argv=None):
+    # Ctrl-C that numba's dispatcher cannot swallow (planar_lcp.interrupt); a program calling main() gets its own
+    # handler back at the end
+    previous = catch_sigint()
+    try:
+        return _main(argv)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+        clear()
+
+
+def _main(argv):
     try:
         args = build_parser().parse_args(argv)
     except KeyboardInterrupt:
@@ -537,7 +552,11 @@ def main(argv=None):
 def _run(args):
     kept = ""
     try:
-        return args.func(args)
+        rc = args.func(args)
+        # a Ctrl-C swallowed where nothing checked for it after (planar_lcp.interrupt) is still an interrupt: the
+        # command's outputs may be whole, but it does not report success over the user's Ctrl-C
+        raise_if_interrupted()
+        return rc
     except Exception as e:
         missing = _missing_optional(e)
         if missing:
@@ -545,8 +564,9 @@ def _run(args):
             print(f"planar-lcp {args.command}: error: {MissingPackage(missing)}", file=sys.stderr)
             return 2
         # Ctrl-C while numba compiles: numba's clean-up then raises its own error ("no compiled object yet", while
-        # saving the unfinished function to its cache) in place of the KeyboardInterrupt. Still an interrupt.
-        if not raised_while_interrupted(e):
+        # saving the unfinished function to its cache) in place of the KeyboardInterrupt, which it may also have
+        # swallowed (planar_lcp.interrupt remembers it then). Still an interrupt.
+        if not (raised_while_interrupted(e) or interrupted()):
             raise
     except KeyboardInterrupt as e:
         # a command that kept something (plan-bench and tradeoff: the finished runs) says what in the interrupt's

@@ -28,6 +28,7 @@ from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, resti
                                    support_model_setting)
 from planar_lcp.frames import frame_state
 from planar_lcp.infeasibility import diagnose_step
+from planar_lcp.interrupt import raise_if_interrupted
 from planar_lcp.trajectory import Trajectory, energy
 
 #: formulation name (the scene format's list) -> the kernels' FORM_* code, which is its index in that list
@@ -276,6 +277,8 @@ class Simulator:
             t0 = time.perf_counter()
             done = int(self._variants[level][1](self.kmodel, rec.q[start], rec.v[start], rec.qk[start], vk_seq, start,
                                                 n, self.h, self.kopt, self.kwork, view, stop_on_failure, start == 0))
+            # a Ctrl-C that numba's dispatcher swallowed during the call (planar_lcp.interrupt) stops the run here
+            raise_if_interrupted()
             if done and not level:
                 chunk = int(min(max(16, self.CHUNK_SECONDS * done / max(time.perf_counter() - t0, 1e-9)), 1 << 20))
                 self._chunk = chunk
