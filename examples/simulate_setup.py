@@ -52,7 +52,7 @@ def timed(owner, attr, label=None):
 
 
 for attr in ("sim_settings", "support_model_setting", "restitution_setting", "compiled_scene", "check_run_size",
-             "energy", "frame_velocity"):
+             "energy", "frame_state"):
     timed(S, attr)
 timed(S.Simulator, "__init__", "Simulator()")
 timed(S.Simulator, "rollout", "the rollout")
