@@ -51,8 +51,10 @@ def timed(owner, attr, label=None):
     setattr(owner, attr, g)
 
 
+# the settings, the model and the run-size check are made once per Scene object and arguments (`sim._RunSetup`):
+# after the first call they no longer show
 for attr in ("sim_settings", "support_model_setting", "restitution_setting", "compiled_scene", "check_run_size",
-             "energy", "frame_velocity"):
+             "energy", "frame_state", "_trajectory_stats", "_take_simulator", "_give_back"):
     timed(S, attr)
 timed(S.Simulator, "__init__", "Simulator()")
 timed(S.Simulator, "rollout", "the rollout")

@@ -376,10 +376,45 @@ def compiled_scene(scene, friction_directions=None, seed_friction_arm=False, sup
     return _compiled_scene(*key)
 
 
-#: the stats' columns by kind (integer-valued, float), for `simulate`'s Trajectory.stats
+#: the integer-valued stats' columns, for `simulate`'s Trajectory.stats
 _INT_STATS = [i for i, (_, integer, _) in enumerate(STATS) if integer]
-_FLOAT_STATS = [i for i, (_, integer, _) in enumerate(STATS) if not integer]
-_STAT_ROW = {i: k for idx in (_INT_STATS, _FLOAT_STATS) for k, i in enumerate(idx)}
+#: (name, integer-valued, its row in `_trajectory_stats`' float or int array) of every stat a Trajectory keeps, in
+#: STATS order (lemke_status is named by a failure's cause instead)
+_STAT_SLOTS = [(name, integer, _INT_STATS.index(i) if integer else i) for i, (name, integer, _) in enumerate(STATS)
+               if name != "lemke_status"]
+#: (Recording field, Trajectory.contacts key) of the recorded contacts
+_CONTACT_KEYS = [(k, {"con_n": "normal", "con_p": "point"}.get(k, k[4:]))
+                 for k in ("con_count", "con_pair", "con_phi", "con_n", "con_p", "con_cn", "con_ft", "con_vt", "con_mode")]
+
+
+def _trajectory_stats(st):
+    """Trajectory.stats' rows from a rollout's (nsteps, NSTAT) stats: every stat by its name, each a contiguous row,
+    the integer-valued ones as int: one transposed copy and one conversion of the integer rows (issue M's set-up)."""
+    by_stat = np.ascontiguousarray(st.T)
+    rows = (by_stat, by_stat[_INT_STATS].astype(int))
+    return {name: rows[integer][row] for name, integer, row in _STAT_SLOTS}
+
+
+class _RunSetup:
+    """What `simulate` makes of its arguments before the rollout (the validated settings, the run's scene, options and
+    compiled model, the run-size check passed, the contacts' shape pairs), kept for the next call with the same
+    arguments and the same Scene object: a Scene that hashes is immutable (frozen dataclasses and tuples), so
+    the same object with the same arguments validates, compiles and checks the same (issue M's set-up)."""
+
+    __slots__ = ("scene", "run_scene", "nsteps", "options", "model", "shape_pairs")
+
+    def __init__(self, scene, run_scene, nsteps, options, model):
+        self.scene, self.run_scene, self.nsteps, self.options, self.model = scene, run_scene, nsteps, options, model
+        a = model.arrays
+        names = [b.name for b in run_scene.bodies]
+        self.shape_pairs = tuple((names[a.shape_body[pa]], names[a.shape_body[pb]]) for pa, pb in zip(a.pair_a, a.pair_b))
+
+
+#: The last RUN_SETUPS `_RunSetup`s of `simulate`, by (id of the Scene, the other arguments that shape the run): each
+#: holds its Scene, so the id stays that Scene's while the entry lives.
+_run_setups = OrderedDict()
+RUN_SETUPS = 32
+
 
 #: Idle simulators of `simulate`, by (id of the model, options): a call takes one (or makes one) and gives it back, so
 #: that a sweep of short runs does not allocate and wrap the work buffers every call (about 100 µs of the call, issue
@@ -436,30 +471,52 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     names = {**_KEYWORD_NAMES, **(option_names or {})}
-    sim, nsteps, _ = sim_settings(scene, dict(
-        t_end=t_end, h=h, solver=solver, formulation=formulation, fixed_point_iterations=fixed_point_iterations,
-        friction_directions=friction_directions, pgs_iterations=pgs_iterations,
-        limit_surface_twists=limit_surface_twists, limit_surface_resolution=limit_surface_resolution), names)
-    support = support_model_setting(scene, support_model, names.get("support_model", "support_model"))
-    scene = restitution_setting(scene, restitution, names.get("restitution", "restitution"))
-    h = sim.h
-    opts = SimOptions(h=h, solver=sim.solver, formulation=sim.formulation,
-                      fixed_point_iterations=sim.fixed_point_iterations, pgs_iterations=sim.pgs_iterations, **options)
-    model = compiled_scene(scene, sim.friction_directions, seed_friction_arm, support, sim.limit_surface_twists,
-                           sim.limit_surface_resolution)
-    check_run_size(model, nsteps, names, record_contacts)
+    key = (id(scene), t_end, h, solver, formulation, fixed_point_iterations, friction_directions, pgs_iterations,
+           support_model, limit_surface_twists, limit_surface_resolution, restitution, bool(record_contacts),
+           bool(seed_friction_arm), *options.items())
+    try:
+        setup = _run_setups.get(key)
+    except TypeError:                                     # an unhashable keyword value: nothing is kept
+        setup, key = None, None
+    if setup is None or setup.scene is not scene:
+        sim, nsteps, _ = sim_settings(scene, dict(
+            t_end=t_end, h=h, solver=solver, formulation=formulation, fixed_point_iterations=fixed_point_iterations,
+            friction_directions=friction_directions, pgs_iterations=pgs_iterations,
+            limit_surface_twists=limit_surface_twists, limit_surface_resolution=limit_surface_resolution), names)
+        support = support_model_setting(scene, support_model, names.get("support_model", "support_model"))
+        run_scene = restitution_setting(scene, restitution, names.get("restitution", "restitution"))
+        opts = SimOptions(h=sim.h, solver=sim.solver, formulation=sim.formulation,
+                          fixed_point_iterations=sim.fixed_point_iterations, pgs_iterations=sim.pgs_iterations,
+                          **options)
+        model = compiled_scene(run_scene, sim.friction_directions, seed_friction_arm, support,
+                               sim.limit_surface_twists, sim.limit_surface_resolution)
+        check_run_size(model, nsteps, names, record_contacts)
+        setup = _RunSetup(scene, run_scene, nsteps, opts, model)
+        try:
+            hash(scene)                                   # an unhashable Scene (lists) may change: not kept
+        except TypeError:
+            key = None
+        if key is not None:
+            with _idle_lock:
+                _run_setups[key] = setup
+                while len(_run_setups) > RUN_SETUPS:
+                    _run_setups.popitem(last=False)
+    scene, nsteps, opts, model = setup.run_scene, setup.nsteps, setup.options, setup.model
+    h = opts.h
     simr = _take_simulator(model, opts)
     simr.progress = progress
-    q0, v0, qk0, vk0 = simr.initial_state()
-    out = simr.rollout(q0, v0, qk0, vk0[None], nsteps, stop_on_failure=(on_failure == "raise"),
+    vk0 = model.vk0
+    # the rollout copies the initial state into its recording and never writes its inputs
+    out = simr.rollout(model.q0, model.v0, model.qk0, vk0[None], nsteps, stop_on_failure=(on_failure == "raise"),
                        record_contacts=record_contacts)
     done = out["steps_done"]
+    status = out["status"][:done]
     try:
         # each failed LCP step examined for a certificate that it has no solution (infeasibility.py): per step,
         # 1 in certified_infeasible or in unclassified
         failures, diagnoses = [], {}
         infeasible, unclassified = np.zeros(done, np.int64), np.zeros(done, np.int64)
-        for i in np.flatnonzero(out["status"][:done] != STEP_OK):
+        for i in (np.flatnonzero(status != STEP_OK) if done and status.any() else ()):
             diagnosis = None
             if out["status"][i] == STEP_LCP_FAILED:
                 diagnosis = diagnoses[i] = diagnose_step(simr, out["q"][i], out["v"][i], out["qk"][i], vk0)
@@ -478,23 +535,11 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
         raise SimulationError(message)
     T = done + 1
     q_com, v_com = out["q"][:T], out["v"][:T]
-    st = out["stats"][:done]
-    en = energy(model, q_com, v_com)
-    # every stat by its name, the integer-valued ones as int (lemke_status is named by a failure's cause instead):
-    # rows of two contiguous copies, one per kind (two conversions instead of one per stat: issue M's set-up)
-    by_kind = {kind: np.ascontiguousarray(st[:, idx].T, dtype=int if kind else float)
-               for kind, idx in ((True, _INT_STATS), (False, _FLOAT_STATS))}
-    stats = {name: by_kind[integer][_STAT_ROW[i]] for i, (name, integer, _) in enumerate(STATS)
-             if name != "lemke_status"}
-    stats.update(status=out["status"][:done].copy(), energy=en, certified_infeasible=infeasible,
+    stats = _trajectory_stats(out["stats"][:done])
+    stats.update(status=status.copy(), energy=energy(model, q_com, v_com), certified_infeasible=infeasible,
                  unclassified=unclassified)
-    a = model.arrays
-    names = [b.name for b in scene.bodies]
-    pairs = [(names[a.shape_body[pa]], names[a.shape_body[pb]]) for pa, pb in zip(a.pair_a, a.pair_b)]
-    key_names = {"con_n": "normal", "con_p": "point"}
-    contacts = {key_names.get(k, k[4:]): out[k][:done] for k in ("con_count", "con_pair", "con_phi", "con_n", "con_p",
-                                                             "con_cn", "con_ft", "con_vt", "con_mode")}
-    contacts["shape_pairs"] = pairs
+    contacts = {name: out[k][:done] for k, name in _CONTACT_KEYS}
+    contacts["shape_pairs"] = list(setup.shape_pairs)
     q_frame, v_frame = frame_state(q_com, v_com, model.com_local)
     return Trajectory(t=np.arange(T) * h, q=q_frame, v=v_frame, q_com=q_com, v_com=v_com, qk=out["qk"][:T],
                       body_names=model.dyn_names, kinematic_names=model.kin_names, stats=stats, contacts=contacts,

@@ -185,6 +185,56 @@ def test_simulate_keeps_no_simulator_with_large_buffers_and_a_bounded_number():
         simulate("falling_rod", t_end=0.01, contact_margin=1e-3 * (1 + i))   # another SimOptions each
     assert len(S._idle_simulators) == S.IDLE_SIMULATORS
 
+def _same_run(tr, sc, nsteps, **options):
+    """tr (a simulate() Trajectory) equals a fresh Simulator's rollout of sc with those options, bit for bit."""
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, **options))
+    q, v, qk, vk = sim.initial_state()
+    out = sim.rollout(q, v, qk, vk[None], nsteps, record_contacts=True)
+    return (len(tr.t) == nsteps + 1 and np.array_equal(tr.q_com, out["q"]) and np.array_equal(tr.v_com, out["v"])
+            and np.array_equal(tr.stats["status"], out["status"]) and np.array_equal(tr.contacts["cn"], out["con_cn"]))
+
+
+def test_simulate_keeps_its_run_setup_for_the_same_scene_object_and_arguments():
+    """Issue M (set-up): `simulate` keeps what it makes of its arguments (the validated settings, the options, the
+    model, the run-size check) for the next call with the same Scene object and the same arguments; any other
+    argument, option or Scene makes (and checks) its own, and every run equals a fresh Simulator's bit for bit. A
+    Scene that does not hash (lists: it can change) is never kept, and a bad argument fails on every call."""
+    import dataclasses
+    from planar_lcp import sim as S
+    from planar_lcp.spec.scene import SceneError
+    S._run_setups.clear()
+    sc = load_scene("box_push")
+    first = simulate(sc, t_end=0.2)
+    assert len(S._run_setups) == 1
+    kept, = S._run_setups.values()
+    again = simulate(sc, t_end=0.2)
+    assert list(S._run_setups.values()) == [kept] and again.options is first.options
+    assert _same_run(again, sc, 20)
+    assert _same_run(simulate(sc, t_end=0.1), sc, 10) and len(S._run_setups) == 2
+    shifted = simulate(sc, t_end=0.2, contact_margin=1e-3)
+    assert shifted.options.contact_margin == 1e-3 and _same_run(shifted, sc, 20, contact_margin=1e-3)
+    assert len(S._run_setups) == 3
+    other = load_scene("box_push")                                   # equal, another object: its own entry
+    simulate(other, t_end=0.2)
+    assert len(S._run_setups) == 4
+    for _ in range(2):
+        with pytest.raises(SceneError, match="h"):
+            simulate(sc, t_end=0.2, h=-1.0)
+    assert len(S._run_setups) == 4
+    # a Scene with a list of bodies does not hash: made again each call, so a change to the list is run
+    listed = dataclasses.replace(sc, bodies=list(sc.bodies))
+    light = simulate(listed, t_end=0.2)
+    assert len(S._run_setups) == 4 and _same_run(light, sc, 20)
+    box = next(i for i, b in enumerate(listed.bodies) if b.type == "dynamic")
+    x, y = listed.bodies[box].position
+    listed.bodies[box] = dataclasses.replace(listed.bodies[box], position=(x, y + 1e-3))
+    moved = simulate(listed, t_end=0.2)
+    assert len(S._run_setups) == 4 and np.isclose(moved.q[0, 0, 1], light.q[0, 0, 1] + 1e-3)
+    for i in range(S.RUN_SETUPS + 3):
+        simulate(sc, t_end=0.02 + 0.01 * i)
+    assert len(S._run_setups) == S.RUN_SETUPS
+
+
 def test_a_model_pickles_after_its_kernel_struct_was_made():
     """Model.struct is made once and kept on the model; numba's memory does not pickle, so a pickled model leaves it
     out and makes it again (a Model sent to a Dask worker, or saved)."""
