@@ -18,7 +18,7 @@ cannot be built from the 2.0.1 wheel: docs/planning.md). `shorten` rewrites such
   "retarget": a straight move from step a to the pusher's position at step b shifted by the object's error at the
   end (a local re-plan of the last push towards the goal pose: the pusher moves by what the object still lacks).
   "push": a local re-plan of the OBJECT's path from step a to the object's pose at step b (b = the plan's end, in
-  half of them: the goal's pose), the only kind that can straighten the object's path. A point pusher moves a
+  half of them: the goal's pose, or its position when it has no angle), the only kind that can straighten the object's path. A point pusher moves a
   box without turning it only by pushing a face through its middle (within the contact's friction cone about the
   face's normal), so the primitive goes as a rook does: when the object's angle is off the target's it first turns
   it (pushing a face off its middle), then moves it in one or two straight legs along its faces' normals (the
@@ -133,8 +133,9 @@ class Shortener:
         _, dense, ok = (None, *replayed) if replayed is not None else tm.execute(x0, controls, steps)
         self.X = dense
         self.ok = bool(ok) and all(tm.admissible(x) for x in dense) and self._goal(dense[-1])
-        #: whether "push" candidates apply: a goal with a position, in the horizontal plane
-        self.can_push = tm.goal_com is not None and tm.scene.world.plane == "horizontal"
+        #: whether "push" candidates apply: a goal with a position (x and y), in the horizontal plane
+        g = t.goal
+        self.can_push = tm.scene.world.plane == "horizontal" and g.x is not None and g.y is not None
 
     def _goal(self, x):
         return self.tm.goal_distance(x) <= 1.0 and self.tm.admissible(x)
@@ -341,8 +342,16 @@ class Shortener:
             return None
         g = tm.task.goal
         K, ip, r = len(self.U), tm.ip, tm.pusher_radius
-        if b == K:
+        if b == K and tm.goal_com is not None:
             target, angle = tm.goal_com[:2], (tm.goal_com[2] if g.angle is not None else None)
+        elif b == K:
+            # a goal position without an angle: the centre of mass where the body frame's origin is at (x, y) if the
+            # object keeps its angle at a (exactly the goal for a round object, whose centre of mass is its origin)
+            th = self.X[a, 2]
+            cl = tm.com_local
+            target = np.array([g.x + math.cos(th) * cl[0] - math.sin(th) * cl[1],
+                               g.y + math.sin(th) * cl[0] + math.cos(th) * cl[1]])
+            angle = None
         else:
             target, angle = self.X[b, 0:2], self.X[b, 2]
         budget = b - a - 1

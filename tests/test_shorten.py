@@ -270,6 +270,25 @@ def test_the_push_primitive_moves_a_box_to_a_diagonal_target_as_a_rook():
     assert sorted(corners) == [0, 1]
 
 
+def test_the_push_primitive_pushes_a_disk_straight_to_a_position_goal():
+    """Oracle: a disk has no face to hold (and a goal without an angle): one straight push along the line from its
+    centre to the goal, its path the straight distance (0.15 m here), whatever the gains."""
+    from planners import TaskModel
+    from planners.shorten import Shortener
+    disk = LONE_BOX.replace('{ type = "box", width = 0.1, height = 0.1 }', '{ type = "disk", radius = 0.035 }')
+    tm = TaskModel(disk.replace("goal = { x = GX, y = GY, angle_deg = GA }", "goal = { x = 0.12, y = 0.09 }"))
+    s = Shortener(tm, tm.initial_state(), np.zeros((12, 2)), [10] * 12)
+    assert s.can_push and tm.goal_com is None
+    for k_angle, lateral_gain, speed, side, first in ((0.03, 0.75, 0.8, 0, 0), (0.01, 0.5, 0.6, 1, 1)):
+        U, S, whole = s.push(0, len(s.U), k_angle, lateral_gain, speed, side, first)
+        assert whole and tm.goal_distance(S[-1]) <= 1.0
+        assert np.abs(U).max() <= tm.task.control_max
+        path = np.hypot(*np.diff(S[:, 0:2], axis=0).T).sum()
+        assert abs(path - 0.15) < 0.002, path
+        off_line = np.abs(S[:, 0:2] @ np.array([-0.09, 0.12]) / 0.15)
+        assert off_line.max() < 0.002, off_line.max()
+
+
 def test_the_push_primitive_turns_the_box_to_the_goal_angle():
     """A goal turned 40 deg: the primitive first pushes a face off its middle (the torque of the offset push turns
     the box towards the goal's angle), then pushes it to the goal position; it ends within both tolerances."""
