@@ -133,6 +133,8 @@ class Shortener:
         _, dense, ok = (None, *replayed) if replayed is not None else tm.execute(x0, controls, steps)
         self.X = dense
         self.ok = bool(ok) and all(tm.admissible(x) for x in dense) and self._goal(dense[-1])
+        #: a time.perf_counter() value at which a push candidate being built stops (shorten's deadline)
+        self.deadline = None
         #: whether "push" candidates apply: a goal with a position (x and y), in the horizontal plane
         g = t.goal
         self.can_push = tm.scene.world.plane == "horizontal" and g.x is not None and g.y is not None
@@ -359,7 +361,7 @@ class Shortener:
 
         def run(controls):
             for u in controls:
-                if len(U) >= budget:
+                if len(U) >= budget or (self.deadline is not None and time.perf_counter() > self.deadline):
                     return False
                 y, good = tm.advance(S[-1], u, tm.steps_per_prop)
                 U.append(u)
@@ -474,7 +476,8 @@ def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patien
     max_candidates, patience : int
         Stop after this many simulated candidates, or this many rejected in a row.
     deadline : float, optional
-        A time.perf_counter() value after which no candidate is started.
+        A time.perf_counter() value after which no candidate is started (and a push candidate being built stops,
+        rejected: building one simulates as many steps as it replaces at most).
     replayed : (dense states, ok), optional
         What `tm.execute(x0, controls, steps)` returns (its dense states and ok), when the caller replayed the plan
         already (`plan` does, for its costs): the plan is then not replayed again.
@@ -488,6 +491,7 @@ def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patien
     """
     t0 = time.perf_counter()
     s = Shortener(tm, x0, controls, steps, replayed)
+    s.deadline = deadline
     stats = dict(candidates=0, accepted=0, accepted_by_kind={k: 0 for k in KINDS}, truncated=False,
                  stopped_by_deadline=False, exact_input=s.ok)
     if not s.ok:

@@ -289,6 +289,21 @@ def test_the_push_primitive_pushes_a_disk_straight_to_a_position_goal():
         assert off_line.max() < 0.002, off_line.max()
 
 
+def test_a_push_being_built_stops_at_the_deadline():
+    """Under --time the shortening's deadline stops a push candidate while it is built (it simulates up to as many
+    steps as it replaces): past the deadline it is rejected without a step; without one, the same push is built."""
+    from planners import TaskModel
+    from planners.shorten import Shortener
+    tm = TaskModel(LONE_BOX.replace("GX", "0.15").replace("GY", "0.0").replace("GA", "0.0"))
+    s = Shortener(tm, tm.initial_state(), np.zeros((12, 2)), [10] * 12)
+    s.deadline = 0.0                                          # long past
+    U, S, whole = s.push(0, len(s.U), 0.03, 0.75, 0.8, 0, 0)
+    assert not whole and len(U) == 0 and len(S) == 1
+    s.deadline = None
+    U, S, whole = s.push(0, len(s.U), 0.03, 0.75, 0.8, 0, 0)
+    assert whole and len(U) > 0
+
+
 def test_the_push_primitive_turns_the_box_to_the_goal_angle():
     """A goal turned 40 deg: the primitive first pushes a face off its middle (the torque of the offset push turns
     the box towards the goal's angle), then pushes it to the goal position; it ends within both tolerances."""
