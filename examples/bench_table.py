@@ -35,9 +35,10 @@ def shorter_row(s, r):
             f"{med:.1f} ({times[-1]:.1f}) |")
 
 
-SHORTER_HEADER = ("| task | exact | replayed to the goal | time to first exact [s] median (q1-q3) | first path duration [s] "
-                  "median (q1-q3) | final path duration [s] median (q1-q3) | final / first (medians) | pusher path [m] "
-                  "first, final (medians) | object path [m] first, final (medians) | shortening [s] median (slowest) |")
+SHORTER_HEADER = ("| task | exact | replayed to the goal | time to first exact [s] median (q1-q3) | "
+                  "first path duration [s] median (q1-q3) | final path duration [s] median (q1-q3) | "
+                  "final / first (medians) | pusher path [m] first, final (medians) | "
+                  "object path [m] first, final (medians) | shortening [s] median (slowest) |")
 
 
 def main(dirs):

@@ -18,17 +18,18 @@ cannot be built from the 2.0.1 wheel: docs/planning.md). `shorten` rewrites such
   "retarget": a straight move from step a to the pusher's position at step b shifted by the object's error at the
   end (a local re-plan of the last push towards the goal pose: the pusher moves by what the object still lacks).
   "push": a local re-plan of the OBJECT's path from step a to the object's pose at step b (b = the plan's end, in
-  half of them: the goal's pose, or its position when it has no angle), the only kind that can straighten the object's path. A point pusher moves a
-  box without turning it only by pushing a face through its middle (within the contact's friction cone about the
-  face's normal), so the primitive goes as a rook does: when the object's angle is off the target's it first turns
-  it (pushing a face off its middle), then moves it in one or two straight legs along its faces' normals (the
-  pair whose cone holds the way to the target, the shortest, in a random order), each a free approach to behind
-  the object (straight segments, round the object on a circle clear of it) and a push re-aimed at the leg's end
-  every step, the contact point shifted across the push line by the object's angle error to hold it. It waits for
-  the object to come to rest and, for b < the end, moves free to the pusher's position at b. The controls are
-  made by simulating the candidate from X[a] step by step (feedback on the simulated states); the result is
-  still a list of per-step controls with their states, judged as the others; its parameters (gains, speed, the
-  side it goes round, the order of the legs, b) are drawn from the shortener's Generator.
+  half of them: the goal's pose, or its position when it has no angle), the only kind that can straighten the
+  object's path. A point pusher moves a box without turning it only by pushing a face through its middle (within
+  the contact's friction cone about the face's normal), so the primitive goes as a rook does: when the object's
+  angle is off the target's it first turns it (pushing a face off its middle), then moves it in one or two straight
+  legs along its faces' normals (the pair whose cone holds the way to the target, the shortest, in a random order),
+  each a free approach to behind the object (straight segments, round the object on a circle clear of it) and a
+  push re-aimed at the leg's end every step, the contact point shifted across the push line by the object's angle
+  error to hold it. It waits for the object to come to rest and, for b < the end, moves free to the pusher's
+  position at b. The controls are made by simulating the candidate from X[a] step by step (feedback on the
+  simulated states); the result is still a list of per-step controls with their states, judged as the others; its
+  parameters (gains, speed, the side it goes round, the order of the legs, b) are drawn from the shortener's
+  Generator.
 - A candidate is simulated from X[a] only: the states before a are unchanged and the simulator is deterministic, so
   this equals a re-simulation from the start bit for bit (tests/test_shorten.py checks it on the final plan). It is
   accepted only when every propagation step succeeds, every state is admissible (`TaskModel.admissible`: the
@@ -56,8 +57,8 @@ PATIENCE = 1000
 #: the share of each kind of candidate (straight, faster, retarget, push)
 KINDS = ("straight", "faster", "retarget", "push")
 KIND_P = (0.5, 0.25, 0.1, 0.15)
-#: ... where no push applies (the vertical plane, a goal without a position: tip_box): the shares of the first three
-#: kinds before "push" existed, drawn as then, so those tasks' shortened plans are the same as before it
+#: ... where no push applies (the vertical plane, tip_box; a goal without x and y, turn_box): the shares of the first
+#: three kinds before "push" existed, drawn as then, so those tasks' shortened plans are the same as before it
 KIND_P_NO_PUSH = (0.6, 0.3, 0.1)
 #: the push primitive's free moves keep the pusher's disk this far (m) from the object's outline
 PUSH_CLEARANCE = 0.005
