@@ -77,7 +77,9 @@ def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=N
                     durations=(steps * t.step_duration).tolist(), states=states.tolist(),
                     path_duration=float(steps.sum() * t.step_duration),
                     goal=tm.goal_report(states[-1]))
-    first = _costs(tm, plan)
+    # the planner's plan replayed once: its costs, and the shortening's starting states
+    _, first_dense, first_ok = tm.execute(plan["start"], plan["controls"], plan["steps"])
+    first = costs(tm, plan["steps"], first_dense)
     plan.update(pusher_path_length=first["pusher_path_length"], object_path_length=first["object_path_length"])
     plan.update({f"first_{k}": v for k, v in first.items()})
     plan["shorten"] = dict(enabled=bool(shorten), candidates=0, accepted=0, time=0.0)
@@ -85,7 +87,8 @@ def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=N
         from .shorten import MAX_CANDIDATES, PATIENCE
         from .shorten import shorten as shorten_plan
         plan["first_plan"] = dict(controls=plan["controls"], steps=plan["steps"])
-        r = shorten_plan(tm, plan["start"], controls, steps, seed, deadline=deadline)
+        r = shorten_plan(tm, plan["start"], controls, steps, seed, deadline=deadline,
+                         replayed=(first_dense, first_ok))
         bound, dense, _ = tm.execute(plan["start"], r["controls"], r["steps"])    # the replay's states
         plan.update(controls=r["controls"].tolist(), steps=r["steps"].tolist(),
                     durations=(r["steps"] * t.step_duration).tolist(), states=bound.tolist(),
@@ -96,13 +99,6 @@ def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=N
                                max_candidates=MAX_CANDIDATES, patience=PATIENCE,
                                stopped_by_deadline=r["stopped_by_deadline"])
     return plan
-
-
-def _costs(tm, plan):
-    """The costs of the plan dict's controls: path_duration, pusher_path_length and object_path_length
-    (planners.shorten.costs)."""
-    _, dense, _ = tm.execute(plan["start"], plan["controls"], plan["steps"])
-    return costs(tm, plan["steps"], dense)
 
 
 class Plan:

@@ -17,6 +17,19 @@ cannot be built from the 2.0.1 wheel: docs/planning.md). `shorten` rewrites such
   displacement u k dt kept, its steps k cut to ceil(k |u|max / control_max)): pushing is nearly quasi-static.
   "retarget": a straight move from step a to the pusher's position at step b shifted by the object's error at the
   end (a local re-plan of the last push towards the goal pose: the pusher moves by what the object still lacks).
+  "push": a local re-plan of the OBJECT's path from step a to the object's pose at step b (b = the plan's end, in
+  half of them: the goal's pose, or its position when it has no angle), the only kind that can straighten the
+  object's path. A point pusher moves a box without turning it only by pushing a face through its middle (within
+  the contact's friction cone about the face's normal), so the primitive goes as a rook does: when the object's
+  angle is off the target's it first turns it (pushing a face off its middle), then moves it in one or two straight
+  legs along its faces' normals (the pair whose cone holds the way to the target, the shortest, in a random order),
+  each a free approach to behind the object (straight segments, round the object on a circle clear of it) and a
+  push re-aimed at the leg's end every step, the contact point shifted across the push line by the object's angle
+  error to hold it. It waits for the object to come to rest and, for b < the end, moves free to the pusher's
+  position at b. The controls are made by simulating the candidate from X[a] step by step (feedback on the
+  simulated states); the result is still a list of per-step controls with their states, judged as the others; its
+  parameters (gains, speed, the side it goes round, the order of the legs, b) are drawn from the shortener's
+  Generator.
 - A candidate is simulated from X[a] only: the states before a are unchanged and the simulator is deterministic, so
   this equals a re-simulation from the start bit for bit (tests/test_shorten.py checks it on the final plan). It is
   accepted only when every propagation step succeeds, every state is admissible (`TaskModel.admissible`: the
@@ -41,9 +54,25 @@ import numpy as np
 MAX_CANDIDATES = 4000
 #: ... or after this many rejected candidates in a row
 PATIENCE = 1000
-#: the share of each kind of candidate (straight, faster, retarget)
-KINDS = ("straight", "faster", "retarget")
-KIND_P = (0.6, 0.3, 0.1)
+#: the share of each kind of candidate (straight, faster, retarget, push)
+KINDS = ("straight", "faster", "retarget", "push")
+KIND_P = (0.5, 0.25, 0.1, 0.15)
+#: ... where no push applies (the vertical plane, tip_box; a goal without x and y, turn_box): the shares of the first
+#: three kinds before "push" existed, drawn as then, so those tasks' shortened plans are the same as before it
+KIND_P_NO_PUSH = (0.6, 0.3, 0.1)
+#: the push primitive's free moves keep the pusher's disk this far (m) from the object's outline
+PUSH_CLEARANCE = 0.005
+#: ... and its push ends when the object's centre of mass is within this share of position_tol of the target's
+PUSH_STOP = 0.3
+#: ... and keeps its direction once the object is within this share of its least half-width of a leg's end (re-aimed
+#: so close, a small sideways error would swing the push across the face)
+PUSH_FREEZE = 1.0
+#: ... and turns the object first when its angle is farther than this share of angle_tol from the target's, pushing
+#: a face this share of the object's least half-width off its middle
+PUSH_TURN = 0.5
+PUSH_TURN_OFFSET = 0.7
+#: ... and waits at most this many propagation steps for the object to come to rest
+PUSH_SETTLE = 5
 
 
 def per_step(controls, steps):
@@ -95,15 +124,21 @@ def costs(tm, steps, dense):
 class Shortener:
     """The plan being shortened (per-step controls U and states X) and its judge (a TaskModel)."""
 
-    def __init__(self, tm, x0, controls, steps):
+    def __init__(self, tm, x0, controls, steps, replayed=None):
         self.tm = tm
         t = tm.task
         self.cm, self.dt = float(t.control_max), float(t.step_duration)
         self.min_steps, self.max_steps = int(t.min_steps), int(t.max_steps)
         self.U = per_step(controls, steps)
-        _, dense, ok = tm.execute(x0, controls, steps)
+        # replayed: (dense states, ok) of tm.execute(x0, controls, steps) when the caller has them already
+        _, dense, ok = (None, *replayed) if replayed is not None else tm.execute(x0, controls, steps)
         self.X = dense
         self.ok = bool(ok) and all(tm.admissible(x) for x in dense) and self._goal(dense[-1])
+        #: a time.perf_counter() value at which a push candidate being built stops (shorten's deadline)
+        self.deadline = None
+        #: whether "push" candidates apply: a goal with a position (x and y), in the horizontal plane
+        g = t.goal
+        self.can_push = tm.scene.world.plane == "horizontal" and g.x is not None and g.y is not None
 
     def _goal(self, x):
         return self.tm.goal_distance(x) <= 1.0 and self.tm.admissible(x)
@@ -176,15 +211,239 @@ class Shortener:
             return None
         return self.straight(self.X[a, ip:ip + 2], self.X[b, ip:ip + 2] + shift)
 
-    def try_candidate(self, a, b, new):
-        """Simulate U[:a] + new + U[b:] from X[a]; keep it when it is valid, reaches the goal and is shorter.
+    # ---- the push primitive ("push": a local re-plan of the object's path) ---------------------------------
+    def _outline(self, x, grow):
+        """The object's outline at state x grown by `grow` (m): a shapely polygon in the world frame."""
+        from .tasks import _place
+        pf = self.tm.object_frame_pose(x)
+        return _place(self.tm.object_poly_body, pf[:2], pf[2]).buffer(grow, quad_segs=4)
+
+    def _behind(self, x, o, e, grow):
+        """How far (m) from the point o against the unit direction e the object's outline at x, grown by `grow`,
+        ends (its farthest crossing by the ray from o along -e), or None when the ray misses it."""
+        import shapely
+        from shapely.geometry import LineString
+        far = 4.0 * self.tm.object_radius + grow
+        hit = LineString([o, o - far * e]).intersection(self._outline(x, grow).exterior)
+        pts = shapely.get_coordinates(hit)
+        if len(pts) == 0:
+            return None
+        return float(np.max((o - pts) @ e))
+
+    def _route(self, x, p, q, side):
+        """Waypoints for the pusher from p to q that keep its disk off the object at state x: [q] when the straight
+        segment is clear of the outline grown by the pusher's radius; else out to the circle about the object's
+        centre of mass whose 30-degree chords clear it, along it (side +1 anticlockwise, -1 clockwise, 0 the
+        shorter way) and in to q (radial moves: clear of a convex object)."""
+        from shapely.geometry import LineString
+        tm = self.tm
+        c = x[0:2]
+        if not LineString([p, q]).intersects(self._outline(x, tm.pusher_radius + 0.5 * PUSH_CLEARANCE)):
+            return [np.asarray(q, float)]
+        R = (tm.object_radius + tm.pusher_radius + PUSH_CLEARANCE) / math.cos(math.radians(15.0))
+        a0 = math.atan2(p[1] - c[1], p[0] - c[0])
+        da = (math.atan2(q[1] - c[1], q[0] - c[0]) - a0 + math.pi) % (2 * math.pi) - math.pi
+        if side * da < 0:
+            da += side * 2 * math.pi                   # round the other way
+        n = max(1, int(math.ceil(abs(da) / math.radians(30.0))))
+        return [c + R * np.array([math.cos(a0 + da * k / n), math.sin(a0 + da * k / n)]) for k in range(n + 1)] \
+            + [np.asarray(q, float)]
+
+    def _legs(self, x, target, first):
+        """The object's centre-of-mass waypoints from x to `target`: one or two straight legs, each along a push
+        direction (_push_directions) or, when the object has none, straight; first 0 or 1: which of the two
+        directions goes first."""
+        c = x[0:2]
+        d = np.asarray(target, float) - c
+        F = self._push_directions(x)
+        best = None
+        for i in range(len(F)):
+            for j in range(i + 1, len(F)):
+                A = np.column_stack([F[i], F[j]])
+                if abs(np.linalg.det(A)) < 1e-6:
+                    continue
+                ab = np.linalg.solve(A, d)
+                if ab.min() >= -1e-9 and (best is None or ab.sum() < best[0]):
+                    best = (ab.sum(), ab, (F[i], F[j]))
+        if best is None:
+            return [np.asarray(target, float)]
+        _, ab, (fi, fj) = best
+        lead = ab[0] * fi if first == 0 else ab[1] * fj
+        if min(ab) < PUSH_STOP * self.tm.task.goal.position_tol:
+            return [np.asarray(target, float)]          # one leg does it
+        return [c + lead, np.asarray(target, float)]
+
+    def _push_directions(self, x):
+        """World-frame unit directions that push the object at state x through the middle of a face: the inward
+        normals of its convex hull's edges at least half its least half-width long (none for a round object). A
+        point pusher can move a box without turning it only so (within the contact's friction cone about a face's
+        normal), so a move in any other direction is two legs: a box goes as a rook does."""
+        from .tasks import _place
+        tm = self.tm
+        pf = tm.object_frame_pose(x)
+        hull = _place(tm.object_poly_body, pf[:2], pf[2]).convex_hull
+        P = np.asarray(hull.exterior.coords)
+        D = np.diff(P, axis=0)
+        L = np.hypot(D[:, 0], D[:, 1])
+        keep = L >= 0.5 * tm.task.object_extent["min_support"]
+        N = np.column_stack([-D[keep, 1], D[keep, 0]]) / L[keep, None]
+        mid = 0.5 * (P[:-1] + P[1:])[keep]
+        inward = np.sign(np.sum((x[0:2] - mid) * N, axis=1))
+        return N * inward[:, None]
+
+    def _turn(self, S, run, goto, target, error, speed):
+        """The push primitive's turn (its states S, extended by run and goto): push the face whose inward normal
+        points most towards the target at a point PUSH_TURN_OFFSET of its least half-width off its middle, along
+        the face's normal as it turns, until the object's angle error is within PUSH_STOP of the goal's
+        angle_tol (the sign of the offset as in `push`: l n with l of the error's sign turns it back). False when
+        a step failed."""
+        tm = self.tm
+        ip, tol = tm.ip, PUSH_STOP * tm.task.goal.angle_tol
+        x = S[-1]
+        F = self._push_directions(x)
+        if len(F) == 0:
+            return True
+        f = F[int(np.argmax(F @ (np.asarray(target) - x[0:2])))]
+        c, s_ = math.cos(x[2]), math.sin(x[2])
+        f_body = np.array([c * f[0] + s_ * f[1], -s_ * f[0] + c * f[1]])
+        sign = 1.0 if error(x) > 0 else -1.0
+        l = sign * PUSH_TURN_OFFSET * tm.task.object_extent["min_support"]
+        approach = True
+        while sign * error(S[-1]) > tol:
+            x = S[-1]
+            c, s_ = math.cos(x[2]), math.sin(x[2])
+            f = np.array([c * f_body[0] - s_ * f_body[1], s_ * f_body[0] + c * f_body[1]])
+            o = x[0:2] + l * np.array([-f[1], f[0]])
+            behind = self._behind(x, o, f, tm.pusher_radius)
+            if behind is None:
+                return False
+            p_star = o - behind * f
+            if approach:
+                if not goto(p_star - PUSH_CLEARANCE * f):
+                    return False
+                approach = False
+                continue
+            v = (p_star + speed * self.cm * self.dt * f - x[ip:ip + 2]) / self.dt
+            if not run([v / max(1.0, float(np.max(np.abs(v))) / self.cm)]):
+                return False
+        return True
+
+    def push(self, a, b, k_angle, lateral_gain, speed, side, first):
+        """The "push" candidate replacing [a, b) (module docstring), built by simulating it from X[a]: (per-step
+        controls, their states from X[a], whole) with whole False when it failed (a failed or inadmissible step,
+        a lost contact, or no fewer steps than b - a); None when the task has no position goal in the horizontal
+        plane (nothing simulated).
+
+        Each leg (_legs) is a free approach to behind the object and a push re-aimed at the leg's end every step.
+        k_angle (m/rad): the contact point's shift across the push line per radian of the object's angle error
+        (a push off the line through the centre of mass turns the object: the torque of a force f e at l n from
+        it, n = e turned +90 deg, is -l f, so l = k_angle (angle - target angle) turns it back); lateral_gain: the
+        share of the pusher's offset across the line corrected per step; speed: the push's share of
+        control_max; side: how the free moves go round the object (_route); first: which leg goes first."""
+        tm = self.tm
+        if not self.can_push:
+            return None
+        g = tm.task.goal
+        K, ip, r = len(self.U), tm.ip, tm.pusher_radius
+        if b == K and tm.goal_com is not None:
+            target, angle = tm.goal_com[:2], (tm.goal_com[2] if g.angle is not None else None)
+        elif b == K:
+            # a goal position without an angle: the centre of mass where the body frame's origin is at (x, y) if the
+            # object keeps its angle at a (exactly the goal for a round object, whose centre of mass is its origin)
+            th = self.X[a, 2]
+            cl = tm.com_local
+            target = np.array([g.x + math.cos(th) * cl[0] - math.sin(th) * cl[1],
+                               g.y + math.sin(th) * cl[0] + math.cos(th) * cl[1]])
+            angle = None
+        else:
+            target, angle = self.X[b, 0:2], self.X[b, 2]
+        budget = b - a - 1
+        U, S = [], [self.X[a]]
+
+        def run(controls):
+            for u in controls:
+                if len(U) >= budget or (self.deadline is not None and time.perf_counter() > self.deadline):
+                    return False
+                y, good = tm.advance(S[-1], u, tm.steps_per_prop)
+                U.append(u)
+                S.append(y)
+                if not (good and tm.admissible(y)):
+                    return False
+            return True
+
+        def goto(q):
+            for w in self._route(S[-1], S[-1][ip:ip + 2], q, side):
+                u = self.straight(S[-1][ip:ip + 2], w)
+                if u is not None and not run(u):
+                    return False
+            return True
+
+        def failed():
+            return np.array(U).reshape(-1, 2), np.array(S), False
+
+        lmax = 0.5 * tm.task.object_extent["min_support"]
+
+        def aim(x, to, e=None):
+            """(e, n, the pusher's place behind the object on the line to `to`, distance to go) at state x; with e
+            given (the direction frozen near the leg's end), the distance to go along e."""
+            d = to - x[0:2]
+            if e is None:
+                dist = math.hypot(d[0], d[1])
+                e = d / max(dist, 1e-12)
+            else:
+                dist = float(d @ e)
+            n = np.array([-e[1], e[0]])
+            o = x[0:2] + min(max(k_angle * error(x), -lmax), lmax) * n
+            s = self._behind(x, o, e, r)
+            return e, n, (None if s is None else o - s * e), dist
+
+        def error(x):
+            return 0.0 if angle is None else (x[2] - angle + math.pi) % (2 * math.pi) - math.pi
+
+        if abs(error(S[-1])) > PUSH_TURN * g.angle_tol and not self._turn(S, run, goto, target, error, speed):
+            return failed()
+        stop = PUSH_STOP * g.position_tol
+        for to in self._legs(S[-1], target, first):
+            e, n, p_star, dist = aim(S[-1], to)
+            if dist <= stop:
+                continue
+            if p_star is None or not goto(p_star - PUSH_CLEARANCE * e):      # the approach, free
+                return failed()
+            frozen = None
+            while True:              # the push, re-aimed every step until the object is near the leg's end
+                e, n, p_star, dist = aim(S[-1], to, frozen)
+                if dist <= PUSH_FREEZE * tm.task.object_extent["min_support"]:
+                    frozen = e
+                if dist <= stop:
+                    break
+                if p_star is None:
+                    return failed()
+                D = p_star + min(speed * self.cm * self.dt, dist) * e - S[-1][ip:ip + 2]
+                v = (float(D @ e) * e + lateral_gain * float(D @ n) * n) / self.dt
+                v = v / max(1.0, float(np.max(np.abs(v))) / self.cm)
+                if not run([v]):
+                    return failed()
+        for _ in range(PUSH_SETTLE):                         # wait for the object to come to rest
+            x = S[-1]
+            if math.hypot(x[3], x[4]) <= 0.5 * g.speed_tol and abs(x[5]) <= 0.5 * g.omega_tol:
+                break
+            if not run([np.zeros(2)]):
+                return failed()
+        if b < K and not goto(self.X[b, ip:ip + 2]):          # back to where the rest of the plan starts
+            return failed()
+        return np.array(U).reshape(-1, 2), np.array(S), len(U) < b - a
+
+    def try_candidate(self, a, b, new, seg=None):
+        """Simulate U[:a] + new + U[b:] from X[a] (seg: new's states from X[a] when the candidate was built by
+        simulating it, the same rollouts); keep it when it is valid, reaches the goal and is shorter.
         Returns True when kept."""
         U_new = np.concatenate([self.U[:a], new, self.U[b:]])
         if len(U_new) >= len(self.U) or compress(U_new, self.min_steps, self.max_steps) is None:
             return False
-        seg, whole = self.simulate(self.X[a], new)
-        if not whole:
-            return False
+        if seg is None:
+            seg, whole = self.simulate(self.X[a], new)
+            if not whole:
+                return False
         if b < len(self.U):
             # a stretch that leaves the object far from where the rest of the plan expects it is rejected without
             # simulating the rest (a pruning only: what is kept is judged by the whole simulation below)
@@ -201,7 +460,8 @@ class Shortener:
         return True
 
 
-def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patience=PATIENCE, deadline=None):
+def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patience=PATIENCE, deadline=None,
+            replayed=None):
     """Shorten an exact plan by randomised shortcutting (module docstring).
 
     Parameters
@@ -217,7 +477,11 @@ def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patien
     max_candidates, patience : int
         Stop after this many simulated candidates, or this many rejected in a row.
     deadline : float, optional
-        A time.perf_counter() value after which no candidate is started.
+        A time.perf_counter() value after which no candidate is started (and a push candidate being built stops,
+        rejected: building one simulates as many steps as it replaces at most).
+    replayed : (dense states, ok), optional
+        What `tm.execute(x0, controls, steps)` returns (its dense states and ok), when the caller replayed the plan
+        already (`plan` does, for its costs): the plan is then not replayed again.
 
     Returns
     -------
@@ -227,7 +491,8 @@ def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patien
         unchanged).
     """
     t0 = time.perf_counter()
-    s = Shortener(tm, x0, controls, steps)
+    s = Shortener(tm, x0, controls, steps, replayed)
+    s.deadline = deadline
     stats = dict(candidates=0, accepted=0, accepted_by_kind={k: 0 for k in KINDS}, truncated=False,
                  stopped_by_deadline=False, exact_input=s.ok)
     if not s.ok:
@@ -245,18 +510,35 @@ def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patien
         K = len(s.U)
         if K < 2:
             break
-        kind = KINDS[rng.choice(len(KINDS), p=KIND_P)]
+        kind = KINDS[rng.choice(4, p=KIND_P)] if s.can_push else KINDS[rng.choice(3, p=KIND_P_NO_PUSH)]
         a, b = sorted(rng.choice(K + 1, size=2, replace=False).tolist())
         if kind == "retarget":
             b = K                                     # the last push, towards the goal
             a = int(rng.integers(0, K))
-        if b - a < 2:
-            continue
-        new = s.candidate(kind, a, b)
-        if new is None or len(new) >= b - a:
-            continue                                  # no shorter: nothing to simulate
-        stats["candidates"] += 1
-        if s.try_candidate(a, b, new):
+        seg = None
+        if kind == "push":
+            if rng.random() < 0.5:
+                b = K                                 # to the goal
+            k_angle, lateral_gain, speed = rng.uniform(0.01, 0.06), rng.uniform(0.5, 1.0), rng.uniform(0.6, 0.95)
+            side, first = int(rng.integers(-1, 2)), int(rng.integers(0, 2))
+            if b - a < 2:
+                continue
+            built = s.push(a, b, k_angle, lateral_gain, speed, side, first)
+            if built is None:
+                continue                              # not a pushing task: nothing simulated
+            stats["candidates"] += 1
+            new, seg, whole = built
+            if not whole:
+                rejected += 1
+                continue
+        else:
+            if b - a < 2:
+                continue
+            new = s.candidate(kind, a, b)
+            if new is None or len(new) >= b - a:
+                continue                              # no shorter: nothing to simulate
+            stats["candidates"] += 1
+        if s.try_candidate(a, b, new, seg):
             stats["accepted"] += 1
             stats["accepted_by_kind"][kind] += 1
             rejected = 0

@@ -189,3 +189,192 @@ def test_plan_bench_reports_first_and_final_costs(tmp_path):
         got = con.execute("select solution_length, first_solution_length from runs order by id").fetchall()
     assert "first_pusher_path_length" in cols and "object_path_length" in cols
     assert sorted(got) == sorted((rec["path_duration"], rec["first_path_duration"]) for rec in s["records"])
+
+
+# ---- the push primitive (a local re-plan of the object's path) -----------------------------------------------------
+
+LONE_BOX = """
+name = "lone_box"
+[world]
+plane = "horizontal"
+support_gravity = 9.81
+friction = 0.3
+[sim]
+h = 0.02
+[[bodies]]
+name = "box"
+type = "dynamic"
+mass = 0.5
+support_friction = 0.3
+shapes = [ { type = "box", width = 0.1, height = 0.1 } ]
+[[bodies]]
+name = "pusher"
+type = "kinematic"
+position = [-0.08, 0.0]
+shapes = [ { type = "disk", radius = 0.015 } ]
+[task]
+object = "box"
+pusher = "pusher"
+control_max = 0.15
+goal = { x = GX, y = GY, angle_deg = GA }
+"""
+
+
+def _lone_push(gx, gy, ga_deg, first=0):
+    """The push primitive from a lone box at rest at the origin (the pusher 3 cm behind it) to the goal (gx, gy,
+    ga_deg), with mid-range parameters: (TaskModel, controls, states, whole)."""
+    from planners import TaskModel
+    from planners.shorten import Shortener
+    tm = TaskModel(LONE_BOX.replace("GX", str(gx)).replace("GY", str(gy)).replace("GA", str(ga_deg)))
+    x0 = tm.initial_state()
+    s = Shortener(tm, x0, np.zeros((12, 2)), [10] * 12)      # a plan that waits 12 s: room for the push
+    U, S, whole = s.push(0, len(s.U), 0.03, 0.75, 0.8, 0, first)
+    return tm, U, S, whole
+
+
+@pytest.mark.parametrize("gx, gy", [(0.15, 0.0), (0.0, -0.12)])
+def test_the_push_primitive_moves_a_lone_box_straight_along_a_face_normal(gx, gy):
+    """Oracle: a target straight ahead of a face is one push through the middle of that face; the box's centre of
+    mass goes straight (its path no longer than the distance, up to the stop and the slide after it, and at most
+    a few mm off the line) without turning, and ends within the goal's tolerances, at rest."""
+    tm, U, S, whole = _lone_push(gx, gy, 0.0)
+    assert whole and tm.goal_distance(S[-1]) <= 1.0
+    assert np.abs(U).max() <= tm.task.control_max
+    dist = np.hypot(gx, gy)
+    path = np.hypot(*np.diff(S[:, 0:2], axis=0).T).sum()
+    assert dist - tm.task.goal.position_tol <= path <= dist + 0.01, (path, dist)
+    e = np.array([gx, gy]) / dist
+    off_line = np.abs(S[:, 0:2] @ np.array([-e[1], e[0]]))
+    assert off_line.max() < 0.003, off_line.max()
+    assert np.abs(S[:, 2]).max() < tm.task.goal.angle_tol
+    assert np.hypot(S[-1, 3], S[-1, 4]) <= tm.task.goal.speed_tol
+
+
+def test_the_push_primitive_moves_a_box_to_a_diagonal_target_as_a_rook():
+    """Oracle: a point pusher moves a box without turning it only by pushes through a face's middle (within the
+    contact's friction cone about the face's normal, 17 deg for mu = 0.3), so a diagonal target is two legs along
+    the box's axes: the centre of mass's path is |dx| + |dy| (up to the stops and slides), not the straight
+    distance; one order of the legs passes the corner (gx, 0), the other (0, gy); the box ends at the goal."""
+    gx, gy = 0.12, 0.09
+    corners = []
+    for first in (0, 1):
+        tm, U, S, whole = _lone_push(gx, gy, 0.0, first)
+        assert whole and tm.goal_distance(S[-1]) <= 1.0
+        assert np.abs(U).max() <= tm.task.control_max
+        path = np.hypot(*np.diff(S[:, 0:2], axis=0).T).sum()
+        assert abs(path - (gx + gy)) < 0.01, path
+        near = [np.min(np.hypot(S[:, 0] - gx, S[:, 1])), np.min(np.hypot(S[:, 0], S[:, 1] - gy))]
+        assert min(near) < 0.005 and max(near) > 0.05, near
+        corners.append(int(np.argmin(near)))
+        assert np.abs(S[:, 2]).max() < tm.task.goal.angle_tol
+    assert sorted(corners) == [0, 1]
+
+
+def test_the_push_primitive_pushes_a_disk_straight_to_a_position_goal():
+    """Oracle: a disk has no face to hold (and a goal without an angle): one straight push along the line from its
+    centre to the goal, its path the straight distance (0.15 m here), whatever the gains."""
+    from planners import TaskModel
+    from planners.shorten import Shortener
+    disk = LONE_BOX.replace('{ type = "box", width = 0.1, height = 0.1 }', '{ type = "disk", radius = 0.035 }')
+    tm = TaskModel(disk.replace("goal = { x = GX, y = GY, angle_deg = GA }", "goal = { x = 0.12, y = 0.09 }"))
+    s = Shortener(tm, tm.initial_state(), np.zeros((12, 2)), [10] * 12)
+    assert s.can_push and tm.goal_com is None
+    for k_angle, lateral_gain, speed, side, first in ((0.03, 0.75, 0.8, 0, 0), (0.01, 0.5, 0.6, 1, 1)):
+        U, S, whole = s.push(0, len(s.U), k_angle, lateral_gain, speed, side, first)
+        assert whole and tm.goal_distance(S[-1]) <= 1.0
+        assert np.abs(U).max() <= tm.task.control_max
+        path = np.hypot(*np.diff(S[:, 0:2], axis=0).T).sum()
+        assert abs(path - 0.15) < 0.002, path
+        off_line = np.abs(S[:, 0:2] @ np.array([-0.09, 0.12]) / 0.15)
+        assert off_line.max() < 0.002, off_line.max()
+
+
+def test_a_push_being_built_stops_at_the_deadline():
+    """Under --time the shortening's deadline stops a push candidate while it is built (it simulates up to as many
+    steps as it replaces): past the deadline it is rejected without a step; without one, the same push is built."""
+    from planners import TaskModel
+    from planners.shorten import Shortener
+    tm = TaskModel(LONE_BOX.replace("GX", "0.15").replace("GY", "0.0").replace("GA", "0.0"))
+    s = Shortener(tm, tm.initial_state(), np.zeros((12, 2)), [10] * 12)
+    s.deadline = 0.0                                          # long past
+    U, S, whole = s.push(0, len(s.U), 0.03, 0.75, 0.8, 0, 0)
+    assert not whole and len(U) == 0 and len(S) == 1
+    s.deadline = None
+    U, S, whole = s.push(0, len(s.U), 0.03, 0.75, 0.8, 0, 0)
+    assert whole and len(U) > 0
+
+
+def test_the_push_primitive_turns_the_box_to_the_goal_angle():
+    """A goal turned 40 deg: the primitive first pushes a face off its middle (the torque of the offset push turns
+    the box towards the goal's angle), then pushes it to the goal position; it ends within both tolerances."""
+    tm, U, S, whole = _lone_push(0.1, 0.05, 40.0)
+    assert whole and tm.goal_distance(S[-1]) <= 1.0
+    assert abs(np.degrees(S[-1, 2]) - 40.0) <= 10.0
+    assert np.abs(U).max() <= tm.task.control_max
+
+
+#: the push_clutter plan behind docs/planning.md's figure, made before issue 25 (`planar-lcp plan push_clutter --seed 1
+#: --iterations 9000 --no-shorten`): the box's path 0.68 m where its start and goal are 0.47 m apart
+CLUTTER_DOC_PLAN = ROOT / "docs" / "figures" / "planning" / "push_clutter" / "plan.json"
+CLUTTER_BUDGET = 800
+
+
+@pytest.fixture(scope="module")
+def clutter():
+    """(TaskModel of push_clutter, the docs' plan, its shortening with CLUTTER_BUDGET candidates)."""
+    from planners import TaskModel
+    from planners.shorten import shorten
+    plan = json.loads(CLUTTER_DOC_PLAN.read_text())
+    tm = TaskModel(plan["task_document"])
+    return tm, plan, shorten(tm, plan["start"], plan["controls"], plan["steps"], seed=1,
+                             max_candidates=CLUTTER_BUDGET)
+
+
+def test_push_candidates_shorten_the_object_path_through_clutter_and_replay_bit_for_bit(clutter):
+    """The push kind re-plans the box's path (the other kinds keep it: a stretch that moves the box differently
+    moves the obstacles differently and is rejected); the shortened plan replays from the start in a fresh model bit
+    for bit, every state admissible, to the goal, with controls within the bounds."""
+    from planners import TaskModel
+    from planners.shorten import costs
+    tm, plan, r = clutter
+    assert r["exact_input"] and r["accepted_by_kind"]["push"] > 0, r["accepted_by_kind"]
+    assert np.abs(r["controls"]).max() <= tm.task.control_max
+    assert r["steps"].min() >= tm.task.min_steps and r["steps"].max() <= tm.task.max_steps
+    fresh = TaskModel(plan["task_document"])
+    _, dense, ok = fresh.execute(plan["start"], r["controls"], r["steps"])
+    assert ok
+    np.testing.assert_array_equal(dense, r["dense"])
+    assert all(fresh.admissible(x) for x in dense) and fresh.goal_distance(dense[-1]) <= 1.0
+    _, d0, _ = fresh.execute(plan["start"], plan["controls"], plan["steps"])
+    first, final = costs(fresh, plan["steps"], d0), costs(fresh, r["steps"], dense)
+    straight = np.hypot(*(fresh.goal_com[:2] - np.asarray(plan["start"][0:2])))
+    # the box's path: from 0.68 m to within 20 % of the straight distance start to goal (0.47 m)
+    assert final["object_path_length"] < 1.2 * straight < first["object_path_length"], (first, final, straight)
+    assert final["path_duration"] < 0.5 * first["path_duration"]
+
+
+def test_push_candidates_are_deterministic_for_a_seed(clutter):
+    from planners.shorten import shorten
+    tm, plan, r = clutter
+    again = shorten(tm, plan["start"], plan["controls"], plan["steps"], seed=1, max_candidates=CLUTTER_BUDGET)
+    np.testing.assert_array_equal(again["controls"], r["controls"])
+    np.testing.assert_array_equal(again["steps"], r["steps"])
+    assert again["accepted_by_kind"] == r["accepted_by_kind"] and again["candidates"] == r["candidates"]
+
+
+def test_the_docs_before_and_after_table_is_what_its_command_gives():
+    """docs/planning.md "Shorter plans": the benchmark table is examples/bench_table.py --shorter's output on the
+    committed benchmark files, row for row (the command is the one the page gives)."""
+    import re
+    import subprocess
+    import sys
+    from cli_helpers import cli_env
+    text = (ROOT / "docs" / "planning.md").read_text()
+    sec = text[text.index("**Before and after: the benchmark of record's tasks and budgets**"):]
+    cmd = re.search(r"^python (examples/bench_table\.py --shorter .*)$", sec, re.M).group(1).split()
+    r = subprocess.run([sys.executable, *cmd], capture_output=True, text=True, cwd=ROOT, env=cli_env(), timeout=60)
+    assert r.returncode == 0, r.stderr
+    got = [line for line in r.stdout.splitlines() if line.startswith("|")]
+    table = re.search(r"^(\| task \| exact .*?)\n\n", sec, re.M | re.S).group(1).splitlines()
+    assert got == table
+    assert "all: 40/40 runs exact (100 %), 40/40 exact plans replayed to their goal" in r.stdout
