@@ -149,3 +149,63 @@ def test_the_cold_start_example_runs_end_to_end():
     assert run.returncode == 0, run.stderr
     assert "empty numba cache, wall clock, 1 alternating rounds:" in run.stdout
     assert "this tree: median" in run.stdout
+
+
+def _inlined_kernel():
+    """A fresh kernel (not cached) with two levels of inline='always' callees, each called at two sites."""
+    from numba import njit
+
+    @njit(inline='always')
+    def inner(a, k):
+        s = 0.0
+        for i in range(a.shape[0]):
+            if a[i] > k:
+                s += a[i]
+            else:
+                s -= 1.0
+        return s
+
+    @njit(inline='always')
+    def middle(a, k):
+        return inner(a, k) + inner(a, k + 1.0)
+
+    @njit
+    def outer(a):
+        t = 0.0
+        for j in range(3):
+            t += middle(a, float(j))
+        return t
+    return outer
+
+
+def _normalised_llvm(text):
+    """LLVM IR without what differs between two compilations of the same code: the dispatchers' serial numbers in
+    names, the global block-label counter, comments."""
+    import re
+    text = re.sub(r"\s*;.*", "", text)
+    text = re.sub(r"_v\d+|v\d+B", "v", text)
+    labels = {}
+    return re.sub(r"\bB\d+", lambda m: labels.setdefault(m.group(0), f"B#{len(labels)}"), text)
+
+
+@pytest.mark.needs_jit
+def test_numbas_inlining_copies_a_callee_once_and_compiles_the_same_code():
+    """planar_lcp.engine makes numba's inline_ir copy a callee's IR with one memo (linear time instead of blocks x
+    variables): it applies to the installed numba, and a kernel with inlined callees compiles to the same LLVM IR
+    and the same result with it as with numba's own copy."""
+    import planar_lcp.engine as engine
+    from numba.core.inline_closurecall import InlineWorker
+    assert engine.INLINE_COPY_PATCHED, "numba's inline_ir no longer has the per-block copy: check the patch"
+    patched = InlineWorker.inline_ir
+    assert patched._planar_lcp_one_copy
+    a = np.arange(5.0)
+    outputs = []
+    for inline_ir in (patched, patched._numba_original):
+        InlineWorker.inline_ir = inline_ir
+        try:
+            kernel = _inlined_kernel()
+            outputs.append((kernel(a), _normalised_llvm(kernel.inspect_llvm(kernel.signatures[0]))))
+        finally:
+            InlineWorker.inline_ir = patched
+    assert outputs[0][0] == outputs[1][0] == 31.0
+    assert outputs[0][1] == outputs[1][1]
