@@ -1,6 +1,7 @@
 """Where simulate()'s time outside the rollout goes (issue M), for one scene: the call against the rollout it makes
-(contacts recorded, on a Simulator made once), alternately in rounds of 20 calls, thread CPU time, median; then each
-part of the call timed while 300 calls run. Used for docs/performance.md ("Issue M"):
+(contacts recorded, on a Simulator made once), alternately in rounds of 20 calls, thread CPU time, median; the call
+with the scene's name against the call with its Scene and against load_scene; then each part of the call timed
+while 300 calls run. Used for docs/performance.md ("Issue M"):
 
     python examples/simulate_setup.py [SCENE]          (default falling_rod)
 """
@@ -35,6 +36,16 @@ for _ in range(15):
 whole, rollout = np.array(whole), np.array(rollout)
 print(f"{name}: simulate() {1e6 * np.median(whole):.0f} µs, its rollout {1e6 * np.median(rollout):.0f} µs, "
       f"the rest {1e6 * np.median(whole - rollout):.0f} µs (median of 15 rounds)")
+
+# the scene by name: simulate() reads and validates the file once per version of it (`sim._loaded_scenes`); the code
+# before read it every call, which is what load_scene costs
+by_name, by_object, load = [], [], []
+for _ in range(15):
+    by_name.append(per_call(lambda: S.simulate(name)))
+    by_object.append(per_call(lambda: S.simulate(sc)))
+    load.append(per_call(lambda: load_scene(name)))
+print(f"{name}: simulate({name!r}) {1e6 * np.median(by_name):.0f} µs, simulate(Scene) {1e6 * np.median(by_object):.0f} "
+      f"µs, load_scene({name!r}) {1e6 * np.median(load):.0f} µs (median of 15 rounds)")
 
 spent = {}
 

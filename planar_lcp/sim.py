@@ -24,8 +24,8 @@ from planar_lcp.engine.step import (FORM_VELOCITY, STEP_LCP_FAILED, STEP_NEEDS_F
                                     step_lemke_small, step_pgs)
 from planar_lcp.model import Model, compile_scene
 from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
-from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, restitution_setting, sim_settings,
-                                   support_model_setting)
+from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, restitution_setting, scene_path,
+                                   sim_settings, support_model_setting)
 from planar_lcp.frames import frame_state
 from planar_lcp.infeasibility import diagnose_step
 from planar_lcp.interrupt import raise_if_interrupted
@@ -416,6 +416,46 @@ _run_setups = OrderedDict()
 RUN_SETUPS = 32
 
 
+#: Scenes `simulate` loaded from a name or a file, by (the file, its modification time and size), the last
+#: LOADED_SCENES: a sweep that names its scene reads and validates the file once (about 0.4 ms a call, more than the
+#: rest of the set-up: issue M), so that its calls are kept by `_run_setups` too. Only a Scene that hashes is kept
+#: (immutable: shared safely); an edited file has another key.
+_loaded_scenes = OrderedDict()
+LOADED_SCENES = 32
+#: shipped scene name -> its file's absolute path
+_shipped_paths = {}
+
+
+def _load_scene_once(name_or_path):
+    """`load_scene(name_or_path)`, read once per version of the file (see _loaded_scenes)."""
+    try:
+        # a shipped name's file is where it was (the package's scenes/); a path is resolved again (the working
+        # directory may have changed)
+        path = _shipped_paths.get(name_or_path) if isinstance(name_or_path, str) else None
+        if path is None:
+            path = os.path.abspath(scene_path(name_or_path))
+            if isinstance(name_or_path, str) and os.path.basename(path) == f"{name_or_path}.toml":
+                _shipped_paths[name_or_path] = path
+        st = os.stat(path)
+    except (OSError, SceneError, TypeError):
+        return load_scene(name_or_path)               # raises its own error
+    key = (path, st.st_mtime_ns, st.st_size)
+    with _idle_lock:
+        scene = _loaded_scenes.get(key)
+    if scene is not None:
+        return scene
+    scene = load_scene(name_or_path)
+    try:
+        hash(scene)
+    except TypeError:
+        return scene
+    with _idle_lock:
+        _loaded_scenes[key] = scene
+        while len(_loaded_scenes) > LOADED_SCENES:
+            _loaded_scenes.popitem(last=False)
+    return scene
+
+
 #: Idle simulators of `simulate`, by (id of the model, options): a call takes one (or makes one) and gives it back, so
 #: that a sweep of short runs does not allocate and wrap the work buffers every call (about 100 µs of the call, issue
 #: M). A rollout depends on its inputs only (it forgets the warm-start memory and writes every buffer a step reads
@@ -469,7 +509,7 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     if on_failure not in ("raise", "record"):
         raise ValueError(f"on_failure must be 'raise' or 'record', got {on_failure!r}")
     if not isinstance(scene, Scene):
-        scene = load_scene(scene)
+        scene = _load_scene_once(scene)
     names = {**_KEYWORD_NAMES, **(option_names or {})}
     key = (id(scene), t_end, h, solver, formulation, fixed_point_iterations, friction_directions, pgs_iterations,
            support_model, limit_surface_twists, limit_surface_resolution, restitution, bool(record_contacts),

@@ -235,6 +235,38 @@ def test_simulate_keeps_its_run_setup_for_the_same_scene_object_and_arguments():
     assert len(S._run_setups) == S.RUN_SETUPS
 
 
+def test_simulate_reads_a_named_scene_file_once_per_version(tmp_path):
+    """Issue M (set-up): `simulate("box_push")` reads and validates the file once (then its run set-up is kept as a
+    Scene object's); an edited file (another modification time or size) is read again and run as edited; an unknown
+    name still fails with load_scene's error."""
+    import os
+    from planar_lcp import sim as S
+    from planar_lcp.spec.scene import SceneError
+    S._loaded_scenes.clear()
+    S._run_setups.clear()
+    first = simulate("box_push", t_end=0.2)
+    assert len(S._loaded_scenes) == 1
+    sc, = S._loaded_scenes.values()
+    assert sc == load_scene("box_push")
+    again = simulate("box_push", t_end=0.2)
+    assert len(S._loaded_scenes) == 1 and len(S._run_setups) == 1 and again.options is first.options
+    assert _same_run(again, sc, 20)
+    # a scene file of one's own, edited between two calls
+    path = tmp_path / "drop.toml"
+    text = (S.scene_path("falling_rod")).read_text()
+    path.write_text(text)
+    before = simulate(str(path), t_end=0.05)
+    assert len(S._loaded_scenes) == 2 and before.t[-1] == pytest.approx(0.05)
+    edited = text.replace("t_end = 1.0\n", "t_end = 0.0375\n", 1)
+    assert edited != text
+    path.write_text(edited)
+    os.utime(path, ns=(os.stat(path).st_atime_ns, os.stat(path).st_mtime_ns + 10**9))
+    after = simulate(str(path))                      # the file's own t_end, as edited
+    assert len(S._loaded_scenes) == 3 and after.t[-1] == pytest.approx(0.0375) and len(after.t) == 16
+    with pytest.raises(SceneError, match="unknown scene"):
+        simulate("no_such_scene")
+
+
 def test_a_model_pickles_after_its_kernel_struct_was_made():
     """Model.struct is made once and kept on the model; numba's memory does not pickle, so a pickled model leaves it
     out and makes it again (a Model sent to a Dask worker, or saved)."""
