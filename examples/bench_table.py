@@ -10,6 +10,7 @@ shortening's time) instead of the budget, the slowest run and the simulated step
 """
 
 import json
+import statistics
 import sys
 from pathlib import Path
 
@@ -24,17 +25,17 @@ def shorter_row(s, r):
     if not r["exact"]:
         return f"| {s['task']} | 0/{r['runs']} | - | - | - | - | - | - | - | - |"
     times = [x["shorten_time"] for x in s["records"] if x["planner"] == r["planner"] and x["exact"]]
-    times.sort()
-    n = len(times)
-    med = times[n // 2] if n % 2 else 0.5 * (times[n // 2 - 1] + times[n // 2])
     d1, d = r["first_duration_q1_med_q3"], r["duration_q1_med_q3"]
     return (f"| {s['task']} | {r['exact']}/{r['runs']} | {r.get('replayed', '?')}/{r['exact']} | "
             f"{q(r['time_q1_med_q3'])} | {q(d1)} | {q(d)} | {d[1] / d1[1]:.2f} | "
             f"{r['first_pusher_path_q1_med_q3'][1]:.3f}, {r['pusher_path_q1_med_q3'][1]:.3f} | "
             f"{r['first_object_path_q1_med_q3'][1]:.3f}, {r['object_path_q1_med_q3'][1]:.3f} | "
-            f"{med:.1f} ({times[-1]:.1f}) |")
+            f"{statistics.median(times):.1f} ({max(times):.1f}) |")
 
 
+HEADER = ("| task | planner | budget | exact | replayed to the goal | time to first exact [s] median (q1-q3) | "
+          "slowest [s] | first path duration [s] median (q1-q3) | final path duration [s] median (q1-q3) | "
+          "sim steps/s |")
 SHORTER_HEADER = ("| task | exact | replayed to the goal | time to first exact [s] median (q1-q3) | "
                   "first path duration [s] median (q1-q3) | final path duration [s] median (q1-q3) | "
                   "final / first (medians) | pusher path [m] first, final (medians) | "
@@ -57,27 +58,17 @@ def main(dirs):
             if shorter:
                 rows.append(shorter_row(s, r))
                 continue
-            t, du = r["time_q1_med_q3"], r["duration_q1_med_q3"]
-            ft = f"{t[1]:.2f} ({t[0]:.2f}-{t[2]:.2f})" if r["exact"] else "-"
-            fd = f"{du[1]:.2f} ({du[0]:.2f}-{du[2]:.2f})" if r["exact"] else "-"
+            du = r["duration_q1_med_q3"]
+            ft = q(r["time_q1_med_q3"]) if r["exact"] else "-"
+            fd = q(du) if r["exact"] else "-"
             # a summary written before issue 25 has no first_ duration: its plans were the planner's first plans
-            d1 = r.get("first_duration_q1_med_q3", du)
-            f1 = f"{d1[1]:.2f} ({d1[0]:.2f}-{d1[2]:.2f})" if r["exact"] else "-"
+            f1 = q(r.get("first_duration_q1_med_q3", du)) if r["exact"] else "-"
             slowest = max((x["solve_time"] for x in s["records"] if x["planner"] == r["planner"] and x["exact"]),
                           default=float("nan"))
             rows.append(f"| {s['task']} | {r['planner']} | {budget} | {r['exact']}/{r['runs']} | "
                         f"{r.get('replayed', '?')}/{r['exact']} | {ft} | {slowest:.2f} | {f1} | {fd} | "
                         f"{r['steps_per_second_median']:.0f} |")
-    if shorter:
-        print(SHORTER_HEADER)
-        print("|---|---|---|---|---|---|---|---|---|---|")
-        print("\n".join(rows))
-        print(f"\nall: {exact}/{runs} runs exact ({100.0 * exact / max(runs, 1):.0f} %), {replayed}/{exact} exact "
-              "plans replayed to their goal")
-        return
-    print("| task | planner | budget | exact | replayed to the goal | time to first exact [s] median (q1-q3) | "
-          "slowest [s] | first path duration [s] median (q1-q3) | final path duration [s] median (q1-q3) | "
-          "sim steps/s |")
+    print(SHORTER_HEADER if shorter else HEADER)
     print("|---|---|---|---|---|---|---|---|---|---|")
     print("\n".join(rows))
     print(f"\nall: {exact}/{runs} runs exact ({100.0 * exact / max(runs, 1):.0f} %), {replayed}/{exact} exact plans "

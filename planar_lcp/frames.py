@@ -35,10 +35,9 @@ def frame_to_com(q_frame, com_local):
     """Body-frame origin poses (..., nbody, 3) -> COM poses."""
     q_frame = np.asarray(q_frame, dtype=float)
     out = q_frame.copy()
-    c, s = np.cos(q_frame[..., 2]), np.sin(q_frame[..., 2])
-    cx, cy = com_local[:, 0], com_local[:, 1]
-    out[..., 0] = q_frame[..., 0] + (c * cx - s * cy)
-    out[..., 1] = q_frame[..., 1] + (s * cx + c * cy)
+    rx, ry = _origin_offset(q_frame[..., 2], com_local)
+    out[..., 0] -= rx                          # o - (o - c): the same bits as o + R com_local (negation is exact)
+    out[..., 1] -= ry
     return out
 
 

@@ -384,7 +384,8 @@ _STAT_SLOTS = [(name, integer, _INT_STATS.index(i) if integer else i) for i, (na
                if name != "lemke_status"]
 #: (Recording field, Trajectory.contacts key) of the recorded contacts
 _CONTACT_KEYS = [(k, {"con_n": "normal", "con_p": "point"}.get(k, k[4:]))
-                 for k in ("con_count", "con_pair", "con_phi", "con_n", "con_p", "con_cn", "con_ft", "con_vt", "con_mode")]
+                 for k in ("con_count", "con_pair", "con_phi", "con_n", "con_p", "con_cn", "con_ft", "con_vt",
+                           "con_mode")]
 
 
 def _trajectory_stats(st):
@@ -407,7 +408,8 @@ class _RunSetup:
         self.scene, self.run_scene, self.nsteps, self.options, self.model = scene, run_scene, nsteps, options, model
         a = model.arrays
         names = [b.name for b in run_scene.bodies]
-        self.shape_pairs = tuple((names[a.shape_body[pa]], names[a.shape_body[pb]]) for pa, pb in zip(a.pair_a, a.pair_b))
+        self.shape_pairs = tuple((names[a.shape_body[pa]], names[a.shape_body[pb]])
+                                 for pa, pb in zip(a.pair_a, a.pair_b))
 
 
 #: The last RUN_SETUPS `_RunSetup`s of `simulate`, by (id of the Scene, the other arguments that shape the run): each
@@ -426,6 +428,28 @@ LOADED_SCENES = 32
 _shipped_paths = {}
 
 
+#: guards simulate's caches (_loaded_scenes, _run_setups, _idle_simulators): simulate may run in threads
+_cache_lock = threading.Lock()
+
+
+def _keep(cache, key, value, bound):
+    """cache[key] = value in one of simulate's bounded OrderedDicts, the oldest entries dropped past `bound`."""
+    with _cache_lock:
+        cache[key] = value
+        while len(cache) > bound:
+            cache.popitem(last=False)
+
+
+def _hashes(obj):
+    """Whether obj hashes: a Scene that does (frozen dataclasses and tuples) is immutable, one that does not (lists)
+    may change between calls and is never kept."""
+    try:
+        hash(obj)
+    except TypeError:
+        return False
+    return True
+
+
 def _load_scene_once(name_or_path):
     """`load_scene(name_or_path)`, read once per version of the file (see _loaded_scenes)."""
     try:
@@ -440,19 +464,13 @@ def _load_scene_once(name_or_path):
     except (OSError, SceneError, TypeError):
         return load_scene(name_or_path)               # raises its own error
     key = (path, st.st_mtime_ns, st.st_size)
-    with _idle_lock:
+    with _cache_lock:
         scene = _loaded_scenes.get(key)
     if scene is not None:
         return scene
     scene = load_scene(name_or_path)
-    try:
-        hash(scene)
-    except TypeError:
-        return scene
-    with _idle_lock:
-        _loaded_scenes[key] = scene
-        while len(_loaded_scenes) > LOADED_SCENES:
-            _loaded_scenes.popitem(last=False)
+    if _hashes(scene):
+        _keep(_loaded_scenes, key, scene, LOADED_SCENES)
     return scene
 
 
@@ -463,13 +481,12 @@ def _load_scene_once(name_or_path):
 #: holds its model, so the id stays that model's; at most IDLE_SIMULATORS entries, none whose buffers exceed
 #: IDLE_SIMULATOR_BYTES.
 _idle_simulators = OrderedDict()
-_idle_lock = threading.Lock()
 IDLE_SIMULATORS = 16
 IDLE_SIMULATOR_BYTES = 1 << 20
 
 
 def _take_simulator(model, options):
-    with _idle_lock:
+    with _cache_lock:
         sim = _idle_simulators.pop((id(model), options), None)
     return sim if sim is not None else Simulator(model, options)
 
@@ -478,10 +495,7 @@ def _give_back(sim):
     if sim.model.work_bytes > IDLE_SIMULATOR_BYTES:
         return
     sim.progress = None
-    with _idle_lock:
-        _idle_simulators[(id(sim.model), sim.options)] = sim
-        while len(_idle_simulators) > IDLE_SIMULATORS:
-            _idle_simulators.popitem(last=False)
+    _keep(_idle_simulators, (id(sim.model), sim.options), sim, IDLE_SIMULATORS)
 
 
 def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_point_iterations=None,
@@ -532,15 +546,8 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
                                sim.limit_surface_twists, sim.limit_surface_resolution)
         check_run_size(model, nsteps, names, record_contacts)
         setup = _RunSetup(scene, run_scene, nsteps, opts, model)
-        try:
-            hash(scene)                                   # an unhashable Scene (lists) may change: not kept
-        except TypeError:
-            key = None
-        if key is not None:
-            with _idle_lock:
-                _run_setups[key] = setup
-                while len(_run_setups) > RUN_SETUPS:
-                    _run_setups.popitem(last=False)
+        if key is not None and _hashes(scene):
+            _keep(_run_setups, key, setup, RUN_SETUPS)
     scene, nsteps, opts, model = setup.run_scene, setup.nsteps, setup.options, setup.model
     h = opts.h
     simr = _take_simulator(model, opts)
