@@ -14,6 +14,11 @@ at world point p: (d_x, d_y, (p - c) x d) on the body with COM c, and the negati
 Static and kinematic bodies carry no unknowns: their velocity enters the constant vector.
 """
 
+# math.cos, math.sin (not np.cos, np.sin): the C library's in Python as compiled, so the kernels run as Python give
+# the compiled bits (tests/test_interpreted_bits.py)
+
+import math
+
 import numpy as np
 from numba import njit
 
@@ -98,8 +103,8 @@ def _support_offset(m, poses, s):
     (zero for a limit-surface element)."""
     d = m.sup_dyn[s]
     th = poses[m.dyn_body[d], 2]
-    c = np.cos(th)
-    sn = np.sin(th)
+    c = math.cos(th)
+    sn = math.sin(th)
     return c, sn, c * m.sup_local[s, 0] - sn * m.sup_local[s, 1], sn * m.sup_local[s, 0] + c * m.sup_local[s, 1]
 
 
@@ -149,8 +154,8 @@ def recentre_limit_surfaces(m, w):
     for s in range(m.sup_dyn.shape[0]):
         d = m.sup_dyn[s]
         th = w.body_pose[m.dyn_body[d], 2]
-        c = np.cos(th)
-        sn = np.sin(th)
+        c = math.cos(th)
+        sn = math.sin(th)
         vx = w.v_tilde[d, 0]
         vy = w.v_tilde[d, 1]
         out = w.sup_recentred[s]

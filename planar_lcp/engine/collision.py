@@ -78,7 +78,9 @@ Known limits
 - Non-convex or clockwise cores are not detected; the caller guarantees convex CCW input.
 """
 
-import math
+# np.hypot, not math.hypot: CPython's math.hypot is its own algorithm, numba's and NumPy's np.hypot call the C
+# library's; and x * x, not x ** 2 (the C pow in Python): the kernels run as Python give the compiled bits
+# (tests/test_interpreted_bits.py)
 
 import numpy as np
 from numba import njit
@@ -103,7 +105,7 @@ def _face_normal(v, n, i):
         j = 0
     ex = v[j, 0] - v[i, 0]
     ey = v[j, 1] - v[i, 1]
-    ln = math.hypot(ex, ey)
+    ln = np.hypot(ex, ey)
     if not ln > 0.0:
         return 0.0, 0.0, False
     return ey / ln, -ex / ln, True
@@ -222,7 +224,7 @@ def _point_core(va, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point)
     if nb == 1:
         dx = px - vb[0, 0]
         dy = py - vb[0, 1]
-        s = math.hypot(dx, dy)
+        s = np.hypot(dx, dy)
         if s > 0.0:
             nx = dx / s
             ny = dy / s
@@ -233,7 +235,7 @@ def _point_core(va, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point)
         qx, qy = _closest_on_segment(px, py, vb[0, 0], vb[0, 1], vb[1, 0], vb[1, 1])
         dx = px - qx
         dy = py - qy
-        s = math.hypot(dx, dy)
+        s = np.hypot(dx, dy)
         if s > tol:
             nx = dx / s
             ny = dy / s
@@ -250,7 +252,7 @@ def _point_core(va, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point)
         if s > 0.0:
             # outside: the closest point on the boundary
             _, _, _, bx, by = _closest_vertex_edge(va, 1, vb, nb, np.inf, px, py, 0.0, 0.0)
-            d = math.hypot(px - bx, py - by)
+            d = np.hypot(px - bx, py - by)
             if d > tol:
                 nx = (px - bx) / d
                 ny = (py - by) / d
@@ -319,7 +321,9 @@ def _closest_vertex_edge(v1, n1, v2, n2, best, p1x, p1y, p2x, p2y):
             if k >= n2:
                 k = 0
             qx, qy = _closest_on_segment(v1[i, 0], v1[i, 1], v2[j, 0], v2[j, 1], v2[k, 0], v2[k, 1])
-            d2 = (v1[i, 0] - qx) ** 2 + (v1[i, 1] - qy) ** 2
+            ex = v1[i, 0] - qx
+            ey = v1[i, 1] - qy
+            d2 = ex * ex + ey * ey
             if d2 < best:
                 best = d2
                 p1x = v1[i, 0]
@@ -410,7 +414,7 @@ def _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_poi
     cnt, p1x, p1y, p2x, p2y = _clip_segment(vI[ie, 0], vI[ie, 1], vI[je, 0], vI[je, 1], r1x, r1y, tx, ty, hi)
     s1 = ux_n * (p1x - r1x) + uy_n * (p1y - r1y)
     s2 = ux_n * (p2x - r1x) + uy_n * (p2y - r1y)
-    if cnt == 2 and math.hypot(p1x - p2x, p1y - p2y) <= tol:
+    if cnt == 2 and np.hypot(p1x - p2x, p1y - p2y) <= tol:
         cnt = 1  # one point: keep the deeper in slot 1
         if s2 < s1:
             p1x, p1y, s1 = p2x, p2y, s2
@@ -427,7 +431,7 @@ def _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_poi
         best, pax, pay, pbx, pby = _closest_vertex_edge(va, na, vb, nb, np.inf, va[0, 0], va[0, 1], vb[0, 0],
                                                         vb[0, 1])
         best, pbx, pby, pax, pay = _closest_vertex_edge(vb, nb, va, na, best, pbx, pby, pax, pay)
-        d = math.hypot(pax - pbx, pay - pby)
+        d = np.hypot(pax - pbx, pay - pby)
         if d > tol:
             # separated cores: the face manifold is right only if it reaches the true distance
             if not (cnt > 0 and smin <= d + tol):

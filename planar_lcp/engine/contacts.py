@@ -3,6 +3,8 @@
 Numba only. Buffers are passed in; nothing is allocated.
 """
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -38,8 +40,9 @@ def world_vertices(m, poses, out):
         if m.shape_kind[s] != SHAPE_CORE:
             continue
         b = m.shape_body[s]
-        c = np.cos(poses[b, 2])
-        sn = np.sin(poses[b, 2])
+        # math.cos, math.sin: the C library's in Python as compiled (np.cos can take a NumPy SIMD loop)
+        c = math.cos(poses[b, 2])
+        sn = math.sin(poses[b, 2])
         x = poses[b, 0]
         y = poses[b, 1]
         a0 = m.shape_vert_adr[s]

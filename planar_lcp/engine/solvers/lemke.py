@@ -18,6 +18,8 @@ Variable index k means: w_k for k < n, z_{k-n} for n <= k < 2n, the artificial v
 the island-solver signature of engine/step.py.
 """
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -322,8 +324,9 @@ def _equilibrate(M, n, d, r):
         for i in range(n):
             if r[i] > 0.0:
                 d[i] /= np.sqrt(r[i])
+    # math.log2, not np.log2: NumPy's SIMD log2 differs from the C library's (tests/test_interpreted_bits.py)
     for i in range(n):
-        d[i] = 2.0 ** np.round(np.log2(d[i]))
+        d[i] = 2.0 ** np.round(math.log2(d[i]))
 
 
 @njit(cache=True)
