@@ -45,6 +45,15 @@ def _missing_optional(e):
     return None
 
 
+def _how_it_ran():
+    """How a simulate() run's wall time is to be read: it ran as Python while this process's background compilation
+    ran (a cold cache: engine/interpreted.py), or compiled, including any compilation."""
+    from planar_lcp.engine import precompile
+    if precompile._background is not None:
+        return "as Python while the kernels compile in the background"
+    return "including any JIT compilation"
+
+
 def cmd_demo(args):
     import time
     from pathlib import Path
@@ -73,7 +82,7 @@ def cmd_demo(args):
     wall = time.perf_counter() - t0
     first = int(np.argmax(traj.stats["n_contacts"] > 0))
     x, y, th = traj.q[-1, 0]
-    print(f"   {len(traj.t) - 1} steps of h = {traj.options.h} s in {wall:.2f} s (including JIT compilation); "
+    print(f"   {len(traj.t) - 1} steps of h = {traj.options.h} s in {wall:.2f} s ({_how_it_ran()}); "
           f"first contact in the step ending at t = {traj.t[first + 1]:.4f} s; at rest at x = {x:.4f} m, "
           f"theta = {th:.6f} rad; max penetration {traj.stats['penetration'].max():.1e} m")
     for name, write in (("falling_rod.csv", traj.to_csv), ("falling_rod.png", lambda p: plot_trajectory(traj, p))):
@@ -367,7 +376,7 @@ def _simulate(args):
     print(f"steps          {steps} (h = {o.h:g} s, t = 0 to {traj.t[-1]:.6g} s)")
     print(f"solver         {o.solver}")
     print(f"formulation    {o.formulation}")
-    print(f"wall time      {wall:.3f} s (including any JIT compilation)")
+    print(f"wall time      {wall:.3f} s ({_how_it_ran()})")
     print("final pose     (body-frame origin: x [m], y [m], theta [rad])")
     width = max([len(n) for n in traj.body_names] + [1])
     for j, name in enumerate(traj.body_names):

@@ -104,11 +104,14 @@ START_OVERLAP_TOL = 1e-6
 
 def _check_start_overlaps(scene, model):
     """Reject a scene whose bodies interpenetrate at the start by more than START_OVERLAP_TOL."""
-    from planar_lcp.engine.contacts import contacts_at
+    from planar_lcp.engine.contacts import contacts_at, find_contacts
     a = model.arrays
     if a.pair_a.shape[0] == 0:
         return
-    con_pair, con_phi, _, con_p = contacts_at(a, model.q0, model.qk0, -START_OVERLAP_TOL, m=model.struct)
+    from planar_lcp.engine.interpreted import compiled
+    cold = not compiled(find_contacts)  # a cold cache: Python on the arrays, no struct made (engine/interpreted.py)
+    con_pair, con_phi, _, con_p = contacts_at(a, model.q0, model.qk0, -START_OVERLAP_TOL,
+                                              m=None if cold else model.struct, python=cold)
     n = len(con_phi)
     if n == 0:
         return
@@ -153,11 +156,16 @@ def _add_limit_surface(ls, body, resolution):
 
 def _fill_fixed_columns(model, bodies, nls):
     """ls_wrench[s, j] = L(t_j) for the fixed twists of each element, by the kernels' own `unit_load_wrench` (on the
-    model struct, as the step calls it)."""
-    m, arrays = model.struct, model.arrays
+    model struct, as the step calls it; on a cold cache as Python on the arrays, the same bits: engine/interpreted.py)."""
+    from planar_lcp.engine.interpreted import compiled, python_version
+    if compiled(unit_load_wrench):
+        kernel, m = unit_load_wrench, model.struct
+    else:
+        kernel, m = python_version(unit_load_wrench), model.arrays
+    arrays = model.arrays
     for s, body in enumerate(bodies):
         for j, t in enumerate(twist_directions(nls, gyration_radius(body))):
-            unit_load_wrench(m, s, float(t[0]), float(t[1]), float(t[2]), arrays.ls_wrench[s, j])
+            kernel(m, s, float(t[0]), float(t[1]), float(t[2]), arrays.ls_wrench[s, j])
 
 
 def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=False, support_model=None,

@@ -15,7 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS, SUPPORT_POINTS
-from planar_lcp.engine.layout import NSTAT, STATS, Stat, StepOptions, new_work_struct
+from planar_lcp.engine.interpreted import compiled, python_version
+from planar_lcp.engine.layout import NSTAT, STATS, Stat, StepOptions, make_step_work, work_struct
+from planar_lcp.engine.precompile import start_background
 from planar_lcp.engine.rollout import (Recording, rollout_lemke, rollout_lemke_full, rollout_lemke_full_small,
                                        rollout_lemke_small, rollout_pgs)
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES
@@ -149,19 +151,43 @@ class Simulator:
     qk, vk (nkin, 3) kinematic body poses (body frame) and velocities (the controls).
     """
 
-    def __init__(self, model: Model, options: SimOptions):
+    def __init__(self, model: Model, options: SimOptions, python_while_cold=False):
+        """python_while_cold: on a cold numba cache, start compiling the kernels in the background and run rollouts
+        as Python meanwhile (the same results bit for bit; engine/interpreted.py), switching to the compiled kernels
+        when they are ready (`simulate`'s setting: a first run in seconds instead of 25 to 35 s)."""
         self.model = model
         self.options = options
         self.kopt = options.kernel_options()
-        # the kernels' views of model.arrays and of the work buffers (same buffers): see engine/layout.py
-        self.work, self.kwork = new_work_struct(model)
-        self.kmodel = model.struct
+        self.work = make_step_work(model)
+        self._kwork = None          # the kernels' view of the work buffers (`kwork`), made on first use
         self.stats = np.zeros(NSTAT)
         self._last_step_out = None  # (q, v, qk) returned by the last `step`, for its warm start
         self._variants = _variants(options, model)
         #: called as progress(steps_done, nsteps) after each of a rollout's kernel calls (CHUNK_SECONDS apart), or None
         self.progress = None
         self._chunk = 64            # steps of a rollout's first kernel call: measured and kept by each call
+        # the background compilation (engine/precompile.py `Background`) while rollouts run as Python, or None
+        self._background = None
+        self._python_rate = None
+        if python_while_cold and not compiled(self._variants[0][1]):
+            self._background = start_background(model, options)
+
+    @property
+    def kmodel(self):
+        """The kernels' view of model.arrays (the same buffers): engine/layout.py."""
+        return self.model.struct
+
+    @property
+    def kwork(self):
+        """The kernels' view of the work buffers `work` (the same buffers), made on first use: on a cold cache its
+        constructor compiles, which a rollout run as Python does not need."""
+        if self._kwork is None:
+            self._kwork = work_struct(self.work, check=False)
+        return self._kwork
+
+    @kwork.setter
+    def kwork(self, struct):
+        self._kwork = struct
 
     @property
     def h(self):
@@ -178,11 +204,11 @@ class Simulator:
         have = self.work.lemke_lu.shape[0]
         if needed <= have:
             raise RuntimeError(f"a step asked for dense buffers of {needed} unknowns, and they hold {have}")
-        new, knew = new_work_struct(self.model, min(self.model.max_unknowns(), max(needed, 2 * have)))
+        new = make_step_work(self.model, min(self.model.max_unknowns(), max(needed, 2 * have)))
         for old, fresh in zip(self.work, new):
             if old.shape == fresh.shape:
                 fresh[...] = old
-        self.work, self.kwork = new, knew
+        self.work, self._kwork = new, None
 
     def _step_into(self, q, v, qk, vk, q_out, v_out, qk_out, stats):
         level = 0
@@ -259,6 +285,23 @@ class Simulator:
         rec.q[0], rec.v[0], rec.qk[0] = q, v, qk
         return self._run_chunks(rec, vk_seq, len(rec.status), bool(stop_on_failure))
 
+    def _python_or_wait(self, kernel, steps_left, chunk):
+        """A cold cache's rollout (engine/precompile.py `start_background`): True to run the next chunk as Python;
+        False once `kernel` is compiled (the background's work is in numba's cache: the rest runs compiled, bit for
+        bit the same steps). When the steps left would take Python longer than the compilation is expected to, this
+        waits for the background instead (it then has both cores), or compiles here if the background stopped."""
+        bg = self._background
+        while not compiled(kernel):
+            if not bg.running():
+                break                          # it stopped without the kernel: compile it here, as without it
+            rate = self._python_rate
+            if rate is None or steps_left / rate <= bg.seconds_left():
+                return True
+            time.sleep(0.05)
+            raise_if_interrupted()
+        self._background = None
+        return False
+
     #: Wall-clock length a rollout's kernel calls aim at: between two calls Python handles signals, so Ctrl-C stops a
     #: long simulation within about this long. Short rollouts (a planner's propagation) are one call.
     CHUNK_SECONDS = 0.25
@@ -274,14 +317,23 @@ class Simulator:
             # state rows start .. start + n, per-step rows start .. start + n - 1 (an empty contact array stays empty)
             view = rec if n == nsteps else Recording(*(a[start:start + n + 1] if k in ("q", "v", "qk") else
                                                        a[start:start + n] for k, a in zip(Recording._fields, rec)))
+            kernel = self._variants[level][1]
+            python = self._background is not None and self._python_or_wait(kernel, nsteps - start, chunk)
+            if python:           # a cold cache: the kernel's Python, on the namedtuples of the same buffers
+                kernel, m, w = python_version(kernel), self.model.arrays, self.work
+            else:
+                m, w = self.kmodel, self.kwork
             t0 = time.perf_counter()
-            done = int(self._variants[level][1](self.kmodel, rec.q[start], rec.v[start], rec.qk[start], vk_seq, start,
-                                                n, self.h, self.kopt, self.kwork, view, stop_on_failure, start == 0))
+            done = int(kernel(m, rec.q[start], rec.v[start], rec.qk[start], vk_seq, start, n, self.h, self.kopt, w,
+                              view, stop_on_failure, start == 0))
             # a Ctrl-C that numba's dispatcher swallowed during the call (planar_lcp.interrupt) stops the run here
             raise_if_interrupted()
             if done and not level:
                 chunk = int(min(max(16, self.CHUNK_SECONDS * done / max(time.perf_counter() - t0, 1e-9)), 1 << 20))
-                self._chunk = chunk
+                if python:
+                    self._python_rate = done / max(time.perf_counter() - t0, 1e-9)  # steps per second
+                else:
+                    self._chunk = chunk
             start += done
             if self.progress is not None:
                 self.progress(start, nsteps)
@@ -488,7 +540,8 @@ IDLE_SIMULATOR_BYTES = 1 << 20
 def _take_simulator(model, options):
     with _cache_lock:
         sim = _idle_simulators.pop((id(model), options), None)
-    return sim if sim is not None else Simulator(model, options)
+    # a cold cache: this run goes on as Python while the kernels compile in the background (engine/interpreted.py)
+    return sim if sim is not None else Simulator(model, options, python_while_cold=True)
 
 
 def _give_back(sim):

@@ -3,12 +3,16 @@
 `test_demo` and tests/test_planning_e2e.py `test_first_plan_on_a_cold_cache` check the line there)."""
 
 import io
+import os
 
+import numba
 import pytest
 from numba import njit
 
 from cli_helpers import run_cli
-from planar_lcp.engine.compile_notice import NOTICE, CompileNotice, announce_compilation, uninstall
+from planar_lcp.engine import precompile
+from planar_lcp.engine.compile_notice import (BACKGROUND_NOTICE, NOTICE, CompileNotice, announce_background,
+                                              announce_compilation, uninstall)
 
 
 def _function_of(module):
@@ -33,6 +37,19 @@ def test_the_notice_is_printed_once_at_our_first_compilation_and_not_for_others(
     assert isinstance(notice, CompileNotice) and notice.said
 
 
+def test_a_background_compilation_is_announced_once_and_nothing_after_it():
+    stream = io.StringIO()
+    notice = announce_compilation("planar-lcp probe", stream)
+    try:
+        announce_background()
+        assert stream.getvalue() == f"planar-lcp probe: {BACKGROUND_NOTICE}\n"
+        _function_of("planar_lcp.engine.probe")(1)                   # a compilation after it: said already
+        announce_background()
+        assert stream.getvalue() == f"planar-lcp probe: {BACKGROUND_NOTICE}\n"
+    finally:
+        uninstall(notice)
+
+
 def test_an_uninstalled_notice_says_nothing():
     stream = io.StringIO()
     uninstall(announce_compilation("planar-lcp probe", stream))
@@ -42,12 +59,15 @@ def test_an_uninstalled_notice_says_nothing():
 
 @pytest.mark.needs_jit
 def test_a_warm_cache_prints_nothing(tmp_path):
-    """The same command twice on one cache: the first may compile (and then says so, once), the second finds every
-    kernel in the cache and prints nothing on stderr."""
+    """The same command twice on one cache: the first may compile (and then says so, once: in the foreground or in
+    the background), the second finds every kernel in the cache and prints nothing on stderr."""
     args = ("simulate", "falling_rod", "--t-end", "0.05")
     first = run_cli(*args, cwd=tmp_path)
     assert first.returncode == 0, first.stderr
-    assert first.stderr in ("", f"planar-lcp simulate: {NOTICE}\n"), first.stderr
+    assert first.stderr in ("", f"planar-lcp simulate: {NOTICE}\n", f"planar-lcp simulate: {BACKGROUND_NOTICE}\n"), \
+        first.stderr
+    lock = os.path.join(os.environ.get("NUMBA_CACHE_DIR") or numba.config.CACHE_DIR, precompile.BACKGROUND_LOCK)
+    assert precompile.Background(None, lock, 0.0).wait(timeout=600)   # a background compilation has ended
     second = run_cli(*args, cwd=tmp_path)
     assert second.returncode == 0 and second.stderr == "", second.stderr
 

@@ -105,7 +105,7 @@ def test_the_helper_starts_only_on_a_cold_cache(monkeypatch):
             return 0
 
     monkeypatch.setattr(precompile.subprocess, "Popen", FakePopen)
-    monkeypatch.setattr(precompile, "_cached", lambda dispatcher: False)
+    monkeypatch.setattr(precompile, "compiled", lambda dispatcher: False)
     monkeypatch.setenv(precompile.ENV_SWITCH, "0")
     assert precompile.start_if_cold(model) is None and not started      # switched off
     monkeypatch.delenv(precompile.ENV_SWITCH)
@@ -127,7 +127,7 @@ def test_the_helper_starts_only_on_a_cold_cache(monkeypatch):
     monkeypatch.setattr(precompile, "_helper", None)
     started.clear()
     checked = []
-    monkeypatch.setattr(precompile, "_cached", lambda dispatcher: checked.append(dispatcher) and False)
+    monkeypatch.setattr(precompile, "compiled", lambda dispatcher: checked.append(dispatcher) and False)
     compile_scene(load_scene("push_box"), single_kernel=True)
     assert started[0][0][3:] == ["lemke_small", "pgs", "projection"]
     from planar_lcp.engine import rollout

@@ -16,7 +16,14 @@ COLD_START_SECONDS = 25
 NOTICE = (f"compiling the simulation kernels once (about {COLD_START_SECONDS} s on 2 cores); "
           "later runs start at once")
 
+#: `Simulator(..., python_while_cold=True)` (what `simulate` runs) on a cold cache: the run goes on as Python while a
+#: background process compiles (engine/precompile.py `start_background`)
+BACKGROUND_NOTICE = (f"compiling the simulation kernels once, in the background (about {COLD_START_SECONDS} s on 2 "
+                     "cores); this run goes on meanwhile as Python, with the same results; later runs start at once")
+
 _PACKAGES = ("planar_lcp",)  # the planners have no numba code of their own
+
+_installed = []
 
 
 class CompileNotice(event.Listener):
@@ -28,13 +35,16 @@ class CompileNotice(event.Listener):
         self.said = False
 
     def on_start(self, ev):
-        if self.said:
-            return
         func = getattr(ev.data.get("dispatcher"), "py_func", None)
         module = getattr(func, "__module__", None) or ""
         if module.split(".")[0] in _PACKAGES:
+            self.say(NOTICE)
+
+    def say(self, notice):
+        """Print `prefix: notice`, if nothing was said yet."""
+        if not self.said:
             self.said = True
-            print(f"{self.prefix}: {NOTICE}", file=self.stream or sys.stderr, flush=True)
+            print(f"{self.prefix}: {notice}", file=self.stream or sys.stderr, flush=True)
 
     def on_end(self, ev):
         pass
@@ -44,8 +54,16 @@ def announce_compilation(prefix, stream=None):
     """Install a `CompileNotice` for this process (numba's listeners are global) and return it; `uninstall` it."""
     notice = CompileNotice(prefix, stream)
     event.register("numba:compile", notice)
+    _installed.append(notice)
     return notice
 
 
 def uninstall(notice):
     event.unregister("numba:compile", notice)
+    _installed.remove(notice)
+
+
+def announce_background():
+    """The installed notices say BACKGROUND_NOTICE (a background compilation started), unless they said theirs."""
+    for notice in _installed:
+        notice.say(BACKGROUND_NOTICE)

@@ -112,25 +112,32 @@ def find_contacts(m, vw, margin, force_pair, con_pair, con_phi, con_n, con_p, tm
     return nc
 
 
-def contacts_at(arrays, q, qk, margin, all_pairs=False, m=None):
+def contacts_at(arrays, q, qk, margin, all_pairs=False, m=None, python=False):
     """The contacts of one configuration, for Python callers outside a step (the compile step's start-overlap check,
     the pymunk comparison's gaps): allocates its buffers, unlike the kernels.
 
     arrays : the model's arrays (`ModelArrays`, engine/layout.py); q : (ndyn, 3) COM poses; qk : (nkin, 3) kinematic
     poses; margin : m, contacts with a gap below it; all_pairs : every shape pair's closest contacts at any gap;
     m : the kernels' struct over `arrays` (`model_struct(arrays)`), for a caller that examines many configurations
-    (made here when None). Returns (pair, phi, normal, point): (n,), (n,), (n, 2), (n, 2) arrays, one row per contact.
+    (made here when None); python : run the kernels as Python on `arrays` (engine/interpreted.py: a cold cache's
+    first run), the same answer. Returns (pair, phi, normal, point): (n,), (n,), (n, 2), (n, 2) arrays, one row per
+    contact.
     """
-    if m is None:
+    kernels = (body_poses, world_vertices, find_contacts)
+    if python:
+        from planar_lcp.engine.interpreted import python_version
+        kernels, m = tuple(python_version(k) for k in kernels), arrays
+    elif m is None:
         from planar_lcp.engine.layout import model_struct
         m = model_struct(arrays)  # the kernels' view: the step compiles for it, a namedtuple would compile them again
+    body_poses_, world_vertices_, find_contacts_ = kernels
     npair = arrays.pair_a.shape[0]
     poses = np.zeros((arrays.body_kind.shape[0], 3))
     vw = np.zeros((max(1, arrays.vert_local.shape[0]), 2))
-    body_poses(m, np.ascontiguousarray(q, dtype=np.float64), np.ascontiguousarray(qk, dtype=np.float64), poses)
-    world_vertices(m, poses, vw)
+    body_poses_(m, np.ascontiguousarray(q, dtype=np.float64), np.ascontiguousarray(qk, dtype=np.float64), poses)
+    world_vertices_(m, poses, vw)
     C = max(1, 2 * npair)
     pair, phi, normal, point = np.zeros(C, np.int64), np.zeros(C), np.zeros((C, 2)), np.zeros((C, 2))
-    n = find_contacts(m, vw, margin, np.full(max(1, npair), all_pairs, np.bool_), pair, phi, normal, point,
+    n = find_contacts_(m, vw, margin, np.full(max(1, npair), all_pairs, np.bool_), pair, phi, normal, point,
                       np.zeros(2), np.zeros((2, 2)), np.zeros((2, 2)))
     return pair[:n], phi[:n], normal[:n], point[:n]

@@ -418,16 +418,11 @@ def model_struct(arrays):
     return _struct(arrays, MODEL_STRUCT, MODEL_LAYOUT)
 
 
-def work_struct(work):
-    """The kernels' view of a StepWork namedtuple (same buffers). With NUMBA_DISABLE_JIT, the namedtuple."""
-    return _struct(work, WORK_STRUCT, WORK_LAYOUT)
-
-
-def new_work_struct(model, dense_capacity=None):
-    """(make_step_work(model, dense_capacity), its struct): the buffers are made here with the layout's types, so
-    their per-field check (about 50 µs of a Simulator's set-up) is skipped."""
-    work = make_step_work(model, dense_capacity)
-    return work, _struct(work, WORK_STRUCT, WORK_LAYOUT, check=False)
+def work_struct(work, check=True):
+    """The kernels' view of a StepWork namedtuple (same buffers). With NUMBA_DISABLE_JIT, the namedtuple.
+    check=False skips the per-field type check (about 50 µs of a Simulator's set-up), for buffers made by
+    `make_step_work`, which makes them with the layout's types."""
+    return _struct(work, WORK_STRUCT, WORK_LAYOUT, check)
 
 
 def python_view(s):
