@@ -1,6 +1,6 @@
 """Wall clock of a planar-lcp command on an empty numba cache, each run in a child process with a cache of its own,
 in alternating rounds over the variants given, and the time until a background compilation it started has ended
-(engine/precompile.py `start_background`: simulate() on a cold cache): this tree with the second compiling process,
+(planar_lcp/background.py: simulate() on a cold cache): this tree with the second compiling process,
 without it (PLANAR_LCP_PRECOMPILE=0), and other source trees (--tree, e.g. a git worktree of an earlier commit).
 Used for docs/performance.md ("Issue M"):
 
@@ -21,7 +21,7 @@ HERE = Path(__file__).resolve().parents[1]
 _MAIN = "import sys; from planar_lcp.cli import main; sys.argv[0] = 'planar-lcp'; sys.exit(main())"
 
 
-#: the lock file of a background compilation in the cache (planar_lcp/engine/precompile.py BACKGROUND_LOCK; trees
+#: the lock file of a background compilation in the cache (planar_lcp/background.py BACKGROUND_LOCK; trees
 #: before it have none)
 _LOCK = "planar_lcp_compiling.pid"
 

@@ -48,8 +48,8 @@ def _missing_optional(e):
 def _how_it_ran():
     """How a simulate() run's wall time is to be read: it ran as Python while this process's background compilation
     ran (a cold cache: engine/interpreted.py), or compiled, including any compilation."""
-    from planar_lcp.engine import precompile
-    if precompile._background is not None:
+    from planar_lcp import background
+    if background.started() is not None:
         return "as Python while the kernels compile in the background"
     return "including any JIT compilation"
 

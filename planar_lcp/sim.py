@@ -17,7 +17,6 @@ import numpy as np
 from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS, SUPPORT_POINTS
 from planar_lcp.engine.interpreted import compiled, python_version
 from planar_lcp.engine.layout import NSTAT, STATS, Stat, StepOptions, make_step_work, work_struct
-from planar_lcp.engine.precompile import start_background
 from planar_lcp.engine.rollout import (Recording, rollout_lemke, rollout_lemke_full, rollout_lemke_full_small,
                                        rollout_lemke_small, rollout_pgs)
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES
@@ -28,6 +27,7 @@ from planar_lcp.model import Model, compile_scene
 from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
 from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, restitution_setting, scene_path,
                                    sim_settings, support_model_setting)
+from planar_lcp.background import start_background
 from planar_lcp.frames import frame_state
 from planar_lcp.infeasibility import diagnose_step
 from planar_lcp.interrupt import raise_if_interrupted
@@ -166,7 +166,7 @@ class Simulator:
         #: called as progress(steps_done, nsteps) after each of a rollout's kernel calls (CHUNK_SECONDS apart), or None
         self.progress = None
         self._chunk = 64            # steps of a rollout's first kernel call: measured and kept by each call
-        # the background compilation (engine/precompile.py `Background`) while rollouts run as Python, or None
+        # the background compilation (planar_lcp/background.py) while rollouts run as Python, or None
         self._background = None
         self._python_rate = None
         if python_while_cold and not compiled(self._variants[0][1]):
@@ -286,7 +286,7 @@ class Simulator:
         return self._run_chunks(rec, vk_seq, len(rec.status), bool(stop_on_failure))
 
     def _python_or_wait(self, kernel, steps_left, chunk):
-        """A cold cache's rollout (engine/precompile.py `start_background`): True to run the next chunk as Python;
+        """A cold cache's rollout (planar_lcp/background.py): True to run the next chunk as Python;
         False once `kernel` is compiled (the background's work is in numba's cache: the rest runs compiled, bit for
         bit the same steps). When the steps left would take Python longer than the compilation is expected to, this
         waits for the background instead (it then has both cores), or compiles here if the background stopped."""

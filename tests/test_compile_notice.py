@@ -10,7 +10,7 @@ import pytest
 from numba import njit
 
 from cli_helpers import run_cli
-from planar_lcp.engine import precompile
+from planar_lcp import background
 from planar_lcp.engine.compile_notice import (BACKGROUND_NOTICE, NOTICE, CompileNotice, announce_background,
                                               announce_compilation, uninstall)
 
@@ -66,8 +66,8 @@ def test_a_warm_cache_prints_nothing(tmp_path):
     assert first.returncode == 0, first.stderr
     assert first.stderr in ("", f"planar-lcp simulate: {NOTICE}\n", f"planar-lcp simulate: {BACKGROUND_NOTICE}\n"), \
         first.stderr
-    lock = os.path.join(os.environ.get("NUMBA_CACHE_DIR") or numba.config.CACHE_DIR, precompile.BACKGROUND_LOCK)
-    assert precompile.Background(None, lock, 0.0).wait(timeout=600)   # a background compilation has ended
+    lock = os.path.join(os.environ.get("NUMBA_CACHE_DIR") or numba.config.CACHE_DIR, background.BACKGROUND_LOCK)
+    assert background.Background(None, lock, 0.0).wait(timeout=600)   # a background compilation has ended
     second = run_cli(*args, cwd=tmp_path)
     assert second.returncode == 0 and second.stderr == "", second.stderr
 

@@ -1,4 +1,4 @@
-"""A cold cache's first run as Python (planar_lcp/engine/interpreted.py, engine/precompile.py `start_background`): the
+"""A cold cache's first run as Python (planar_lcp/engine/interpreted.py, planar_lcp/background.py): the
 same results as the compiled kernels bit for bit, the switch to them mid-run, the wait for them on a long run, and the
 cold command line in a subprocess with its own empty cache."""
 
@@ -14,7 +14,7 @@ from numba.core.dispatcher import Dispatcher
 import planar_lcp.sim as sim_module
 from cli_helpers import run_cli
 from planar_lcp import simulate
-from planar_lcp.engine import precompile
+from planar_lcp import background
 from planar_lcp.engine.compile_notice import BACKGROUND_NOTICE, NOTICE
 from planar_lcp.engine.interpreted import python_version
 from planar_lcp.engine.rollout import rollout_lemke, rollout_lemke_small
@@ -32,7 +32,7 @@ PYTHON_SCENES = [pytest.param(s, marks=pytest.mark.slow) if s in SLOW_PYTHON els
 
 
 class _Compiling:
-    """A background compilation that runs with `seconds_left` expected (a stand-in for precompile.Background)."""
+    """A background compilation that runs with `seconds_left` expected (a stand-in for background.Background)."""
 
     def __init__(self, seconds_left=1e9):
         self.left = seconds_left
@@ -176,8 +176,8 @@ def test_a_cold_cache_answers_at_once_and_leaves_the_kernels_compiled(tmp_path):
     first = run_cli("simulate", "falling_rod", cwd=tmp_path, env=env)
     assert first.returncode == 0, first.stderr
     assert first.stderr == f"planar-lcp simulate: {BACKGROUND_NOTICE}\n"
-    lock = cache / precompile.BACKGROUND_LOCK
-    background = precompile.Background(None, str(lock), 0.0)
+    lock = cache / background.BACKGROUND_LOCK
+    background = background.Background(None, str(lock), 0.0)
     assert background.wait(timeout=600)
     assert not lock.exists() and not list(cache.glob("planar_lcp_run_*"))
     second = run_cli("simulate", "falling_rod", cwd=tmp_path, env=env)

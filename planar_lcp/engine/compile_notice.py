@@ -17,7 +17,7 @@ NOTICE = (f"compiling the simulation kernels once (about {COLD_START_SECONDS} s 
           "later runs start at once")
 
 #: `Simulator(..., python_while_cold=True)` (what `simulate` runs) on a cold cache: the run goes on as Python while a
-#: background process compiles (engine/precompile.py `start_background`)
+#: background process compiles (planar_lcp/background.py)
 BACKGROUND_NOTICE = (f"compiling the simulation kernels once, in the background (about {COLD_START_SECONDS} s on 2 "
                      "cores); this run goes on meanwhile as Python, with the same results; later runs start at once")
 

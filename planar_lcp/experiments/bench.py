@@ -259,11 +259,11 @@ STEP_SCENES = ("falling_rod", "box_push", "box_tip", "push_t")
 _STEP_COMPILE_SNIPPET = (
     "import time; t0, c0 = time.perf_counter(), time.process_time()\n"
     "import planar_lcp\n"
-    "from planar_lcp.engine import precompile\n"
+    "from planar_lcp import background\n"
     "t1, c1 = time.perf_counter(), time.process_time()\n"
     "planar_lcp.simulate('falling_rod')\n"
     "t2, c2 = time.perf_counter(), time.process_time()\n"
-    "b = precompile._background\n"
+    "b = background.started()\n"
     "print(t1 - t0, t2 - t1, c1 - c0, c2 - c1, b.wait() and time.perf_counter() - t1 if b else 0.0)\n"
 )
 
