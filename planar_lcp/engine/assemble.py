@@ -268,8 +268,13 @@ def assemble_columns(m, w, vk, nci, nsi, h, velocity_form, b, elastic=True):
         j, nx, ny = normal_column(m, w, vk, h, velocity_form, a, a, b, elastic)
         if m.pair_mu[con_pair[j]] > 0.0:
             # tangent t = (-n_y, n_x); the two rays +t and -t make the 2-D friction "cone" exact
-            friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, -ny, nx, col_dyn, col_g, o_bc + 2 * f)
-            friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, ny, -nx, col_dyn, col_g, o_bc + 2 * f + 1)
+            if m.seed_friction_arm == 0:     # friction_column's columns without its call: the contact point's
+                contact_column(m, poses, con_pair, con_p, j, -ny, nx, col_dyn, col_g, o_bc + 2 * f)
+                contact_column(m, poses, con_pair, con_p, j, ny, -nx, col_dyn, col_g, o_bc + 2 * f + 1)
+            else:
+                friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, -ny, nx, col_dyn, col_g, o_bc + 2 * f)
+                friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, ny, -nx, col_dyn, col_g,
+                                o_bc + 2 * f + 1)
             f += 1
     for a in range(nsi):
         support_columns(m, w, isl_sup[a], o_bs + k * a)
@@ -489,6 +494,15 @@ def island_servo(m, w, nci, nf):
     origin at the linearization pose). Returns (nsb, its lag unknowns)."""
     nsb = np.int64(0)
     ns = np.int64(0)
+    # an island without a force-limited body: nothing to write (column_servo and column_gk are read for nsb > 0 only)
+    servo = False
+    for a in range(nci):
+        bb = m.shape_body[m.pair_b[w.con_pair[w.island_con[a]]]]
+        if m.body_kind[bb] == BODY_KINEMATIC and m.kin_max_force[m.body_slot[bb]] > 0.0:
+            servo = True
+            break
+    if not servo:
+        return nsb, ns
     f = np.int64(0)
     for a in range(nci):
         j = w.island_con[a]

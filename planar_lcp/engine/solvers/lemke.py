@@ -382,15 +382,22 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, 
     n = q.shape[0]
     if n == 0:
         return STATUS_SOLVED, 0, 0.0
+    # the finiteness check and `lcp_scale(M, q)` in one pass over (M, q): the same comparisons in the same order
+    scale = 1.0
     for i in range(n):
-        if not np.isfinite(q[i]):
+        a = q[i]
+        if not np.isfinite(a):
             return STATUS_INVALID, 0, np.inf
+        if abs(a) > scale:
+            scale = abs(a)
         for k in range(n):
-            if not np.isfinite(M[i, k]):
+            a = M[i, k]
+            if not np.isfinite(a):
                 return STATUS_INVALID, 0, np.inf
+            if abs(a) > scale:
+                scale = abs(a)
     for i in range(n):
         z[i] = 0.0
-    scale = lcp_scale(M, q)
     if equilibrate:
         _equilibrate(M, n, d, rhs)
     else:
@@ -419,7 +426,7 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, 
     rhs_col = 2 * n + 1
     z0 = 2 * n
     for i in range(n):
-        for c in range(2 * n + 2):
+        for c in range(n):               # B^-1 = I; the other columns are all written below
             T[i, c] = 0.0
         T[i, i] = 1.0
         for k in range(n):
