@@ -39,7 +39,8 @@ def cold_run(tree, args, helper=True):
     """(seconds of wall clock for `planar-lcp ARGS` run from `tree`'s sources on an empty numba cache, seconds until
     a background compilation it started has ended too: the same when there is none)."""
     with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as cwd:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(tree), PLANAR_LCP_PRECOMPILE="1" if helper else "0")
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(tree),
+                   PLANAR_LCP_PRECOMPILE="1" if helper else "0")
         t0 = time.perf_counter()
         out = subprocess.run([sys.executable, "-c", _MAIN, *args], cwd=cwd, env=env, capture_output=True, text=True)
         dt = time.perf_counter() - t0

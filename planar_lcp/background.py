@@ -72,9 +72,10 @@ def _lock_holder(lock):
 
 
 def start_background(model, options):
-    """Compile the kernels that `Simulator(model, options)` runs in a background process, if the cache is cold and a
-    second process may compile (engine/precompile.py `may_start`, and a cache directory); at most one per cache directory (a running one
-    is returned instead of a new one). Returns a `Background`, or None: the caller then compiles in-process."""
+    """Compile the kernels that `Simulator(model, options)` runs in a background process, if a second process may
+    compile (engine/precompile.py `may_start`) and numba has a cache directory; at most one per cache directory (a
+    running one is returned instead of a new one). The caller has found the cache cold. Returns a `Background`, or
+    None: the caller then compiles in-process."""
     global _background
     cache_dir = numba.config.CACHE_DIR
     if not may_start() or not cache_dir:
@@ -149,6 +150,7 @@ def _compile_in_background(payload):
         Simulator(model, options).rollout(model.q0, model.v0, model.qk0, model.vk0[None], 1, record_contacts=True)
     finally:
         os.unlink(lock)
+
 
 if __name__ == "__main__":
     _compile_in_background(sys.argv[1])

@@ -23,6 +23,7 @@ from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STAT
                                          PLANE_HORIZONTAL, PLANE_VERTICAL, SHAPE_CORE, SHAPE_HALFPLANE,
                                          SUPPORT_LIMIT_SURFACE, SUPPORT_POINTS)
 # the kernels' arrays: engine/layout.py MODEL_LAYOUT
+from planar_lcp.engine.interpreted import compiled, python_version
 from planar_lcp.engine.layout import ModelArrays, model_struct, step_work_bytes
 from planar_lcp.engine.limit_surface import unit_load_wrench
 from planar_lcp.engine.precompile import start_if_cold
@@ -108,7 +109,6 @@ def _check_start_overlaps(scene, model):
     a = model.arrays
     if a.pair_a.shape[0] == 0:
         return
-    from planar_lcp.engine.interpreted import compiled
     cold = not compiled(find_contacts)  # a cold cache: Python on the arrays, no struct made (engine/interpreted.py)
     con_pair, con_phi, _, con_p = contacts_at(a, model.q0, model.qk0, -START_OVERLAP_TOL,
                                               m=None if cold else model.struct, python=cold)
@@ -156,8 +156,8 @@ def _add_limit_surface(ls, body, resolution):
 
 def _fill_fixed_columns(model, bodies, nls):
     """ls_wrench[s, j] = L(t_j) for the fixed twists of each element, by the kernels' own `unit_load_wrench` (on the
-    model struct, as the step calls it; on a cold cache as Python on the arrays, the same bits: engine/interpreted.py)."""
-    from planar_lcp.engine.interpreted import compiled, python_version
+    model struct, as the step calls it; on a cold cache as Python on the arrays, the same bits:
+    engine/interpreted.py)."""
     if compiled(unit_load_wrench):
         kernel, m = unit_load_wrench, model.struct
     else:

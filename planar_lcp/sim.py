@@ -285,7 +285,7 @@ class Simulator:
         rec.q[0], rec.v[0], rec.qk[0] = q, v, qk
         return self._run_chunks(rec, vk_seq, len(rec.status), bool(stop_on_failure))
 
-    def _python_or_wait(self, kernel, steps_left, chunk):
+    def _python_or_wait(self, kernel, steps_left):
         """A cold cache's rollout (planar_lcp/background.py): True to run the next chunk as Python;
         False once `kernel` is compiled (the background's work is in numba's cache: the rest runs compiled, bit for
         bit the same steps). When the steps left would take Python longer than the compilation is expected to, this
@@ -318,7 +318,7 @@ class Simulator:
             view = rec if n == nsteps else Recording(*(a[start:start + n + 1] if k in ("q", "v", "qk") else
                                                        a[start:start + n] for k, a in zip(Recording._fields, rec)))
             kernel = self._variants[level][1]
-            python = self._background is not None and self._python_or_wait(kernel, nsteps - start, chunk)
+            python = self._background is not None and self._python_or_wait(kernel, nsteps - start)
             if python:           # a cold cache: the kernel's Python, on the namedtuples of the same buffers
                 kernel, m, w = python_version(kernel), self.model.arrays, self.work
             else:

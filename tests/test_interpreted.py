@@ -58,7 +58,7 @@ def _go_cold(monkeypatch, ready_after=None, seconds_left=1e9):
         asked.append(kernel)
         return ready_after is not None and len(asked) > ready_after
     monkeypatch.setattr(sim_module, "compiled", rollout_compiled)
-    monkeypatch.setattr("planar_lcp.engine.interpreted.compiled", lambda kernel: False)
+    monkeypatch.setattr("planar_lcp.model.compiled", lambda kernel: False)        # compile_scene's kernels
     monkeypatch.setattr(sim_module, "start_background", lambda model, options: _Compiling(seconds_left))
     monkeypatch.setattr(sim_module, "python_version", spy)
     monkeypatch.setattr(sim_module, "_run_setups", OrderedDict())
