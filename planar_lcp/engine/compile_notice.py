@@ -27,7 +27,8 @@ _installed = []
 
 
 class CompileNotice(event.Listener):
-    """Prints `prefix: NOTICE` to `stream` at the first compilation of one of our kernels, once per process."""
+    """Prints `prefix: NOTICE` to `stream` at the first compilation of one of our kernels, or `prefix:
+    BACKGROUND_NOTICE` if a background compilation starts first (`announce_background`): one line per process."""
 
     def __init__(self, prefix, stream=None):
         self.prefix = prefix
