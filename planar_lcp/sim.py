@@ -329,9 +329,10 @@ class Simulator:
             # a Ctrl-C that numba's dispatcher swallowed during the call (planar_lcp.interrupt) stops the run here
             raise_if_interrupted()
             if done and not level:
-                chunk = int(min(max(16, self.CHUNK_SECONDS * done / max(time.perf_counter() - t0, 1e-9)), 1 << 20))
+                rate = done / max(time.perf_counter() - t0, 1e-9)        # steps per second
+                chunk = int(min(max(16, self.CHUNK_SECONDS * rate), 1 << 20))
                 if python:
-                    self._python_rate = done / max(time.perf_counter() - t0, 1e-9)  # steps per second
+                    self._python_rate = rate
                 else:
                     self._chunk = chunk
             start += done
@@ -421,9 +422,7 @@ def compiled_scene(scene, friction_directions=None, seed_friction_arm=False, sup
     sweep options over one scene share it instead of compiling it again (0.3 to 1.1 ms for a shipped scene). A
     scene that cannot be hashed is compiled each time."""
     key = (scene, friction_directions, seed_friction_arm, support_model, twists, resolution)
-    try:
-        hash(key)
-    except TypeError:                                     # unhashable (a user's Scene built with lists)
+    if not _hashes(key):                                  # unhashable (a user's Scene built with lists)
         return _compiled_scene.__wrapped__(*key)
     return _compiled_scene(*key)
 
