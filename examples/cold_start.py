@@ -17,22 +17,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from planar_lcp.background import Background, lock_file
+
 HERE = Path(__file__).resolve().parents[1]
 _MAIN = "import sys; from planar_lcp.cli import main; sys.argv[0] = 'planar-lcp'; sys.exit(main())"
-
-
-#: the lock file of a background compilation in the cache (planar_lcp/background.py BACKGROUND_LOCK; trees
-#: before it have none)
-_LOCK = "planar_lcp_compiling.pid"
-
-
-def _background_running(cache):
-    try:
-        with open(os.path.join(cache, _LOCK)) as f:
-            os.kill(int(f.read().strip()), 0)
-    except (OSError, ValueError):
-        return False
-    return True
 
 
 def cold_run(tree, args, helper=True):
@@ -44,8 +32,9 @@ def cold_run(tree, args, helper=True):
         t0 = time.perf_counter()
         out = subprocess.run([sys.executable, "-c", _MAIN, *args], cwd=cwd, env=env, capture_output=True, text=True)
         dt = time.perf_counter() - t0
-        while _background_running(cache):        # the cache is removed only after it (and no load is left over)
-            time.sleep(0.05)
+        # a background compilation it started (planar_lcp/background.py; trees before it have none): the cache is
+        # removed only after it, and no load is left over for the next run
+        Background(None, lock_file(cache), 0.0).wait()
         compiled = time.perf_counter() - t0
     if out.returncode != 0:
         raise SystemExit(f"planar-lcp {' '.join(args)} from {tree} failed:\n{out.stderr}")

@@ -27,6 +27,11 @@ from planar_lcp.engine.precompile import may_start, start_if_cold
 BACKGROUND_LOCK = "planar_lcp_compiling.pid"
 
 
+def lock_file(cache_dir):
+    """The lock file of a background compilation into the numba cache `cache_dir`."""
+    return os.path.join(cache_dir, BACKGROUND_LOCK)
+
+
 class Background:
     """A background compilation: this process's child (`popen`), or another process's (its lock file only)."""
 
@@ -82,7 +87,7 @@ def start_background(model, options):
         return None
     if _background is not None and _background.running():
         return _background
-    lock = os.path.join(cache_dir, BACKGROUND_LOCK)
+    lock = lock_file(cache_dir)
     if _lock_holder(lock) is not None:         # another process's: this run waits for it as for its own
         try:
             started = os.path.getmtime(lock)
@@ -133,7 +138,7 @@ def _compile_in_background(payload):
     """The background process: the kernels of a run of (model, options) from `payload`, compiled into the cache as a
     cold run in the foreground compiles them: the model's (the start-overlap check's contacts, the limit surfaces'
     fixed columns), the structs' constructors, the first rollout kernel (one step of the run)."""
-    lock = os.path.join(numba.config.CACHE_DIR, BACKGROUND_LOCK)
+    lock = lock_file(numba.config.CACHE_DIR)
     try:
         with open(payload, "rb") as f:
             model, options = pickle.load(f)

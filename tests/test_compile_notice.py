@@ -3,7 +3,6 @@
 `test_demo` and tests/test_planning_e2e.py `test_first_plan_on_a_cold_cache` check the line there)."""
 
 import io
-import os
 
 import numba
 import pytest
@@ -66,7 +65,7 @@ def test_a_warm_cache_prints_nothing(tmp_path):
     assert first.returncode == 0, first.stderr
     assert first.stderr in ("", f"planar-lcp simulate: {NOTICE}\n", f"planar-lcp simulate: {BACKGROUND_NOTICE}\n"), \
         first.stderr
-    lock = os.path.join(os.environ.get("NUMBA_CACHE_DIR") or numba.config.CACHE_DIR, background.BACKGROUND_LOCK)
+    lock = background.lock_file(numba.config.CACHE_DIR)                # this process's cache: the CLI's too
     assert background.Background(None, lock, 0.0).wait(timeout=600)   # a background compilation has ended
     second = run_cli(*args, cwd=tmp_path)
     assert second.returncode == 0 and second.stderr == "", second.stderr

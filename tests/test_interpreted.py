@@ -176,7 +176,7 @@ def test_a_cold_cache_answers_at_once_and_leaves_the_kernels_compiled(tmp_path):
     first = run_cli("simulate", "falling_rod", cwd=tmp_path, env=env)
     assert first.returncode == 0, first.stderr
     assert first.stderr == f"planar-lcp simulate: {BACKGROUND_NOTICE}\n"
-    lock = cache / background.BACKGROUND_LOCK
+    lock = Path(background.lock_file(str(cache)))
     assert background.Background(None, str(lock), 0.0).wait(timeout=600)
     assert not lock.exists() and not list(cache.glob("planar_lcp_run_*"))
     second = run_cli("simulate", "falling_rod", cwd=tmp_path, env=env)
