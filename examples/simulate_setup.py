@@ -1,7 +1,7 @@
 """Where simulate()'s time outside the rollout goes (issue M), for one scene: the call against the rollout it makes
-(contacts recorded, on a Simulator made once), alternately in rounds of 20 calls, thread CPU time, median; the call
-with the scene's name against the call with its Scene and against load_scene; then each part of the call timed
-while 300 calls run. Used for docs/performance.md ("Issue M"):
+(contacts and the Trajectory's rows recorded, on a Simulator made once), alternately in rounds of 20 calls, thread
+CPU time, median; the call with the scene's name against the call with its Scene and against load_scene; then each
+part of the call timed while 300 calls run. Used for docs/performance.md ("Issue M"):
 
     python examples/simulate_setup.py [SCENE]          (default falling_rod)
 """
@@ -32,7 +32,8 @@ def per_call(f, k=20):
 whole, rollout = [], []
 for _ in range(15):
     whole.append(per_call(lambda: S.simulate(sc)))
-    rollout.append(per_call(lambda: sim.rollout(q, v, qk, vk[None], n, record_contacts=True)))
+    rollout.append(per_call(lambda: sim.rollout(q, v, qk, vk[None], n, record_contacts=True,
+                                                trajectory_rows=True)))
 whole, rollout = np.array(whole), np.array(rollout)
 print(f"{name}: simulate() {1e6 * np.median(whole):.0f} µs, its rollout {1e6 * np.median(rollout):.0f} µs, "
       f"the rest {1e6 * np.median(whole - rollout):.0f} µs (median of 15 rounds)")
@@ -65,7 +66,7 @@ def timed(owner, attr, label=None):
 # the settings, the model and the run-size check are made once per Scene object and arguments (`sim._RunSetup`):
 # after the first call they no longer show
 for attr in ("sim_settings", "support_model_setting", "restitution_setting", "compiled_scene", "check_run_size",
-             "energy", "frame_state", "_trajectory_stats", "_take_simulator", "_give_back"):
+             "frame_state", "_trajectory_stats", "_take_simulator", "_give_back"):
     timed(S, attr)
 timed(S.Simulator, "__init__", "Simulator()")
 timed(S.Simulator, "rollout", "the rollout")

@@ -29,7 +29,7 @@ n = 400
 z = np.zeros
 rec = Recording(z((n + 1,) + q.shape), z((n + 1,) + v.shape), z((n + 1,) + qk.shape), z((n, NSTAT)), z(n, np.int64),
                 z(0, np.int64), z((n, 0), np.int64), z((n, 0)), z((n, 0, 2)), z((n, 0, 2)), z((n, 0)), z((n, 0)),
-                z((n, 0)), z((n, 0), np.int64))
+                z((n, 0)), z((n, 0), np.int64), z((0, 0)), z((0, 0), np.int64), z(0))
 args = (m, q, v, qk, vk.reshape(1, -1, 3).copy(), 0, n, sim.h, sim.kopt, w, rec, False, True)
 t0 = time.perf_counter()
 rollout_lemke_full(*args)

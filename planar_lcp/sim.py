@@ -16,8 +16,8 @@ import numpy as np
 
 from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS, SUPPORT_POINTS
 from planar_lcp.engine.interpreted import compiled, python_version
-from planar_lcp.engine.layout import NSTAT, STATS, Stat, StepOptions, make_step_work, work_struct
-from planar_lcp.engine.rollout import (Recording, rollout_lemke, rollout_lemke_full, rollout_lemke_full_small,
+from planar_lcp.engine.layout import INT_STATS, NSTAT, STATS, Stat, StepOptions, make_step_work, work_struct
+from planar_lcp.engine.rollout import (RUN_ROWS, Recording, rollout_lemke, rollout_lemke_full, rollout_lemke_full_small,
                                        rollout_lemke_small, rollout_pgs)
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES
 from planar_lcp.engine.step import (FORM_VELOCITY, STEP_LCP_FAILED, STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE,
@@ -31,7 +31,7 @@ from planar_lcp.background import start_background
 from planar_lcp.frames import frame_state
 from planar_lcp.infeasibility import diagnose_step
 from planar_lcp.interrupt import raise_if_interrupted
-from planar_lcp.trajectory import Trajectory, energy
+from planar_lcp.trajectory import Trajectory
 
 #: formulation name (the scene format's list) -> the kernels' FORM_* code, which is its index in that list
 FORMULATIONS = {name: code for code, name in enumerate(FORMULATION_NAMES)}
@@ -246,35 +246,41 @@ class Simulator:
         self._last_step_out = (q_out.copy(), v_out.copy(), qk_out.copy())
         return q_out, v_out, qk_out, st
 
-    def rollout(self, q, v, qk, vk_seq, nsteps, stop_on_failure=True, record_contacts=False):
+    def rollout(self, q, v, qk, vk_seq, nsteps, stop_on_failure=True, record_contacts=False, trajectory_rows=False):
         """nsteps steps by the jitted kernels (one call for a short rollout, chunks for a long one).
         vk_seq: (nvk, nkin, 3), step i uses vk_seq[min(i, nvk - 1)].
 
         Returns a dict of arrays: q, v (nsteps+1, ndyn, 3), qk (nsteps+1, nkin, 3), stats (nsteps, NSTAT),
-        status (nsteps,), steps_done, and contact arrays when record_contacts (engine/rollout.py `Recording`)."""
+        status (nsteps,), steps_done, contact arrays when record_contacts, and when trajectory_rows the stats by
+        stat and the energy per state, as `simulate`'s Trajectory takes them (engine/rollout.py `Recording`)."""
         nk = self.model.nkin
         vk_seq = np.asarray(vk_seq, dtype=float)
         if nk == 0 or vk_seq.size == 0:
             vk_seq = np.zeros((1, nk, 3))  # nothing to prescribe (reshape(-1, 0, 3) would be ambiguous)
         else:
             vk_seq = vk_seq.reshape(-1, nk, 3)
-        rec = self.recording(int(nsteps), record_contacts)
+        rec = self.recording(int(nsteps), record_contacts, trajectory_rows)
         out = rec._asdict()
         out["steps_done"] = self.rollout_into(rec, q, v, qk, np.ascontiguousarray(vk_seq), stop_on_failure)
         return out
 
-    def recording(self, nsteps, record_contacts=False):
+    def recording(self, nsteps, record_contacts=False, trajectory_rows=False):
         """The arrays a rollout of nsteps steps writes (engine/rollout.py `Recording`), for `rollout_into`."""
         m = self.model
         nd, nk = m.ndyn, m.nkin
         C = m.max_contacts() if record_contacts else 0
+        R = nsteps if trajectory_rows else 0
         return Recording(q=np.zeros((nsteps + 1, nd, 3)), v=np.zeros((nsteps + 1, nd, 3)),
                          qk=np.zeros((nsteps + 1, nk, 3)), stats=np.zeros((nsteps, NSTAT)),
                          status=np.zeros(nsteps, np.int64), con_count=np.zeros(nsteps if C else 0, np.int64),
                          con_pair=np.zeros((nsteps, C), np.int64), con_phi=np.zeros((nsteps, C)),
                          con_n=np.zeros((nsteps, C, 2)), con_p=np.zeros((nsteps, C, 2)),
                          con_cn=np.zeros((nsteps, C)), con_ft=np.zeros((nsteps, C)), con_vt=np.zeros((nsteps, C)),
-                         con_mode=np.zeros((nsteps, C), np.int64))
+                         con_mode=np.zeros((nsteps, C), np.int64),
+                         # written up to the steps done (all that simulate reads): not zeroed
+                         stat_rows=np.empty((NSTAT if R else 0, R)),
+                         stat_ints=np.empty((len(INT_STATS) if R else 0, R), np.int64),
+                         energy=np.empty(R + 1 if R else 0))
 
     def rollout_into(self, rec, q, v, qk, vk_seq, stop_on_failure=True):
         """`rollout` into the arrays `rec` (from `recording(nsteps)`, reusable: every row a rollout reads it writes
@@ -315,8 +321,10 @@ class Simulator:
         while start < nsteps:
             n = 1 if level else min(chunk, nsteps - start)
             # state rows start .. start + n, per-step rows start .. start + n - 1 (an empty contact array stays empty)
+            # the Trajectory's rows go whole: the kernel writes them at the run's step index
             view = rec if n == nsteps else Recording(*(a[start:start + n + 1] if k in ("q", "v", "qk") else
-                                                       a[start:start + n] for k, a in zip(Recording._fields, rec)))
+                                                       a if k in RUN_ROWS else a[start:start + n]
+                                                       for k, a in zip(Recording._fields, rec)))
             kernel = self._variants[level][1]
             python = self._background is not None and self._python_or_wait(kernel, nsteps - start)
             if python:           # a cold cache: the kernel's Python, on the namedtuples of the same buffers
@@ -370,12 +378,14 @@ def estimate_run_bytes(model, nsteps, record_contacts=True):
     """(trajectory bytes, LCP work-buffer bytes) that `simulate` would allocate for `nsteps` steps of `model`.
 
     Trajectory: per step the rollout's q, v (ndyn x 3), qk (nkin x 3), stats (NSTAT), status, the contact arrays
-    (88 bytes per contact slot, 2 slots per shape pair) when recorded, and the Trajectory's copies (frame poses and
-    velocities, NSTAT stats, energy, t). Work: what `make_step_work` allocates (engine/layout.py `step_work_bytes`;
-    mostly the Lemke tableau U x (2U + 2) and the dense A and LU, U x U each, U = model.max_unknowns())."""
+    (88 bytes per contact slot, 2 slots per shape pair) when recorded, the Trajectory's rows it records (NSTAT stats,
+    the integer-valued ones again as integers, energy), and the Trajectory's frame poses and velocities and t.
+    Work: what `make_step_work` allocates (engine/layout.py `step_work_bytes`; mostly the Lemke tableau U x (2U + 2)
+    and the dense A and LU, U x U each, U = model.max_unknowns())."""
     nd, nk = model.ndyn, model.nkin
     C = model.max_contacts() if record_contacts else 0
-    per_step = 8 * (2 * 3 * nd + 3 * nk + NSTAT + 1) + (8 + 88 * C if C else 0) + 8 * (2 * 3 * nd + NSTAT + 2)
+    per_step = (8 * (2 * 3 * nd + 3 * nk + NSTAT + 1) + (8 + 88 * C if C else 0) + 8 * (NSTAT + len(INT_STATS) + 1)
+                + 8 * (2 * 3 * nd + 1))
     return (nsteps + 1) * per_step, model.work_bytes
 
 
@@ -427,26 +437,22 @@ def compiled_scene(scene, friction_directions=None, seed_friction_arm=False, sup
     return _compiled_scene(*key)
 
 
-#: the integer-valued stats' columns, for `simulate`'s Trajectory.stats
-_INT_STATS = [i for i, (_, integer, _) in enumerate(STATS) if integer]
-#: (name, integer-valued, its row in `_trajectory_stats`' float or int array) of every stat a Trajectory keeps, in
-#: STATS order (lemke_status is named by a failure's cause instead)
-_STAT_SLOTS = [(name, integer, _INT_STATS.index(i) if integer else i) for i, (name, integer, _) in enumerate(STATS)
-               if name != "lemke_status"]
-_INT_STAT_ROWS = np.array(_INT_STATS, dtype=np.intp)
+#: (name, integer-valued, its row in a rollout's stat_rows or stat_ints) of every stat a Trajectory keeps, in STATS
+#: order (lemke_status is named by a failure's cause instead)
+_STAT_SLOTS = [(name, integer, INT_STATS.tolist().index(i) if integer else i)
+               for i, (name, integer, _) in enumerate(STATS) if name != "lemke_status"]
 #: (Recording field, Trajectory.contacts key) of the recorded contacts
 _CONTACT_KEYS = [(k, {"con_n": "normal", "con_p": "point"}.get(k, k[4:]))
                  for k in ("con_count", "con_pair", "con_phi", "con_n", "con_p", "con_cn", "con_ft", "con_vt",
                            "con_mode")]
 
 
-def _trajectory_stats(st):
-    """Trajectory.stats' rows from a rollout's (nsteps, NSTAT) stats: every stat by its name, each a contiguous row,
-    the integer-valued ones as int: one transposed copy and one conversion of the integer rows (issue M's set-up)."""
-    by_stat = np.ascontiguousarray(st.T)
-    # take with an index array: indexing with the list converts it each call (2 of the 15 us, issue M)
-    rows = (by_stat, by_stat.take(_INT_STAT_ROWS, axis=0).astype(int))
-    return {name: rows[integer][row] for name, integer, row in _STAT_SLOTS}
+def _trajectory_stats(out, done):
+    """Trajectory.stats' rows of the first `done` steps of a rollout made with trajectory_rows: every stat by its
+    name, each a contiguous row, the integer-valued ones as int (the kernel writes them by stat as it goes: a
+    transposed copy and a conversion here took 15 to 20 us of a call, issue M)."""
+    rows = (out["stat_rows"], out["stat_ints"])
+    return {name: rows[integer][row, :done] for name, integer, row in _STAT_SLOTS}
 
 
 class _RunSetup:
@@ -609,7 +615,7 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     vk0 = model.vk0
     # the rollout copies the initial state into its recording and never writes its inputs
     out = simr.rollout(model.q0, model.v0, model.qk0, vk0[None], nsteps, stop_on_failure=(on_failure == "raise"),
-                       record_contacts=record_contacts)
+                       record_contacts=record_contacts, trajectory_rows=True)
     done = out["steps_done"]
     status = out["status"][:done]
     try:
@@ -636,8 +642,9 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
         raise SimulationError(message)
     T = done + 1
     q_com, v_com = out["q"][:T], out["v"][:T]
-    stats = _trajectory_stats(out["stats"][:done])
-    stats.update(status=status.copy(), energy=energy(model, q_com, v_com), certified_infeasible=infeasible,
+    stats = _trajectory_stats(out, done)
+    # the kernel's energy per state: planar_lcp.trajectory.energy(model, q_com, v_com) bit for bit
+    stats.update(status=status.copy(), energy=out["energy"][:T], certified_infeasible=infeasible,
                  unclassified=unclassified)
     contacts = {name: out[k][:done] for k, name in _CONTACT_KEYS}
     contacts["shape_pairs"] = list(setup.shape_pairs)

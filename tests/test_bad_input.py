@@ -145,7 +145,7 @@ def test_estimate_covers_what_a_run_allocates():
     simr = Simulator(model, sim_module.SimOptions(h=1e-3))
     nsteps = 200
     q0, v0, qk0, vk0 = simr.initial_state()
-    out = simr.rollout(q0, v0, qk0, vk0[None], nsteps, record_contacts=True)
+    out = simr.rollout(q0, v0, qk0, vk0[None], nsteps, record_contacts=True, trajectory_rows=True)  # simulate's
     rollout_bytes = sum(a.nbytes for a in out.values() if isinstance(a, np.ndarray))
     work_bytes = sum(a.nbytes for a in simr.work if isinstance(a, np.ndarray))
     traj, work = estimate_run_bytes(model, nsteps, record_contacts=True)

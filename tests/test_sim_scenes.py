@@ -279,3 +279,73 @@ def test_a_model_pickles_after_its_kernel_struct_was_made():
     again = pickle.loads(pickle.dumps(model))
     after = Simulator(again, SimOptions(h=sc.sim.h)).rollout(q, v, qk, vk[None], 50)
     assert np.array_equal(before["q"], after["q"]) and np.array_equal(before["v"], after["v"])
+
+
+def _reference_rows(sim, scene, nsteps, on_failure="raise"):
+    """Trajectory.stats and energy as simulate made them before the kernel wrote its rows: numpy over the rollout's
+    (nsteps, NSTAT) stats and its COM states."""
+    from planar_lcp.engine.layout import STATS
+    from planar_lcp.trajectory import energy
+    m = sim.model
+    out = sim.rollout(m.q0, m.v0, m.qk0, m.vk0[None], nsteps, stop_on_failure=on_failure == "raise")
+    done = out["steps_done"]
+    st = out["stats"][:done]
+    rows = {name: (st[:, i].astype(int) if integer else st[:, i].copy()) for i, (name, integer, _) in enumerate(STATS)
+            if name != "lemke_status"}
+    rows["energy"] = energy(m, out["q"][:done + 1], out["v"][:done + 1])
+    return rows
+
+
+@pytest.mark.parametrize("scene, options", [("falling_rod", {}), ("box_tip", {}), ("four_disks", {}),
+                                            ("box_stack", {"warm_start": True}),
+                                            # res_tol = 0: every solve 'fails', so steps are handed back to the
+                                            # variant with the PGS fallback and stitched
+                                            ("falling_rod", {"res_tol": 0.0, "on_failure": "record"})])
+@pytest.mark.parametrize("chunked", [False, True])
+def test_the_kernels_trajectory_rows_equal_numpys_bit_for_bit(scene, options, chunked, monkeypatch):
+    """simulate's Trajectory.stats rows and energy are written by the rollout kernel (engine/rollout.py
+    `record_rows`): each equals, dtype and bits, what numpy makes of the rollout's stats and states, also when the
+    run is made of chunks (each kernel call writes at the run's step indices) and of handed-back steps."""
+    if chunked:
+        monkeypatch.setattr(Simulator, "CHUNK_SECONDS", 1e-9)   # chunks of 16 steps
+    sc = load_scene(scene)
+    tr = simulate(sc, **options)
+    keep = {k: v for k, v in options.items() if k != "on_failure"}
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, **keep))
+    ref = _reference_rows(sim, sc, len(tr.t) - 1, options.get("on_failure", "raise"))
+    for name, want in ref.items():
+        got = tr.stats[name]
+        assert got.dtype == want.dtype and got.flags.c_contiguous, name
+        assert got.tobytes() == want.tobytes(), name
+    if options.get("res_tol") == 0.0:
+        assert tr.stats["pgs_uncertified"].sum() > 0          # the stitched steps happened
+
+
+def test_the_kernels_energy_is_numpys_sum_for_any_number_of_bodies():
+    """`state_energy` adds the bodies' terms as numpy's pairwise summation does (sequential below 8, eight partial
+    sums to 128, halves above): compiled and as Python, equal to planar_lcp.trajectory.mechanical_energy bit for bit,
+    on random states with masses and magnitudes over many decades, signed zeros included."""
+    from collections import namedtuple
+    from numba import njit
+    from planar_lcp.engine.interpreted import python_version
+    from planar_lcp.engine.rollout import state_energy
+    from planar_lcp.trajectory import mechanical_energy
+
+    @njit
+    def rows(m, q, v, out):
+        for t in range(q.shape[0]):
+            out[t] = state_energy(m, q[t], v[t])
+
+    Bodies = namedtuple("Bodies", "dyn_mass dyn_inertia gravity")
+    rng = np.random.default_rng(7)
+    for nb in [1, 2, 3, 7, 8, 9, 15, 16, 17, 31, 64, 127, 128, 129, 136, 257, 513]:
+        for g in ([0.0, -9.81], [0.0, 0.0], [1.5, -3.0]):
+            m = Bodies(rng.uniform(1e-3, 1e3, nb), rng.uniform(1e-6, 10.0, nb), np.array(g))
+            q = rng.standard_normal((12, nb, 3)) * 10.0 ** rng.integers(-6, 4, (12, nb, 3))
+            v = rng.standard_normal((12, nb, 3)) * 10.0 ** rng.integers(-6, 4, (12, nb, 3))
+            q[0], v[0], q[1], v[1] = 0.0, 0.0, -0.0, -0.0
+            want = mechanical_energy(m.dyn_mass, m.dyn_inertia, m.gravity, q, v)
+            got = np.empty(len(q))
+            rows(m, q, v, got)
+            as_python = np.array([python_version(state_energy)(m, q[t], v[t]) for t in range(len(q))])
+            assert got.tobytes() == want.tobytes() and as_python.tobytes() == want.tobytes(), (nb, g)

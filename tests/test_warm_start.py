@@ -219,7 +219,8 @@ def _full_variant_rollout(sim, q, v, qk, vk, n, stop_on_failure):
                     stats=np.zeros((n, sim.stats.shape[0])), status=np.zeros(n, np.int64),
                     con_count=np.zeros(n, np.int64), con_pair=np.zeros((n, C), np.int64), con_phi=np.zeros((n, C)),
                     con_n=np.zeros((n, C, 2)), con_p=np.zeros((n, C, 2)), con_cn=np.zeros((n, C)),
-                    con_ft=np.zeros((n, C)), con_vt=np.zeros((n, C)), con_mode=np.zeros((n, C), np.int64))
+                    con_ft=np.zeros((n, C)), con_vt=np.zeros((n, C)), con_mode=np.zeros((n, C), np.int64),
+                    stat_rows=np.zeros((0, 0)), stat_ints=np.zeros((0, 0), np.int64), energy=np.zeros(0))
     done = rollout_lemke_full(sim.kmodel, q, v, qk, vk[None], 0, n, sim.h, sim.kopt, sim.kwork, rec, stop_on_failure,
                               True)
     return int(done), rec._asdict()

@@ -250,6 +250,8 @@ STATS = (
 )
 Stat = IntEnum("Stat", [(name.upper(), i) for i, (name, _, _) in enumerate(STATS)], module=__name__)
 NSTAT = len(STATS)
+#: the integer-valued stats' indices, in STATS order (a rollout's integer stat rows: engine/rollout.py)
+INT_STATS = np.array([i for i, (_, integer, _) in enumerate(STATS) if integer], dtype=np.int64)
 
 ModelArrays = namedtuple("ModelArrays", [f.name for f in MODEL_LAYOUT])
 StepWork = namedtuple("StepWork", [f.name for f in WORK_LAYOUT])

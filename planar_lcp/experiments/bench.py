@@ -290,8 +290,9 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
 
     Also timed in the same rounds, the API a user calls (issue M): `simulate(scene)` over the scene's own run with
     the defaults (`simulate_ratio` against pymunk), its set-up (`setup_us`: the per-round difference between that
-    run and the rollout it makes, which records the contacts: settings, the compiled model, the Simulator and the
-    Trajectory), and `Simulator(model, options)` alone (`simulator_us`). progress: called with a line as each scene
+    run and the rollout it makes, which records the contacts and the Trajectory's stats rows and energy: settings,
+    the compiled model, the Simulator and the rest of the Trajectory), and `Simulator(model, options)` alone
+    (`simulator_us`). progress: called with a line as each scene
     starts."""
     from planar_lcp.model import compile_scene
     from planar_lcp.spec.scene import load_scene
@@ -313,11 +314,13 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
             stats[warm] = sim.rollout(q, v, qk, vk[None], n)["stats"]  # also compiles
             runners["ours_warm" if warm else "ours"] = (
                 lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], n))
-        # the defaults' simulator again: the rollout simulate() makes (contacts recorded), and its construction
+        # the defaults' simulator again: the rollout simulate() makes (contacts and the Trajectory's rows recorded),
+        # and its construction
         cold = sims[False]
         q, v, qk, vk = cold.initial_state()
         runners["recorded"] = lambda sim=cold, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], n,
-                                                                                  record_contacts=True)
+                                                                                  record_contacts=True,
+                                                                                  trajectory_rows=True)
         runners["simulate"] = lambda sc=sc: simulate(sc)
         runners["simulator"] = lambda model=cold.model, opts=cold.options: Simulator(model, opts)
         if pymunk:
@@ -366,7 +369,8 @@ def format_step_table(rows, compile_times=None):
             lines.append(f"| {r['scene']} | {r['simulate_us_per_step']:.2f} | {sr} | {r['setup_us']:.0f} | "
                          f"{r['simulator_us']:.0f} |")
         lines.append("simulate(): the API's whole call on the scene with its defaults, timed in the same rounds; its "
-                     "set-up: the per-round median of that call less the rollout it makes (contacts recorded; "
+                     "set-up: the per-round median of that call less the rollout it makes (contacts and the stats rows "
+                     "and energy recorded; "
                      "settings, the compiled model (remembered for a scene already compiled), Simulator, "
                      "Trajectory); Simulator(): construction "
                      "from a compiled model; targets (issue M): set-up and Simulator() <= 300 µs, simulate() ratio "
