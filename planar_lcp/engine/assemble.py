@@ -28,12 +28,12 @@ from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STAT
 from planar_lcp.engine.limit_surface import unit_load_wrench
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _cross(ax, ay, bx, by):
     return ax * by - ay * bx
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _point_velocity(poses, vel, b, px, py):
     """Velocity (2,) of the material point p of body b moving with (vx, vy, omega) about poses[b, :2]."""
     rx = px - poses[b, 0]
@@ -41,7 +41,7 @@ def _point_velocity(poses, vel, b, px, py):
     return vel[0] - vel[2] * ry, vel[1] + vel[2] * rx
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def contact_column(m, poses, con_pair, con_p, j, dx, dy, col_dyn, col_g, u):
     """Write the generalized column of a unit impulse along (dx, dy) at contact j (on A, minus on B) as column u.
 
@@ -63,7 +63,7 @@ def contact_column(m, poses, con_pair, con_p, j, dx, dy, col_dyn, col_g, u):
             col_dyn[u, side] = -1
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, dx, dy, col_dyn, col_g, u):
     """The generalized column of a tangential impulse at contact j: at the contact point (physically right), or,
     if the model was compiled with seed_friction_arm, at each shape's core point p +- (phi/2 + r) n (for a
@@ -86,7 +86,7 @@ def friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, dx, dy, col_dy
         col_g[u, side, 2] = sgn * _cross(px - poses[b, 0], py - poses[b, 1], dx, dy)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def table_column_at(d, rx, ry, dx, dy, torque, col_dyn, col_g, u):
     """Generalized column u of a table-friction impulse on dynamic slot d: the world force (dx, dy) at the world
     offset (rx, ry) from the COM plus a pure torque (N s, N s, N m s per unit)."""
@@ -108,7 +108,7 @@ def _support_offset(m, poses, s):
     return c, sn, c * m.sup_local[s, 0] - sn * m.sup_local[s, 1], sn * m.sup_local[s, 0] + c * m.sup_local[s, 1]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def table_column(m, poses, s, dx, dy, torque, col_dyn, col_g, u):
     """Generalized column of a table-friction impulse of support element s: the world force (dx, dy) at its support
     point (the COM for a limit-surface element) plus a pure torque."""
@@ -125,7 +125,7 @@ def support_column_count(m):
     return m.ls_wrench.shape[1] + 1
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def support_columns(m, w, s, u0):
     """The friction columns of support element s as generalized columns u0, u0 + 1, ..., at the linearization pose
     w.body_pose. points: unit impulses along the world directions fric_dirs at the support point. Limit surface: the
@@ -146,7 +146,7 @@ def support_columns(m, w, s, u0):
         table_column_at(d, rx, ry, c * wx - sn * wy, sn * wx + c * wy, wt, w.column_slot, w.column_g, u0 + i)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def recentre_limit_surfaces(m, w):
     """The re-centred column of every limit-surface element: -L(t) for the body's free-motion twist t = v_tilde
     (body frame at the linearization pose), the wrench that opposes a body still sliding the way it slides, exact
@@ -164,7 +164,7 @@ def recentre_limit_surfaces(m, w):
             out[a] = -out[a] if moving else m.ls_wrench[s, 0, a]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def delassus(m, nu, col_dyn, col_g, A):
     """A[:nu, :nu] = G^T M^-1 G over the first nu columns (M is diagonal per body: m, m, J)."""
     for u in range(nu):
@@ -184,7 +184,7 @@ def delassus(m, nu, col_dyn, col_g, A):
             A[v, u] = s
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def column_dot(col_dyn, col_g, u, vel):
     """g_u . vel over the dynamic bodies, vel (ndyn, 3)."""
     s = 0.0
@@ -195,7 +195,7 @@ def column_dot(col_dyn, col_g, u, vel):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def kinematic_velocity_along(m, poses, vk, con_pair, con_p, j, dx, dy):
     """Relative velocity along (dx, dy) at contact j contributed by kinematic bodies (A minus B)."""
     p = con_pair[j]
@@ -249,7 +249,7 @@ def normal_column(m, w, vk, h, velocity_form, a, u, b, elastic=True):
     return j, nx, ny
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def assemble_columns(m, w, vk, nci, nsi, h, velocity_form, b, elastic=True):
     """The island's force columns (w.column_slot / w.column_g) and the LCP's constant vector b, without its matrix:
     all a sparse solver needs (engine/solvers/sparse.py). `assemble_lcp` is this and the matrix. Returns (LCP size
@@ -302,7 +302,7 @@ def assemble_columns(m, w, vk, nci, nsi, h, velocity_form, b, elastic=True):
     return n, nf
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b, elastic=True):
     """Build the LCP (A, b) of the island whose contacts and support points are w.island_con[:nci],
     w.island_sup[:nsi] (geometry at the linearization pose w.body_pose); the generalized columns of its force
@@ -344,7 +344,7 @@ def assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, b, elastic=True):
     return n, nf
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def apply_impulses(nforce, col_dyn, col_g, z, m, v):
     """v += M^-1 G z over the force unknowns (in place), v (ndyn, 3)."""
     for u in range(nforce):
@@ -359,7 +359,7 @@ def apply_impulses(nforce, col_dyn, col_g, z, m, v):
                 v[d, 2] += col_g[u, side, 2] * zu / m.dyn_inertia[d]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def island_is_elastic(m, isl_con, nci, con_pair):
     """Whether a contact of the island belongs to a pair with restitution (e > 0)."""
     for a in range(nci):
@@ -368,7 +368,7 @@ def island_is_elastic(m, isl_con, nci, con_pair):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def island_problem_size(m, isl_con, nci, nsi, con_pair):
     """(LCP size, number of frictional contacts, PGS size) of an island with nci contacts and nsi support elements.
     PGS takes a support point's friction as a 2-D force, a limit-surface element's as a wrench (3 unknowns)."""
@@ -381,7 +381,7 @@ def island_problem_size(m, isl_con, nci, nsi, con_pair):
     return nci + 3 * nf + (k + 1) * nsi, nf, nci + nf + per_sup * nsi
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def record_impulses(m, w, nci, z, per_contact, nf_offset):
     """Per-contact normal and tangential impulses (w.con_cn, w.con_ft) from a solver's unknowns z.
 
@@ -409,7 +409,7 @@ def record_impulses(m, w, nci, z, per_contact, nf_offset):
                 w.con_ft[j] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def contact_velocities(m, w, opt, vk, nci):
     """Post-solve tangential relative velocity (A minus B) of the island's contacts w.island_con[:nci], and their mode:
     separated (normal impulse <= impulse_tol), sliding (|tangential velocity| > slip_tol), else sticking.
@@ -486,7 +486,7 @@ def servo_count(m, k):
     return SERVO_FORCE_DIRECTIONS + (SERVO_TORQUE_DIRECTIONS if m.kin_max_torque[k] > 0.0 else 0)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def island_servo(m, w, nci, nf):
     """The force-limited kinematic bodies of the island w.island_con[:nci] (w.island_servo[:nsb], kinematic slots)
     and, per force column c of its contacts (normal and friction), w.column_servo[c] (the body's index among them,
@@ -537,7 +537,7 @@ def island_servo(m, w, nci, nf):
     return nsb, ns
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def assemble_servo(m, w, nci, nf, n, nsb, h, A, b):
     """The lag blocks of the island's force-limited bodies (above) in the (n + ns)-square LCP A, b whose first n
     rows and columns `assemble_lcp` wrote (island_servo first). Their constants: h F_j, h T."""
@@ -564,7 +564,7 @@ def assemble_servo(m, w, nci, nf, n, nsb, h, A, b):
         off += servo_count(m, k)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def servo_within_limits(m, w, nci, nf, nsb, h, z):
     """Whether the contact impulses z (a solution without lag unknowns) stay within every island servo's limits:
     then its bodies keep their prescribed velocities, exactly."""
@@ -585,7 +585,7 @@ def servo_within_limits(m, w, nci, nf, nsb, h, z):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def record_servo_lag(m, w, vk, n, nsb, z):
     """Each island servo's lag u = sum a_j e_j from the LCP's lag unknowns z[n:], into w.kin_lag, and its velocity
     vk + u into w.kin_velocity."""

@@ -91,13 +91,13 @@ from numba import njit
 # ----------------------------------------------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _key_gt(ax, ay, bx, by):
     """Geometric tie-break between two directions: larger y first, then larger x."""
     return ay > by or (ay == by and ax > bx)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _face_normal(v, n, i):
     """Outward unit normal of face i (v[i] -> v[(i+1) % n]) of a CCW core; ok=False for a zero-length edge."""
     j = i + 1
@@ -111,7 +111,7 @@ def _face_normal(v, n, i):
     return ey / ln, -ex / ln, True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _closest_on_segment(px, py, ax, ay, bx, by):
     """Closest point to p on segment [a, b] (a zero-length segment returns a)."""
     ex = bx - ax
@@ -127,7 +127,7 @@ def _closest_on_segment(px, py, ax, ay, bx, by):
     return ax + t * ex, ay + t * ey
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _effective_n(v, n):
     """n, or 1 when all n vertices coincide (a collapsed segment or polygon is a point); 0 for n <= 0."""
     if n <= 1:
@@ -140,7 +140,7 @@ def _effective_n(v, n):
     return 1
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _abs_max(v, n):
     s = 0.0
     for i in range(n):
@@ -153,7 +153,7 @@ def _abs_max(v, n):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _lex_extremes(v, n):
     """The lexicographically (x, then y) smallest and largest of the n >= 1 vertices: (xmin, ymin, xmax, ymax)."""
     x0 = x1 = v[0, 0]
@@ -170,7 +170,7 @@ def _lex_extremes(v, n):
     return x0, y0, x1, y1
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _a_after_b(va, na, ra, vb, nb, rb):
     """Canonical pair order: True if (A, B) must be swapped. Keys, compared in turn: vertex count, radius,
     lexicographically smallest vertex, largest vertex; all invariant under the choice of first vertex."""
@@ -186,7 +186,7 @@ def _a_after_b(va, na, ra, vb, nb, rb):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _write(out_phi, out_normal, out_point, row, phi, nx, ny, px, py):
     out_phi[row] = phi
     out_normal[row, 0] = nx
@@ -195,7 +195,7 @@ def _write(out_phi, out_normal, out_point, row, phi, nx, ny, px, py):
     out_point[row, 1] = py
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _order_two(out_phi, out_normal, out_point):
     """Put the deeper of two contacts in row 0."""
     if out_phi[1] < out_phi[0]:
@@ -216,7 +216,7 @@ def _order_two(out_phi, out_normal, out_point):
 # ----------------------------------------------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _point_core(va, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point):
     """Point core A = va[0] inflated by ra against core B (nb >= 1, effective). Returns 0 or 1."""
     px = va[0, 0]
@@ -270,7 +270,7 @@ def _point_core(va, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point)
 # ----------------------------------------------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _max_separation(v1, n1, v2, n2):
     """Max over the faces of core 1 of the min over core 2's vertices of the signed distance to the face line.
 
@@ -307,7 +307,7 @@ def _max_separation(v1, n1, v2, n2):
     return best, bi, bnx, bny, bk
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _closest_vertex_edge(v1, n1, v2, n2, best, p1x, p1y, p2x, p2y):
     """The closest (vertex of core 1, point on an edge of core 2) pair if its squared distance is below `best`.
 
@@ -333,7 +333,7 @@ def _closest_vertex_edge(v1, n1, v2, n2, best, p1x, p1y, p2x, p2y):
     return best, p1x, p1y, p2x, p2y
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _segment_point(c1x, c1y, c2x, c2y, s):
     """c1 + s (c2 - c1) for s in [0, 1], with the endpoints themselves (not a rounded sum) at s = 0 and s = 1."""
     if s == 0.0:
@@ -343,7 +343,7 @@ def _segment_point(c1x, c1y, c2x, c2y, s):
     return c1x + s * (c2x - c1x), c1y + s * (c2y - c1y)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _clip_segment(c1x, c1y, c2x, c2y, r1x, r1y, ux, uy, hi):
     """Clip segment [c1, c2] to the slab 0 <= u.(x - r1) <= hi. Returns (count 0 or 2, p1x, p1y, p2x, p2y).
 
@@ -370,7 +370,7 @@ def _clip_segment(c1x, c1y, c2x, c2y, r1x, r1y, ux, uy, hi):
     return 2, p1x, p1y, p2x, p2y
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point):
     """Two cores with na, nb >= 2 (effective), canonical order. Returns the contact count 0..2."""
     sa, ia, nax, nay, ka = _max_separation(va, na, vb, nb)
@@ -476,7 +476,7 @@ def _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_poi
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _core_core_ordered(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point):
     """The pair in canonical order. contact_core_core calls this from both of its branches (not once after a swap):
     with two call sites LLVM keeps the point and polygon kernels out of line in every module that links them, and the
@@ -491,7 +491,7 @@ def _core_core_ordered(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal,
 # ----------------------------------------------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def contact_core_core(va, na, ra, vb, nb, rb, margin, out_phi, out_normal, out_point):
     """Contacts between two inflated convex cores A and B.
 
@@ -534,7 +534,7 @@ def contact_core_core(va, na, ra, vb, nb, rb, margin, out_phi, out_normal, out_p
     return _core_core_ordered(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def contact_core_halfplane(va, na, ra, p0, n0, margin, out_phi, out_normal, out_point):
     """Contacts between an inflated core A and the static half-plane {x : n0.(x - p0) <= 0}.
 

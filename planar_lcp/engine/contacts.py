@@ -12,7 +12,7 @@ from planar_lcp.engine.collision import contact_core_core, contact_core_halfplan
 from planar_lcp.engine.constants import BODY_DYNAMIC, BODY_KINEMATIC, SHAPE_CORE, SHAPE_HALFPLANE
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def body_poses(m, q, qk, out):
     """World poses (nbody, 3) of all bodies: COM poses of dynamic ones from q, kinematic from qk, static fixed."""
     for b in range(m.body_kind.shape[0]):
@@ -33,7 +33,7 @@ def body_poses(m, q, qk, out):
             out[b, 2] = m.static_pose[b, 2]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def world_vertices(m, poses, out):
     """Core vertices of every shape in the world frame, (nvert, 2)."""
     for s in range(m.shape_body.shape[0]):
@@ -53,7 +53,7 @@ def world_vertices(m, poses, out):
             out[k, 1] = y + sn * lx + c * ly
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _bounds(vw, a0, n):
     """(xmin, ymin, xmax, ymax) of the core vertices vw[a0:a0 + n]."""
     xmin = np.inf
@@ -68,7 +68,7 @@ def _bounds(vw, a0, n):
     return xmin, ymin, xmax, ymax
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _aabb_overlap(vw, a0, na, ra, b0, nb, rb, margin):
     axmin, aymin, axmax, aymax = _bounds(vw, a0, na)
     bxmin, bymin, bxmax, bymax = _bounds(vw, b0, nb)
@@ -76,7 +76,7 @@ def _aabb_overlap(vw, a0, na, ra, b0, nb, rb, margin):
     return not (axmin > bxmax + pad or bxmin > axmax + pad or aymin > bymax + pad or bymin > aymax + pad)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def find_contacts(m, vw, margin, force_pair, con_pair, con_phi, con_n, con_p, tmp_phi, tmp_n, tmp_p):
     """All contacts with gap < margin (any gap for pairs with force_pair[p] true).
 

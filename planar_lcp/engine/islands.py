@@ -10,7 +10,7 @@ from numba import njit
 from planar_lcp.engine.constants import BODY_DYNAMIC, BODY_KINEMATIC
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _find(parent, i):
     while parent[i] != i:
         parent[i] = parent[parent[i]]
@@ -30,7 +30,7 @@ def _union(parent, a, b):
             parent[ra] = rb
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def find_islands(m, ncon, con_pair, parent, island, servo_root):
     """island[d] = island id (0..K-1) of dynamic slot d. Returns K. Bodies joined by a contact share an island, and
     so do the bodies a force-limited kinematic body touches (its lag velocity is one for all of them);
@@ -64,7 +64,7 @@ def find_islands(m, ncon, con_pair, parent, island, servo_root):
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def contact_island(m, island, con_pair, j):
     """Island of contact j. Relies on the invariant compile_scene establishes: side A of every pair is dynamic."""
     return island[m.body_slot[m.shape_body[m.pair_a[con_pair[j]]]]]

@@ -21,11 +21,15 @@ from enum import IntEnum
 
 import numba
 import numpy as np
+from llvmlite import ir as llvmir
 from numba import njit, types
-from numba.core import cgutils
+from numba.core import cgutils, imputils
+from numba.core.datamodel import default_manager, models
+from numba.core.runtime.nrtdynmod import _meminfo_struct_type
+from numba.core.typing.templates import AttributeTemplate
 from numba.experimental import structref
 from numba.experimental.jitclass.base import imp_dtor
-from numba.extending import intrinsic
+from numba.extending import NativeValue, box, infer_getattr, intrinsic, lower_getattr_generic, unbox
 
 from planar_lcp.engine.constants import SPARSE_MAX_BAND, SPARSE_UNKNOWNS_PER_BODY
 
@@ -322,12 +326,76 @@ def step_work_bytes(model, dense_capacity=None):
     return sum(math.prod(shape) * size for size, shape in zip(_WORK_ITEMSIZES, _work_shapes(model, dense_capacity)))
 
 
-@structref.register
+def _register_struct(struct_typeclass):
+    """`structref.register` for the kernels' structs, without field assignment, and with a field read that needs no
+    numba runtime: numba's own reads the payload's address through its runtime (`meminfo_data`), which a kernel
+    compiled without it (`_nrt=False`, docs/performance.md "Reference counts") cannot call. The same load of the
+    meminfo's data pointer (what numba's `NRT_MemInfo_data_fast` is), and the field is returned borrowed, as numba's
+    (referenced only in a kernel with the runtime)."""
+    default_manager.register(struct_typeclass, models.StructRefModel)
+
+    @infer_getattr
+    class StructFields(AttributeTemplate):
+        key = struct_typeclass
+
+        def generic_resolve(self, typ, attr):
+            return typ.field_dict.get(attr)
+
+    @lower_getattr_generic(struct_typeclass)
+    def struct_field(context, builder, typ, val, attr):
+        meminfo = cgutils.create_struct_proxy(typ)(context, builder, value=val).meminfo
+        mi = builder.bitcast(meminfo, _meminfo_struct_type.as_pointer())
+        data = builder.load(cgutils.gep(builder, mi, 0, 3))
+        payload = typ.get_data_type()
+        alloc_type = context.data_model_manager[payload].get_value_type()
+        fields = cgutils.create_struct_proxy(payload)(context, builder,
+                                                      ref=builder.bitcast(data, alloc_type.as_pointer()))
+        return imputils.impl_ret_borrowed(context, builder, typ.field_dict[attr], getattr(fields, attr))
+
+    return struct_typeclass
+
+
+def _define_boxing(struct_typeclass, obj_class):
+    """`structref.define_boxing`, with an unboxing that also balances its reference in a kernel compiled without
+    numba's runtime: numba's takes a reference to the struct (NRT_meminfo_from_pyobject) that the call wrapper of
+    such a kernel would never drop (it drops the arguments' references only with the runtime), so that every call
+    from Python would leak the struct and its arrays. There the unboxing's clean-up releases it after the call."""
+    obj_ctor = obj_class._numba_box_
+
+    @box(struct_typeclass)
+    def box_struct(typ, val, c):
+        meminfo = structref._Utils(c.context, c.builder, typ).get_struct_ref(val).meminfo
+        boxed_meminfo = c.box(types.MemInfoPointer(types.voidptr), meminfo)
+        ctor_pyfunc = c.pyapi.unserialize(c.pyapi.serialize_object(obj_ctor))
+        ty_pyobj = c.pyapi.unserialize(c.pyapi.serialize_object(typ))
+        res = c.pyapi.call_function_objargs(ctor_pyfunc, [ty_pyobj, boxed_meminfo])
+        c.pyapi.decref(ctor_pyfunc)
+        c.pyapi.decref(ty_pyobj)
+        c.pyapi.decref(boxed_meminfo)
+        return res
+
+    @unbox(struct_typeclass)
+    def unbox_struct(typ, obj, c):
+        mi_obj = c.pyapi.object_getattr_string(obj, "_meminfo")
+        mi = c.unbox(types.MemInfoPointer(types.voidptr), mi_obj).value     # a new reference to the struct
+        c.pyapi.decref(mi_obj)
+        out = structref._Utils(c.context, c.builder, typ).new_struct_ref(mi)._getvalue()
+        if c.context.enable_nrt:
+            return NativeValue(out)                 # the wrapper drops the reference after the call
+
+        def release():
+            fnty = llvmir.FunctionType(llvmir.VoidType(), [cgutils.voidptr_t])
+            c.builder.call(cgutils.get_or_insert_function(c.builder.module, fnty, "NRT_MemInfo_release"), [mi])
+
+        return NativeValue(out, cleanup=release)
+
+
+@_register_struct
 class ModelStructType(types.StructRef):
     pass
 
 
-@structref.register
+@_register_struct
 class WorkStructType(types.StructRef):
     pass
 
@@ -344,8 +412,8 @@ class WorkStruct(structref.StructRefProxy):
     """Python handle of a work struct (fields are not exposed to Python: read its `view`, `Simulator.work`)."""
 
 
-structref.define_boxing(ModelStructType, ModelStruct)
-structref.define_boxing(WorkStructType, WorkStruct)
+_define_boxing(ModelStructType, ModelStruct)
+_define_boxing(WorkStructType, WorkStruct)
 
 
 @intrinsic

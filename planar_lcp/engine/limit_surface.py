@@ -38,7 +38,7 @@ from numba import njit
 FAR_RATIO = 10.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def unit_load_wrench(m, s, vx, vy, om, out):
     """out[:] = L(t) of support element s of model m (struct or ModelArrays) for the twist t = (vx, vy, om)
     (m/s, m/s, rad/s; COM frame): polygon pieces in closed form (or far nodes), disks by the unit disk's table (or
@@ -160,7 +160,7 @@ def _disk_phi_g(table, step, d):
     return phi, g
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _add_nodes(nodes, lo, hi, vx, vy, om, out):
     """out[:] += sum over nodes[lo:hi] of w (u, r x u), u the unit velocity of the node under (vx, vy, om)."""
     fx = 0.0

@@ -201,32 +201,32 @@ def rollout_loop(step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, st
 
 # The compiled variants, one per step variant (same arguments as `rollout_loop` without `step`).
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def rollout_lemke(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
     return rollout_loop(step_lemke, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                         reset_warm_start)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def rollout_lemke_full(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
     return rollout_loop(step_lemke_full, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                         reset_warm_start)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def rollout_lemke_small(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
     return rollout_loop(step_lemke_small, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                         reset_warm_start)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def rollout_lemke_full_small(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                              reset_warm_start):
     return rollout_loop(step_lemke_full_small, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec,
                         stop_on_failure, reset_warm_start)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def rollout_pgs(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
     return rollout_loop(step_pgs, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                         reset_warm_start)

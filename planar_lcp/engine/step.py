@@ -370,35 +370,35 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
 
 # The compiled variants (each a cached kernel of its own). Simulator picks one by solver and formulation.
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def step_lemke(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     """Lemke, position forms, no fallback and no warm start: the smallest kernel, the default's (PGS, the projection
     and the warm start compile only when a run needs them; a run with opt.warm_start takes `step_lemke_full`)."""
     return step_pipeline(solve_island_lemke_cold, None, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def step_lemke_full(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     """Lemke with the PGS fallback, the velocity form's projection and the warm start."""
     return step_pipeline(solve_island_lemke, solve_island_pgs, project_positions, m, q, v, qk, vk, h, opt, w, q_out,
                          v_out, qk_out, stats)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def step_lemke_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     """`step_lemke` for a model whose islands stay below opt.sparse_min unknowns (`solve_island_lemke_small_cold`)."""
     return step_pipeline(solve_island_lemke_small_cold, None, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out,
                          stats)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def step_lemke_full_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     """`step_lemke_full` for a model whose islands stay below opt.sparse_min unknowns."""
     return step_pipeline(solve_island_lemke_small, solve_island_pgs, project_positions, m, q, v, qk, vk, h, opt, w,
                          q_out, v_out, qk_out, stats)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def step_pgs(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     """PGS (never fails, so no fallback) with the velocity form's projection."""
     return step_pipeline(solve_island_pgs, None, project_positions, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out,

@@ -47,14 +47,14 @@ def _column(M, n, i, s):
     return 1.0 if s == n else M[i, s]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _add_column(col_val, col_row, col_start, s, f, dw):
     """dw += f M[:, s], from M's compressed columns (a contact couples only the contacts sharing a body with it)."""
     for e in range(col_start[s], col_start[s + 1]):
         dw[col_row[e]] += f * col_val[e]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _direction(M, col_val, col_row, col_start, n, k, Kinv, cols, rows, row_pos, entering, dz, dw):
     """How the basic variables change when `entering` rises at unit rate (variable codes: z_j is j, w_i is n + 1 + i,
     z0 is n). Writes dz[:k] (the basic z, by position in S) and dw[i] for every row i (meaningful where w_i is basic).
@@ -90,7 +90,7 @@ def _direction(M, col_val, col_row, col_start, n, k, Kinv, cols, rows, row_pos, 
                 _add_column(col_val, col_row, col_start, s, f, dw)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _basis_inverse_row(M, n, k, Kinv, cols, rows, cand_code, out):
     """Row of B^-1 (the tableau's columns 0..n-1) of one basic variable: for the basic z at position c it is -Kinv[c, p]
     at column rows[p]; for a basic w_i it is e_i - ([M | e][i, S] K^-1) at those columns (the system is
@@ -110,7 +110,7 @@ def _basis_inverse_row(M, n, k, Kinv, cols, rows, cand_code, out):
                     out[rows[p]] -= v * Kinv[c, p]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _ratio_test(M, n, k, Kinv, cols, rows, row_pos, xz, xw, dz, dw, piv_tol, ratio_tol, rhs_scale, cand, rate, lex):
     """The blocking basic variable: -1 none (a ray), c < k the basic z at position c, n + 1 + i the basic w_i.
 
@@ -191,7 +191,7 @@ def _ratio_test(M, n, k, Kinv, cols, rows, row_pos, xz, xw, dz, dw, piv_tol, rat
     return cand[pick]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _drift(n, k, rows, entering, dz, dw):
     """How far the direction misses its equations (K dz = -M[C, j], or e_p for w_p entering), relative to its size."""
     err = 0.0
@@ -204,7 +204,7 @@ def _drift(n, k, rows, entering, dz, dw):
     return err / big
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _refactor(M, col_val, col_row, col_start, q, n, k, Kinv, cols, rows, xz, xw, lu):
     """K^-1 anew from M (Gauss-Jordan with partial pivoting, O(k^3)), and the basic values from it: the updates'
     round-off grows with every pivot. Returns False if K is singular to working precision (an elimination pivot
@@ -265,7 +265,7 @@ def _refactor(M, col_val, col_row, col_start, q, n, k, Kinv, cols, rows, xz, xw,
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _row_times_inverse(M, n, k, Kinv, cols, r, y):
     """y[:k] = [M | e][r, S] K^-1: the row entering K (grown or replaced) times the inverse, over its nonzeros."""
     for t in range(k):
@@ -277,7 +277,7 @@ def _row_times_inverse(M, n, k, Kinv, cols, r, y):
                 y[t] += v * Kinv[a, t]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _remove_position(Kinv, k, cols, rows, col_pos, row_pos, xz, n, c, p):
     """Drop column position c and row position p of K (row c and column p of K^-1), moving the last into them."""
     last = k - 1
@@ -295,7 +295,7 @@ def _remove_position(Kinv, k, cols, rows, col_pos, row_pos, xz, n, c, p):
         row_pos[rows[p]] = p
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, col_val, col_row, col_start, cols, rows, col_pos,
                 row_pos, xz, xw, dz,
                 dw, y, z, w, lu, rhs, perm, zb, zalt, walt):
@@ -483,7 +483,7 @@ def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, col_val, co
     return status, pivots, res
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _residual_csc(col_val, col_row, col_start, q, z, w):
     """`lcp_residual` (lemke.py) from M's compressed columns: the same sums in the same order, the zero terms
     left out (w = M z + q summed over the columns j with z_j != 0, in increasing j), so the same value in O(nnz)."""
@@ -498,7 +498,7 @@ def _residual_csc(col_val, col_row, col_start, q, z, w):
     return natural_residual(z, w, n)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _complementary_negativity(q, k, Kinv, cols, rows, col_pos):
     """With the artificial variable still basic, the most negative z of the complementary system M[Z, Z] z_Z =
     -q[Z] over the basic z (what `_certify` would recompute), from K^-1 in O(k^2); 0 when the artificial variable is
@@ -539,7 +539,7 @@ def _complementary_negativity(q, k, Kinv, cols, rows, col_pos):
     return neg
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _certify(M, q, k, Kinv, cols, rows, col_pos, col_val, col_row, col_start, xz, z, w, res_tol, scale, lu, rhs, perm,
              zb, zalt, walt):
     """The answer at the current basis: the basic z as the pivots left them, or, unless that is already well inside

@@ -57,7 +57,7 @@ def natural_residual(z, w, n):
     return comp + zneg + wneg
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def lcp_residual(M, q, z, w):
     """`natural_residual` of z, with `w` overwritten by M z + q computed from the ORIGINAL data, never taken from a
     tableau."""
@@ -70,7 +70,7 @@ def lcp_residual(M, q, z, w):
     return natural_residual(z, w, n)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def lcp_scale(M, q):
     """max(1, max|M|, max|q|): the scale the residual tolerance is relative to."""
     n = q.shape[0]
@@ -84,7 +84,7 @@ def lcp_scale(M, q):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _pivot(T, n, r, j, prow):
     """Pivot on (r, j). The normalized pivot row is copied to `prow` first: updating T[i, :] from T[r, :] of the
     same array is a potential alias that keeps LLVM from vectorizing the row update."""
@@ -107,7 +107,7 @@ def _pivot(T, n, r, j, prow):
     T[r, j] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _ratio_test(T, basis, n, j, piv_tol, ratio_tol, rhs_scale, cand):
     """Lexicographic minimum-ratio test on entering column j; returns the leaving row or -1 (ray).
 
@@ -200,7 +200,7 @@ def _ratio_test(T, basis, n, j, piv_tol, ratio_tol, rhs_scale, cand):
     return r
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _lu_solve_inplace(A, b, m, perm):
     """Solve A[:m,:m] x = b[:m] by Gaussian elimination with partial pivoting, in place (x in b).
 
@@ -238,7 +238,7 @@ def _lu_solve_inplace(A, b, m, perm):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _solve_basic_z(M, q, zb, m, z, lu, rhs, perm):
     """z_i for i in zb[:m] from M[Z, Z] z_Z = -q[Z] (w_i = 0 where z_i is basic), z_i = 0 elsewhere; the ORIGINAL
     data. A tiny negative z_i from round-off is set to 0 (as in lemke_kernel's answer); a real one fails the residual.
@@ -259,7 +259,7 @@ def _solve_basic_z(M, q, zb, m, z, lu, rhs, perm):
     return True, neg
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def refine_from_basis(M, q, basis, n, z, lu, rhs, perm, zb, zmask):
     """Recompute the basic z of the final basis from the original M and q: the z_i that are basic solve
     M[Z, Z] z_Z = -q[Z]. For a complementary basis the rows with w_i = 0 are exactly Z; while the artificial variable
@@ -280,7 +280,7 @@ def refine_from_basis(M, q, basis, n, z, lu, rhs, perm, zb, zmask):
     return _solve_basic_z(M, q, zb, m, z, lu, rhs, perm)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def lemke_from_basis(M, q, zmask, res_tol, z, w, lu, rhs, perm, zb):
     """Try a guessed complementary basis: z_i basic (w_i = 0) where zmask[i], else z_i = 0 (w_i basic).
 
@@ -301,7 +301,7 @@ def lemke_from_basis(M, q, zmask, res_tol, z, w, lu, rhs, perm, zb):
     return res <= 1e-3 * res_tol * lcp_scale(M, q), res
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _equilibrate(M, n, d, r):
     """Symmetric diagonal scaling d (powers of two) so that every row and column of D M D has its largest magnitude
     in [1/2, 2] (Ruiz's iteration; rows that are all zero keep d = 1).
@@ -329,7 +329,7 @@ def _equilibrate(M, n, d, r):
         d[i] = 2.0 ** np.round(math.log2(d[i]))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _certify(M, q, T, basis, n, d, z, w, res_tol, scale, zalt, walt, lu, rhs, perm, zb, cand):
     """The LCP answer at the current basis, certified on the ORIGINAL (M, q): the basic z of the tableau (unscaled
     by d), and, unless that is already well inside the tolerance, the basic z recomputed from (M, q) for the same
@@ -357,7 +357,7 @@ def _certify(M, q, T, basis, n, d, z, w, res_tol, scale, zalt, walt, lu, rhs, pe
     return res
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, basis, z, w, cand, lu, rhs, perm,
                  zb, zalt, walt, prow, d):
     """Solve the LCP (M, q) in place. Never raises, never allocates.
@@ -581,7 +581,7 @@ def block_lemke_in_work(w, A, b, n, opt):
                        w.lemke_perm, w.lemke_basic, w.lemke_z_refined, w.lemke_w_refined)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def block_lemke_equilibrated(m, w, opt, vk, nci, nsi, h, velocity_form, A, b, n):
     """`block_lemke_in_work` on the equilibrated LCP (D A D, D b) (`_equilibrate`: powers of two, so exact), its answer
     z = D z' certified on the island's LCP (A, b) as assembled by the residual test of every other answer. Leaves
@@ -640,7 +640,7 @@ def solve_island_lemke_small_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form
     return lemke_island(None, None, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf, nsb, ns):
     """Keep the LCP of an island no method certified, as the chain's first try assembled it (its rows as the
     formulation states them, with restitution; with the force-limited bodies' lag blocks when ns > 0: the last n - ns

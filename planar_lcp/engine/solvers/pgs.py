@@ -18,7 +18,7 @@ from planar_lcp.engine.layout import Stat
 from planar_lcp.engine.solvers.lemke import STATUS_NEEDS_SPACE, STATUS_SOLVED
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def assemble_pgs(m, w, vk, nci, nsi, h, velocity_form, W, b):
     """The impulse problem (W, b) of the island w.island_con[:nci], w.island_sup[:nsi] (as `assemble_lcp`, columns
     in w.column_slot / w.column_g): per contact [n, t (if mu > 0)], per support point [x, y], per limit-surface
@@ -47,7 +47,7 @@ def assemble_pgs(m, w, vk, nci, nsi, h, velocity_form, W, b):
     return u
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def solve_pgs(m, w, nci, nsi, n, h, W, b, x, iterations, nsb):
     """Fixed number of projected Gauss-Seidel sweeps on W x + b, the island of `assemble_pgs` of size n, from x = 0;
     with nsb force-limited kinematic bodies in the island (`island_servo`), their contacts' impulses also keep
@@ -122,7 +122,7 @@ def solve_pgs(m, w, nci, nsi, n, h, W, b, x, iterations, nsb):
     return last
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _servo_clamp(m, w, k, j, bb, tangential, old, new, lo, hi, h):
     """PGS's update of a contact impulse on force-limited body k (side B, body bb, of contact j): `new` clamped to
     [lo, hi] and to the values that keep the body's contact impulse C (w.kin_lag[k], kept up to date here) inside its
@@ -196,7 +196,7 @@ def _active_basis(m, w, k, h, basis):
     return nb
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def servo_lag_pgs(m, w, vk, nci, nsb, n, h, W, b, x):
     """The lag of PGS's force-limited bodies: the least motion along the directions where a body is at its limit
     (`_active_basis`; none: no lag) that keeps its contacts from closing under the clamped impulses x

@@ -48,7 +48,7 @@ SPARSE_REGULARIZATION = 1e-12
 SPARSE_REFINE = 8
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _band_order(m, w, nci):
     """The island's contacts in band order (w.sparse_order[:nci]) and each body's contact lists.
 
@@ -119,7 +119,7 @@ def _band_order(m, w, nci):
     _stable_sort_by_key(w.sparse_order, w.sparse_key, nci, w.sparse_unknown)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _stable_sort_by_key(order, key, n, tmp):
     """Sort order[:n] by key[order[i]], stable (bottom-up merge sort; tmp: (>= n,) int64 work)."""
     width = 1
@@ -156,7 +156,7 @@ def _unknowns_of(mode, fric, a):
     return 2 if (mode[a] == SPARSE_STICK and fric[a] >= 0) else 1
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _number_unknowns(m, w, nci):
     """Reduced unknowns of the current modes in band order; returns (count, half-bandwidth)."""
     p = 0
@@ -186,7 +186,7 @@ def _number_unknowns(m, w, nci):
     return p, bw
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _build_band(m, w, nci, p, bw):
     """W = R^T M^-1 C of the current modes, band storage (row i, column j at i * (2 bw + 1) + j - i + bw), and the
     right-hand side -(row constants). A reduced unknown's row vector is its normal column (kind 0) or its +t
@@ -269,7 +269,7 @@ def _build_band(m, w, nci, p, bw):
             rhs[u + 1] = -b_lcp[nci + 2 * fric[a]]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _factor_band(w, p, bw):
     """LU without pivoting of W + SPARSE_REGULARIZATION diag|W| in band storage (w.sparse_lu); the band is kept
     (no pivoting, so no fill outside it). Returns False on a zero pivot."""
@@ -297,7 +297,7 @@ def _factor_band(w, p, bw):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _solve_band(w, p, bw, x):
     """x <- (LU)^-1 x with the factors of `_factor_band`."""
     ld = 2 * bw + 1
@@ -314,7 +314,7 @@ def _solve_band(w, p, bw, x):
         x[i] = s / L[i * ld + bw]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _solve_reduced(w, p, bw):
     """x solving W x = rhs: the regularized factors' answer refined against W itself (iterative refinement, which
     also converges on a singular consistent W). Returns False if the factorization failed, x is not finite or the
@@ -353,7 +353,7 @@ def _solve_reduced(w, p, bw):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _lcp_scale(m, w, nci, n, nf):
     """`lemke.lcp_scale` of the LCP as assembled, without its matrix: 1, |q|, mu and the Delassus diagonal (the
     largest entry of a positive semidefinite matrix lies on its diagonal)."""
@@ -375,7 +375,7 @@ def _lcp_scale(m, w, nci, n, nf):
     return scale
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _answer(m, w, nci, n, nf):
     """The LCP's z and w = M z + q (w.lemke_z, w.lemke_w) of the current modes' reduced solution, each contact's
     tangential velocity w.sparse_vt; returns `lemke.lcp_residual` of it on the LCP as assembled (its matrix never
@@ -446,7 +446,7 @@ def _answer(m, w, nci, n, nf):
     return comp + zneg + wneg
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _switch_modes(m, w, nci, tol):
     """Switch every contact whose answer is inconsistent with its mode (module docstring); returns how many."""
     changed = 0
@@ -488,7 +488,7 @@ def _pair_place(w, a):
     return p, (1 if c > 0 and w.con_pair[c - 1] == p else 0)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def solve_island_sparse(m, w, opt, vk, nci, nsi, h, velocity_form):
     """The island's LCP (its rows as the formulation assembles them, restitution's included) by the mode iteration on
     its reduced system. The LCP's constants and force columns are assembled here (`assemble_columns`), never its
