@@ -19,7 +19,7 @@ from planar_lcp.engine.assemble import apply_impulses, contact_column, delassus,
 from planar_lcp.engine.constants import SUPPORT_LIMIT_SURFACE
 from planar_lcp.engine.contacts import body_poses, find_contacts, world_vertices
 from planar_lcp.engine.islands import find_islands, island_members
-from planar_lcp.engine.layout import Stat
+from planar_lcp.engine.layout import Stat, matrix_view
 from planar_lcp.engine.solvers.lemke import (STATUS_NEEDS_SPACE, STATUS_SOLVED, lemke_in_work, solve_island_lemke,
                                              solve_island_lemke_cold, solve_island_lemke_small,
                                              solve_island_lemke_small_cold)
@@ -100,7 +100,7 @@ def project_out_of_penetration(m, w, opt, qk_new, stats):
     for j in range(n):
         contact_column(m, w.body_pose, w.check_pair, w.check_p, j, w.check_n[j, 0], w.check_n[j, 1], w.column_slot,
                        w.column_g, j)
-    A = w.lcp_matrix[:n * n].reshape((n, n))
+    A = matrix_view(w.lcp_matrix, n, n)
     delassus(m, n, w.column_slot, w.column_g, A)
     for j in range(n):
         w.lcp_vector[j] = w.check_phi[j]

@@ -26,7 +26,7 @@ from numba import njit
 from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, assemble_servo, contact_velocities,
                                         island_is_elastic, island_problem_size, island_servo, record_impulses,
                                         record_servo_lag, servo_within_limits, support_column_count)
-from planar_lcp.engine.layout import Stat
+from planar_lcp.engine.layout import Stat, matrix_view
 from planar_lcp.engine.solvers.sparse import solve_island_sparse
 
 STATUS_SOLVED = 0
@@ -559,7 +559,7 @@ def lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate, max_pivots=-1):
     """`lemke_kernel` on the LCP (A, b) of size n, in the step's work buffers (answer in w.lemke_z), with the options'
     ratio and residual tolerances, the pivot tolerance piv_tol and the pivot cap max_pivots (-1: default_max_pivots).
     Returns (status, pivots, residual)."""
-    T = w.lemke_tableau[:n * (2 * n + 2)].reshape((n, 2 * n + 2))
+    T = matrix_view(w.lemke_tableau, n, 2 * n + 2)
     if max_pivots < 0:
         max_pivots = default_max_pivots(n)
     return lemke_kernel(A, b, max_pivots, piv_tol, opt.ratio_tol, opt.res_tol, equilibrate, T,
@@ -573,7 +573,7 @@ def block_lemke_in_work(w, A, b, n, opt):
     of M's compressed columns in the tableau's buffer, which is at least twice as large. At most
     BLOCK_PIVOTS_PER_UNKNOWN pivots per unknown: a cycle costs little before the tableau takes over."""
     T = w.lemke_tableau
-    Kinv = T[:n * n].reshape((n, n))
+    Kinv = matrix_view(T, n, n)
     return block_lemke(A, b, BLOCK_PIVOTS_PER_UNKNOWN * n + 100, opt.piv_tol, opt.ratio_tol, opt.res_tol, Kinv,
                        T[n * n:2 * n * n], w.block_col_row, w.block_col_start, w.block_cols, w.block_rows,
                        w.block_col_pos, w.block_row_pos, w.block_xz, w.block_xw, w.block_dz, w.block_dw, w.block_y,
@@ -646,7 +646,7 @@ def record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf, nsb, ns):
     formulation states them, with restitution; with the force-limited bodies' lag blocks when ns > 0: the last n - ns
     ... n rows), with its contacts and support elements: w.fail_* (the step's first such island; begin_step forgets
     it). For the diagnosis of the failure (planar_lcp/infeasibility.py)."""
-    A = w.lcp_matrix[:n * n].reshape((n, n))
+    A = matrix_view(w.lcp_matrix, n, n)
     assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector, np.bool_(True))
     if ns > 0:
         assemble_servo(m, w, nci, nf, n - ns, nsb, h, A, w.lcp_vector)
@@ -773,7 +773,7 @@ def lemke_island(large_island_solver, warm_solver, m, w, opt, vk, isl, nci, nsi,
             # the dense buffers are too small: the step is handed back, to be run again with larger ones
             w.dense_needed[0] = max(w.dense_needed[0], N)
             return STATUS_NEEDS_SPACE
-        A = w.lcp_matrix[:N * N].reshape((N, N))
+        A = matrix_view(w.lcp_matrix, N, N)
         b = w.lcp_vector[:N]
         # np.bool_: every call site passes `elastic` typed alike, else numba compiles assemble_lcp once for the
         # omitted default, once for Literal[bool](True) and once for bool

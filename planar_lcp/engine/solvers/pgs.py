@@ -14,7 +14,7 @@ from planar_lcp.engine.assemble import (apply_impulses, column_dot, contact_velo
                                         island_problem_size, island_servo, kinematic_velocity_along, normal_column,
                                         record_impulses, servo_count, servo_direction, table_column)
 from planar_lcp.engine.constants import BODY_KINEMATIC, SERVO_FORCE_DIRECTIONS, SUPPORT_POINTS
-from planar_lcp.engine.layout import Stat
+from planar_lcp.engine.layout import Stat, matrix_view
 from planar_lcp.engine.solvers.lemke import STATUS_NEEDS_SPACE, STATUS_SOLVED
 
 
@@ -288,7 +288,7 @@ def solve_island_pgs(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     if n > w.lemke_lu.shape[0]:
         w.dense_needed[0] = max(w.dense_needed[0], n)
         return STATUS_NEEDS_SPACE
-    W = w.lcp_matrix[:n * n].reshape((n, n))
+    W = matrix_view(w.lcp_matrix, n, n)
     assemble_pgs(m, w, vk, nci, nsi, h, velocity_form, W, w.lcp_vector)
     _, nf, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
     nsb, _ = island_servo(m, w, nci, nf)
