@@ -42,7 +42,7 @@ def _energy_term(m, q, v, b, kinetic):
     return m.dyn_mass[b] * (m.gravity[0] * q[b, 0] + m.gravity[1] * q[b, 1])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _pairwise_energy(m, q, v, lo, n, kinetic):
     """The sum of the energy terms of bodies lo .. lo + n - 1 as numpy's pairwise summation adds them (`np.sum` of
     a row: sequential below 8 terms, 8 partial sums up to a block, halves above), so that the Trajectory's energy
@@ -100,7 +100,7 @@ def state_energy(m, q, v):
     return (0.0 + kinetic) + -(0.0 + potential)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def record_rows(m, step0, done, rec):
     """The Trajectory rows of a rollout call's `done` steps at the run's step indices step0 ... (none if rec.energy
     is empty): the stats by stat, the integer-valued ones as integers (truncated, as numpy's astype(int)), the energy
