@@ -30,11 +30,8 @@ from numba.core.compiler import CompilerBase, DefaultPassBuilder
 from numba.core.compiler_machinery import FunctionPass, PassManager, register_pass
 from numba.core.typed_passes import NopythonTypeInference
 
-import numpy as np
-
-from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, assemble_servo, contact_velocities,
-                                        island_is_elastic, island_problem_size, island_servo, recentre_limit_surfaces,
-                                        record_impulses, record_servo_lag, servo_within_limits, support_column_count)
+from planar_lcp.engine.assemble import (assemble_lcp, assemble_servo, island_is_elastic, recentre_limit_surfaces,
+                                        record_servo_lag, servo_within_limits)
 from planar_lcp.engine.interpreted import compiled
 from planar_lcp.engine.islands import contact_island, find_islands
 from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS
@@ -124,31 +121,36 @@ def _drive_lemke_reversed(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
     """The kernels `lemke_island` calls (engine/solvers/lemke.py), typed as it calls them, in the reverse of the order
     in which the step's typing reaches them: the first process, whose step reaches them from the first, meets this
     one's work instead of compiling the same kernels at the same time (the helper's first plan of issue M compiled
-    most of them in both). The values are never computed: only the types count (n, nf, nsb, ns int64 as
-    island_problem_size's and island_servo's; piv_tol and equilibrate as LEMKE_CHAIN's items)."""
+    most of them in both). A kernel whose callees the step reaches earlier (record_failed_island: the assembly)
+    comes after them. PGS's driver, run before this one, has compiled the impulses' kernels (apply_impulses,
+    record_impulses, contact_velocities, typed alike) and island_problem_size and island_servo. The values are never
+    computed: only the types count (n, nf, nsb, ns int64 as island_problem_size's and island_servo's; piv_tol,
+    equilibrate and elastic as LEMKE_CHAIN's items)."""
     n = nci + nsi
     nf = nci
     nsb = nsi
     ns = nsi
-    k = support_column_count(m)
-    contact_velocities(m, w, opt, w.kin_velocity, nci)
-    record_impulses(m, w, nci, w.lemke_z, np.bool_(False), nci)
-    apply_impulses(nci + 2 * nf + k * nsi, w.column_slot, w.column_g, w.lemke_z, m, w.v_new)
-    record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf, nsb, ns)
     record_servo_lag(m, w, vk, n, nsb, w.lemke_z)
     A = w.lcp_matrix[:n * n].reshape((n, n))
     b = w.lcp_vector[:n]
-    _, piv_tol, equilibrate, _, elastic = LEMKE_CHAIN[isl]
-    status, _, _ = lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate, -1 if velocity_form else n)
+    _, _, _, _, elastic = LEMKE_CHAIN[isl]
     island_is_elastic(m, w.island_con, nci, w.con_pair)
     lemke_from_basis(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu, w.lemke_rhs,
                      w.lemke_perm, w.lemke_basic)
     assemble_servo(m, w, nci, nf, n, nsb, h, A, w.lcp_vector)
     assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector, elastic)
-    servo_within_limits(m, w, nci, nf, nsb, h, w.lemke_z)
-    island_servo(m, w, nci, nf)
-    island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
-    return status
+    record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf, nsb, ns)
+    return servo_within_limits(m, w, nci, nf, nsb, h, w.lemke_z)
+
+
+@_driver
+def _drive_lemke_kernel(w, opt, isl, n, velocity_form):
+    """`lemke_kernel` and its callees, typed as `lemke_chain` calls them (n int64; piv_tol and equilibrate as
+    LEMKE_CHAIN's items): the largest of Lemke's kernels, compiled first (see _drive_lemke_reversed)."""
+    A = w.lcp_matrix[:n * n].reshape((n, n))
+    b = w.lcp_vector[:n]
+    _, piv_tol, equilibrate, _, _ = LEMKE_CHAIN[isl]
+    return lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate, -1 if velocity_form else n)
 
 
 @_driver
@@ -163,7 +165,8 @@ def _drive_projection(m, w, opt, qk_out, stats):
 
 _DRIVERS = {"lemke_small_cold": _drive_lemke_small_cold, "lemke_cold": _drive_lemke_cold,
             "lemke_small": _drive_lemke_small, "lemke": _drive_lemke, "pgs": _drive_pgs,
-            "projection": _drive_projection, "lemke_reversed": _drive_lemke_reversed}
+            "projection": _drive_projection, "lemke_reversed": _drive_lemke_reversed,
+            "lemke_kernel": _drive_lemke_kernel}
 
 
 def _options_type():
@@ -186,8 +189,9 @@ def compile_kinds(kinds):
     from planar_lcp.engine.layout import _new_struct
     sig = _solver_signature()
     drivers = [(_drive_islands, (MODEL_STRUCT, WORK_STRUCT, types.int64, types.int64))]
-    drivers += [(_DRIVERS[kind], (MODEL_STRUCT, WORK_STRUCT, sig[2], _F2, _F1) if kind == "projection" else sig)
-                for kind in kinds]
+    special = {"projection": (MODEL_STRUCT, WORK_STRUCT, sig[2], _F2, _F1),
+               "lemke_kernel": (WORK_STRUCT, sig[2], types.int64, types.int64, types.boolean)}
+    drivers += [(_DRIVERS[kind], special.get(kind, sig)) for kind in kinds]
     for driver, driver_sig in drivers:
         try:
             driver.compile(driver_sig)
@@ -213,10 +217,12 @@ def _rollout_kernel(model, single_kernel, velocity=False):
     if velocity:
         return (rollout.rollout_lemke_full_small if small else rollout.rollout_lemke_full), [kind, "pgs", "projection"]
     if single_kernel:
-        # PGS first and Lemke's kernels from the last (the step reaches them in the other order: module docstring),
-        # then the solver's driver, which finds them all cached unless a kind was missed
-        return (rollout.rollout_lemke_warm_small if small else rollout.rollout_lemke_warm), ["pgs", "lemke_reversed",
-                                                                                              kind]
+        # The step reaches the assembly, the warm start, lemke_kernel, then PGS's kernels (after its contacts, about
+        # 8 s in): this process compiles lemke_kernel (the largest), PGS's kernels, then the others from the last,
+        # so that the two meet instead of compiling the same kernels; then the solver's driver, which finds them all
+        # cached unless one was missed
+        return (rollout.rollout_lemke_warm_small if small else rollout.rollout_lemke_warm), [
+            "lemke_kernel", "pgs", "lemke_reversed", kind]
     return (rollout.rollout_lemke_small if small else rollout.rollout_lemke), [kind + "_cold", "pgs", kind,
                                                                                 "projection"]
 
