@@ -148,7 +148,7 @@ def _compile_in_background(payload):
         return
     try:
         from planar_lcp.sim import Simulator
-        start_if_cold(model, options.single_kernel or options.warm_start)
+        start_if_cold(model, options.single_kernel or options.warm_start, options.formulation == "velocity")
         contacts_at(model.arrays, model.q0, model.qk0, 0.0, m=model.struct)
         if model.arrays.ls_wrench.shape[0] and model.arrays.ls_wrench.shape[1]:
             unit_load_wrench(model.struct, 0, 1.0, 0.0, 0.0, np.zeros(3))

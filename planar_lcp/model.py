@@ -176,7 +176,8 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
 
     single_kernel: the model will run with the single kernel (`SimOptions(single_kernel=True)` or the warm start, as
     the planners run it): on a cold numba cache, the second process compiles that kernel's island solvers first
-    (engine/precompile.py). Nothing else depends on it.
+    (engine/precompile.py; the scene's [sim] formulation says whether it needs the velocity form's projection).
+    Nothing else depends on it.
 
     seed_friction_arm: apply contact friction at each shape's core point (a capsule's end-cap centre) instead of the
     contact point, reproducing the seed paper's friction vectors d = [+-1, 0, +-(l/2) sin theta] (for comparison only;
@@ -344,6 +345,6 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
     if ls_bodies:
         _fill_fixed_columns(model, ls_bodies, nls)
     # on a cold numba cache, the island solvers' kernels compile in a second process meanwhile (engine/precompile.py)
-    start_if_cold(model, single_kernel)
+    start_if_cold(model, single_kernel, scene.sim.formulation == "velocity")
     _check_start_overlaps(scene, model)
     return model

@@ -13,12 +13,14 @@ from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
+from numba.core.dispatcher import Dispatcher
 
 from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS, SUPPORT_POINTS
 from planar_lcp.engine.interpreted import compiled, python_version
-from planar_lcp.engine.layout import INT_STATS, NSTAT, STATS, Stat, StepOptions, make_step_work, work_struct
+from planar_lcp.engine.layout import (INT_STATS, NSTAT, STATS, WORK_STRUCT, Stat, StepOptions, make_step_work,
+                                      work_struct)
 from planar_lcp.engine.rollout import (RUN_ROWS, Recording, rollout_lemke, rollout_lemke_full, rollout_lemke_full_small,
-                                       rollout_lemke_small, rollout_pgs)
+                                       rollout_lemke_small, rollout_lemke_warm, rollout_lemke_warm_small, rollout_pgs)
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES
 from planar_lcp.engine.step import (FORM_VELOCITY, STEP_LCP_FAILED, STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE,
                                     STEP_NONFINITE, STEP_OK, step_lemke, step_lemke_full, step_lemke_full_small,
@@ -136,12 +138,20 @@ def _variants(options, model):
     small = options.sparse_min_unknowns == 0 or model.max_unknowns() < options.sparse_min_unknowns
     if small:
         first, full = (step_lemke_small, rollout_lemke_small), (step_lemke_full_small, rollout_lemke_full_small)
+        warm = (step_lemke_full_small, rollout_lemke_warm_small)
     else:
         first, full = (step_lemke, rollout_lemke), (step_lemke_full, rollout_lemke_full)
+        warm = (step_lemke_full, rollout_lemke_warm)
     # the velocity form needs the projection, the warm start the kernel with its code; the position forms try the
     # kernel without PGS, the projection and the warm start first, so that those compile only when a run needs them
-    single = options.single_kernel or options.warm_start or FORMULATIONS[options.formulation] == FORM_VELOCITY
-    return (full,) if single else (first, full)
+    velocity = FORMULATIONS[options.formulation] == FORM_VELOCITY
+    if velocity:
+        return (full,)
+    if options.single_kernel or options.warm_start:
+        # the planners' rollout: the full kernel's steps without the projection's code, which a position form never
+        # runs (engine/rollout.py `rollout_lemke_warm`; its step, for `step`, is the full kernel's: the same steps)
+        return (warm, full)
+    return (first, full)
 
 
 class Simulator:
@@ -308,6 +318,17 @@ class Simulator:
         self._background = None
         return False
 
+    @staticmethod
+    def _compile_first(kernel, args):
+        """Compile (or load) the rollout kernel `kernel` for the call `kernel(*args)` before the work buffers' struct
+        is made (args holds None for it): on a cold cache, its constructor is then loaded from the cache, where the
+        helper process compiled it meanwhile (engine/precompile.py), instead of compiled here first, 1.4 s of this
+        process's CPU (docs/performance.md, "Compile time"). The signature is the call's (the dispatcher's own
+        typing of each argument), so the call that follows finds it."""
+        if not isinstance(kernel, Dispatcher) or kernel.overloads:
+            return
+        kernel.compile(tuple(WORK_STRUCT if a is None else kernel.typeof_pyval(a) for a in args))
+
     #: Wall-clock length a rollout's kernel calls aim at: between two calls Python handles signals, so Ctrl-C stops a
     #: long simulation within about this long. Short rollouts (a planner's propagation) are one call.
     CHUNK_SECONDS = 0.25
@@ -330,7 +351,11 @@ class Simulator:
             if python:           # a cold cache: the kernel's Python, on the namedtuples of the same buffers
                 kernel, m, w = python_version(kernel), self.model.arrays, self.work
             else:
-                m, w = self.kmodel, self.kwork
+                m = self.kmodel
+                if self._kwork is None:
+                    self._compile_first(kernel, (m, rec.q[start], rec.v[start], rec.qk[start], vk_seq, start, n,
+                                                 self.h, self.kopt, None, view, stop_on_failure, start == 0))
+                w = self.kwork
             t0 = time.perf_counter()
             done = int(kernel(m, rec.q[start], rec.v[start], rec.qk[start], vk_seq, start, n, self.h, self.kopt, w,
                               view, stop_on_failure, start == 0))

@@ -47,7 +47,7 @@ def test_a_planners_helper_caches_the_kernels_its_propagations_load(tmp_path):
     again."""
     pytest.importorskip("shapely")
     helper = json.loads(_run("from planar_lcp.engine.precompile import compile_kinds\n"
-                             "compile_kinds(['lemke_small', 'pgs', 'projection'])", tmp_path)[-1])
+                             "compile_kinds(['lemke_kernel', 'pgs', 'lemke_reversed', 'lemke_small'])", tmp_path)[-1])
     ours = {f for f in helper if f.startswith("planar_lcp.") and "._drive" not in f}
     assert {"planar_lcp.engine.solvers.lemke.lemke_kernel", "planar_lcp.engine.assemble.assemble_lcp"} <= ours
     lines = _run("from planners.tasks import TaskModel\n"
@@ -129,8 +129,16 @@ def test_the_helper_starts_only_on_a_cold_cache(monkeypatch):
     checked = []
     monkeypatch.setattr(precompile, "compiled", lambda dispatcher: checked.append(dispatcher) and False)
     compile_scene(load_scene("push_box"), single_kernel=True)
-    assert started[0][0][3:] == ["lemke_small", "pgs", "projection"]
+    assert started[0][0][3:] == ["lemke_kernel", "pgs", "lemke_reversed", "lemke_small"]
     from planar_lcp.engine import rollout
+    assert checked == [rollout.rollout_lemke_warm_small]
+    # the same in the velocity form: the full kernel, with the projection
+    push_box = compile_scene(load_scene("push_box"))
+    monkeypatch.setattr(precompile, "_helper", None)
+    started.clear()
+    checked.clear()
+    precompile.start_if_cold(push_box, True, True)
+    assert started[0][0][3:] == ["lemke_small", "pgs", "projection"]
     assert checked == [rollout.rollout_lemke_full_small]
 
 

@@ -15,7 +15,8 @@ import pytest
 
 from planar_lcp import load_scene, simulate
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.rollout import Recording, rollout_lemke_full
+from planar_lcp.engine.rollout import (Recording, rollout_lemke_full, rollout_lemke_full_small, rollout_lemke_small,
+                                       rollout_lemke_warm_small)
 from planar_lcp.engine.solvers.lemke import (default_max_pivots, lemke_from_basis, lemke_kernel,
                                              make_lemke_work)
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL
@@ -244,10 +245,12 @@ def test_lemke_rollout_with_fallback_steps_equals_the_full_variant_bit_for_bit(w
     assert done == n
     for k, a in z.items():
         assert np.array_equal(out[k], a), k
-    # SimOptions(single_kernel=True) (the planners') runs only the full variant: the same outputs; so does a run with
-    # the warm start, whose code only the full variant has
+    # SimOptions(single_kernel=True) (the planners') runs only the kernel with the fallback, the warm start's code and
+    # no projection (`rollout_lemke_warm_small`: the full variant without the velocity form's projection, the step
+    # inlined): the same outputs; so does a run with the warm start, whose code only those kernels have
     single = Simulator(compile_scene(sc), dataclasses.replace(opts, single_kernel=True))
-    assert len(single._variants) == 1 and len(sim._variants) == (1 if warm else 2)
+    assert single._variants[0][1] is rollout_lemke_warm_small and single._variants[1][1] is rollout_lemke_full_small
+    assert sim._variants[0][1] is (rollout_lemke_warm_small if warm else rollout_lemke_small)
     alone = single.rollout(q, v, qk, vk[None], n, stop_on_failure=False, record_contacts=True)
     for k in ("q", "v", "qk", "stats", "status", "con_pair", "con_cn", "con_ft"):
         assert np.array_equal(out[k], alone[k]), k

@@ -241,17 +241,17 @@ def _point_core(va, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point)
             ny = dy / s
         else:
             # on the segment (within round-off): its perpendicular, on the side of the point
-            nx, ny, ok = _face_normal(vb, 2, 0)
+            nx, ny, ok = _face_normal(vb, np.int64(2), np.int64(0))
             side = nx * (px - vb[0, 0]) + ny * (py - vb[0, 1])
             if side < 0.0 or (side == 0.0 and not _key_gt(nx, ny, -nx, -ny)):
                 nx = -nx
                 ny = -ny
     else:
         # the face of least penetration (inside) or of most separation (outside): the SAT of the point
-        s, _, nx, ny, _ = _max_separation(vb, nb, va, 1)
+        s, _, nx, ny, _ = _max_separation(vb, nb, va, np.int64(1))
         if s > 0.0:
             # outside: the closest point on the boundary
-            _, _, _, bx, by = _closest_vertex_edge(va, 1, vb, nb, np.inf, px, py, 0.0, 0.0)
+            _, _, _, bx, by = _closest_vertex_edge(va, np.int64(1), vb, nb, np.inf, px, py, 0.0, 0.0)
             d = np.hypot(px - bx, py - by)
             if d > tol:
                 nx = (px - bx) / d
@@ -261,7 +261,7 @@ def _point_core(va, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point)
     if not phi < margin:
         return 0
     h = 0.5 * (s + ra - rb)
-    _write(out_phi, out_normal, out_point, 0, phi, nx, ny, px - h * nx, py - h * ny)
+    _write(out_phi, out_normal, out_point, np.int64(0), phi, nx, ny, px - h * nx, py - h * ny)
     return 1
 
 
@@ -441,7 +441,7 @@ def _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_poi
                 nx = (pax - pbx) / d
                 ny = (pay - pby) / d
                 h = 0.5 * (rb - ra)
-                _write(out_phi, out_normal, out_point, 0, phi, nx, ny,
+                _write(out_phi, out_normal, out_point, np.int64(0), phi, nx, ny,
                        0.5 * (pax + pbx) + h * nx, 0.5 * (pay + pby) + h * ny)
                 return 1
         elif cnt == 0 or smin > sep + tol:
@@ -457,7 +457,8 @@ def _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_poi
         h = 0.5 * (rI + sep - rR)
         cx = vI[kdeep, 0]
         cy = vI[kdeep, 1]
-        _write(out_phi, out_normal, out_point, 0, phi, sgn * ux_n, sgn * uy_n, cx - h * ux_n, cy - h * uy_n)
+        _write(out_phi, out_normal, out_point, np.int64(0), phi, sgn * ux_n, sgn * uy_n, cx - h * ux_n,
+               cy - h * uy_n)
         return 1
 
     m = 0
@@ -584,7 +585,7 @@ def contact_core_halfplane(va, na, ra, p0, n0, margin, out_phi, out_normal, out_
     if not pd < margin:
         return 0
     h = ra + 0.5 * pd
-    _write(out_phi, out_normal, out_point, 0, pd, nx, ny, va[kd, 0] - h * nx, va[kd, 1] - h * ny)
+    _write(out_phi, out_normal, out_point, np.int64(0), pd, nx, ny, va[kd, 0] - h * nx, va[kd, 1] - h * ny)
     k2 = -1
     best = tol
     p2 = np.inf
@@ -607,5 +608,5 @@ def contact_core_halfplane(va, na, ra, p0, n0, margin, out_phi, out_normal, out_
     if k2 < 0:
         return 1
     h = ra + 0.5 * p2
-    _write(out_phi, out_normal, out_point, 1, p2, nx, ny, va[k2, 0] - h * nx, va[k2, 1] - h * ny)
+    _write(out_phi, out_normal, out_point, np.int64(1), p2, nx, ny, va[k2, 0] - h * nx, va[k2, 1] - h * ny)
     return 2

@@ -26,14 +26,19 @@ import sys
 
 import numba
 from numba import njit, types
+from numba.core.compiler import CompilerBase, DefaultPassBuilder
+from numba.core.compiler_machinery import FunctionPass, PassManager, register_pass
+from numba.core.typed_passes import NopythonTypeInference
 
-from planar_lcp.engine.assemble import recentre_limit_surfaces
+from planar_lcp.engine.assemble import (assemble_lcp, assemble_servo, island_is_elastic, recentre_limit_surfaces,
+                                        record_servo_lag, servo_within_limits)
 from planar_lcp.engine.interpreted import compiled
 from planar_lcp.engine.islands import contact_island, find_islands
 from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS
 from planar_lcp.engine.layout import (MODEL_STRUCT, OPTIONS_LAYOUT, WORK_LAYOUT, WORK_STRUCT, StepOptions, StepWork,
                                       numba_type)
-from planar_lcp.engine.solvers.lemke import (solve_island_lemke, solve_island_lemke_cold, solve_island_lemke_small,
+from planar_lcp.engine.solvers.lemke import (LEMKE_CHAIN, lemke_from_basis, lemke_in_work, record_failed_island,
+                                             solve_island_lemke, solve_island_lemke_cold, solve_island_lemke_small,
                                              solve_island_lemke_small_cold)
 from planar_lcp.engine.solvers.pgs import solve_island_pgs
 from planar_lcp.engine.step import project_positions
@@ -45,7 +50,39 @@ _F2 = types.Array(types.float64, 2, "C")
 _F1 = types.Array(types.float64, 1, "C")
 
 
-@njit
+class _Typed(Exception):
+    """A driver's compilation stops here: typing it compiled (and cached) its callees, which is all it is for."""
+
+
+@register_pass(mutates_CFG=False, analysis_only=True)
+class _StopAfterTyping(FunctionPass):
+    _name = "planar_lcp_stop_after_typing"
+
+    def __init__(self):
+        FunctionPass.__init__(self)
+
+    def run_pass(self, state):
+        raise _Typed()
+
+
+class _TypeOnly(CompilerBase):
+    """numba's pipeline up to type inference, then stop: a driver's own lowering and machine code (2 to 3 s of the
+    helper's CPU per driver, never run) are not made; the kernels it calls were compiled while it was typed."""
+
+    def define_pipelines(self):
+        pm = PassManager("planar_lcp_type_only")
+        pm.passes.extend(DefaultPassBuilder.define_untyped_pipeline(self.state).passes)
+        pm.add_pass(NopythonTypeInference, "nopython frontend")
+        pm.add_pass(_StopAfterTyping, "stop after typing")
+        pm.finalize()
+        return [pm]
+
+
+def _driver(func):
+    return njit(pipeline_class=_TypeOnly)(func)
+
+
+@_driver
 def _drive_islands(m, w, ncon, j):
     """The contact stage's kernels after the collision: the limit surfaces' re-centring and the islands
     (`prepare_contacts`, `island_members`; ncon, j: int64 counters)."""
@@ -56,41 +93,80 @@ def _drive_islands(m, w, ncon, j):
 
 # The drivers: each calls island solvers with the argument types of `step_pipeline`'s call (engine/step.py:
 # vk a row of the rollout's (nvk, nkin, 3) controls, stats a row of its stats, isl / nci / nsi int64 counters).
-# Compiling a driver compiles (and caches) every kernel the solvers call; the driver itself is never cached or run.
+# Typing a driver compiles (and caches) every kernel the solvers call; the driver itself is only typed (`_TypeOnly`),
+# never lowered, cached or run.
 
-@njit
+@_driver
 def _drive_lemke_small_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     return solve_island_lemke_small_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
 
 
-@njit
+@_driver
 def _drive_lemke_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     return solve_island_lemke_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
 
 
-@njit
+@_driver
 def _drive_lemke_small(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     return solve_island_lemke_small(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
 
 
-@njit
+@_driver
 def _drive_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     return solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
 
 
-@njit
+@_driver
+def _drive_lemke_reversed(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
+    """The kernels `lemke_island` calls (engine/solvers/lemke.py), typed as it calls them, in the reverse of the order
+    in which the step's typing reaches them: the first process, whose step reaches them from the first, meets this
+    one's work instead of compiling the same kernels at the same time (the helper's first plan of issue M compiled
+    most of them in both). A kernel whose callees the step reaches earlier (record_failed_island: the assembly)
+    comes after them. PGS's driver, run before this one, has compiled the impulses' kernels (apply_impulses,
+    record_impulses, contact_velocities, typed alike) and island_problem_size and island_servo. The values are never
+    computed: only the types count (n, nf, nsb, ns int64 as island_problem_size's and island_servo's; piv_tol,
+    equilibrate and elastic as LEMKE_CHAIN's items)."""
+    n = nci + nsi
+    nf = nci
+    nsb = nsi
+    ns = nsi
+    record_servo_lag(m, w, vk, n, nsb, w.lemke_z)
+    A = w.lcp_matrix[:n * n].reshape((n, n))
+    b = w.lcp_vector[:n]
+    _, _, _, _, elastic = LEMKE_CHAIN[isl]
+    island_is_elastic(m, w.island_con, nci, w.con_pair)
+    lemke_from_basis(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu, w.lemke_rhs,
+                     w.lemke_perm, w.lemke_basic)
+    assemble_servo(m, w, nci, nf, n, nsb, h, A, w.lcp_vector)
+    assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector, elastic)
+    record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf, nsb, ns)
+    return servo_within_limits(m, w, nci, nf, nsb, h, w.lemke_z)
+
+
+@_driver
+def _drive_lemke_kernel(w, opt, isl, n, velocity_form):
+    """`lemke_kernel` and its callees, typed as `lemke_chain` calls them (n int64; piv_tol and equilibrate as
+    LEMKE_CHAIN's items): the largest of Lemke's kernels, compiled first (see _drive_lemke_reversed)."""
+    A = w.lcp_matrix[:n * n].reshape((n, n))
+    b = w.lcp_vector[:n]
+    _, piv_tol, equilibrate, _, _ = LEMKE_CHAIN[isl]
+    return lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate, -1 if velocity_form else n)
+
+
+@_driver
 def _drive_pgs(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     return solve_island_pgs(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
 
 
-@njit
+@_driver
 def _drive_projection(m, w, opt, qk_out, stats):
     return project_positions(m, w, opt, qk_out, stats)
 
 
 _DRIVERS = {"lemke_small_cold": _drive_lemke_small_cold, "lemke_cold": _drive_lemke_cold,
             "lemke_small": _drive_lemke_small, "lemke": _drive_lemke, "pgs": _drive_pgs,
-            "projection": _drive_projection}
+            "projection": _drive_projection, "lemke_reversed": _drive_lemke_reversed,
+            "lemke_kernel": _drive_lemke_kernel}
 
 
 def _options_type():
@@ -106,31 +182,47 @@ def _solver_signature():
 
 def compile_kinds(kinds):
     """Compile (into numba's cache) what a step needs after its collision, in the order the step needs it: the
-    work struct's constructor, the islands' kernels, then the kernels of each island solver in `kinds`
-    (keys of _DRIVERS). The helper process's work; also callable in-process."""
+    islands' kernels, then the kernels of each island solver in `kinds` (keys of _DRIVERS), then the work struct's
+    constructor (last: the first process compiles its rollout kernel before it makes its work struct, sim.py
+    `Simulator._compile_first`, and by then loads it). Each driver is typed only (`_TypeOnly`). The helper
+    process's work; also callable in-process."""
     from planar_lcp.engine.layout import _new_struct
+    sig = _solver_signature()
+    drivers = [(_drive_islands, (MODEL_STRUCT, WORK_STRUCT, types.int64, types.int64))]
+    special = {"projection": (MODEL_STRUCT, WORK_STRUCT, sig[2], _F2, _F1),
+               "lemke_kernel": (WORK_STRUCT, sig[2], types.int64, types.int64, types.boolean)}
+    drivers += [(_DRIVERS[kind], special.get(kind, sig)) for kind in kinds]
+    for driver, driver_sig in drivers:
+        try:
+            driver.compile(driver_sig)
+        except _Typed:
+            pass
     _new_struct.compile((numba.typeof(WORK_STRUCT), types.NamedTuple([numba_type(f) for f in WORK_LAYOUT],
                                                                      StepWork)))
-    _drive_islands.compile((MODEL_STRUCT, WORK_STRUCT, types.int64, types.int64))
-    sig = _solver_signature()
-    for kind in kinds:
-        _DRIVERS[kind].compile((MODEL_STRUCT, WORK_STRUCT, sig[2], _F2, _F1) if kind == "projection" else sig)
 
 
 _helper = None
 
 
-def _rollout_kernel(model, single_kernel):
+def _rollout_kernel(model, single_kernel, velocity=False):
     """The rollout kernel a run of `model` starts with (`simulate`'s defaults, or the single kernel with the warm
-    start's code, as the planners run it: sim.py `_kernels`), and the island solvers' kinds (keys of _DRIVERS) to
+    start's code, as the planners run it: sim.py `_variants`), and the island solvers' kinds (keys of _DRIVERS) to
     compile for it, in order: the first kernel's, then what the fallback kernel adds (PGS, the warm start, the
     velocity form's projection), which shares the rest. A single-kernel run (a planner's) needs no cold variant:
-    compiling it first cost the first `plan` about 7 s of the helper's CPU time (docs/performance.md)."""
+    compiling it first cost the first `plan` about 7 s of the helper's CPU time (docs/performance.md); in a position
+    form it runs `rollout_lemke_warm(_small)`, which has no projection. velocity: the run is in the velocity form."""
     from planar_lcp.engine import rollout
     small = model.max_unknowns() < SPARSE_MIN_UNKNOWNS
     kind = "lemke_small" if small else "lemke"
-    if single_kernel:
+    if velocity:
         return (rollout.rollout_lemke_full_small if small else rollout.rollout_lemke_full), [kind, "pgs", "projection"]
+    if single_kernel:
+        # The step reaches the assembly, the warm start, lemke_kernel, then PGS's kernels (after its contacts, about
+        # 8 s in): this process compiles lemke_kernel (the largest), PGS's kernels, then the others from the last,
+        # so that the two meet instead of compiling the same kernels; then the solver's driver, which finds them all
+        # cached unless one was missed
+        return (rollout.rollout_lemke_warm_small if small else rollout.rollout_lemke_warm), [
+            "lemke_kernel", "pgs", "lemke_reversed", kind]
     return (rollout.rollout_lemke_small if small else rollout.rollout_lemke), [kind + "_cold", "pgs", kind,
                                                                                 "projection"]
 
@@ -147,14 +239,14 @@ def may_start():
     return os.environ.get(ENV_SWITCH, "1") != "0" and not numba.config.DISABLE_JIT and _cpus() >= 2
 
 
-def start_if_cold(model, single_kernel=False):
+def start_if_cold(model, single_kernel=False, velocity=False):
     """Start the helper (module docstring) for `model`'s kernels if the cache is cold; at most once per process.
-    single_kernel: the run starts with the single kernel (compile_scene's hint). Returns the helper's Popen, or
-    None."""
+    single_kernel: the run starts with the single kernel (compile_scene's hint); velocity: in the velocity form.
+    Returns the helper's Popen, or None."""
     global _helper
     if _helper is not None or not may_start():
         return None
-    kernel, kinds = _rollout_kernel(model, single_kernel)
+    kernel, kinds = _rollout_kernel(model, single_kernel, velocity)
     if compiled(kernel):
         return None
     env = dict(os.environ, **{ENV_SWITCH: "0"})

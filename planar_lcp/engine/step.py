@@ -104,7 +104,8 @@ def project_out_of_penetration(m, w, opt, qk_new, stats):
     delassus(m, n, w.column_slot, w.column_g, A)
     for j in range(n):
         w.lcp_vector[j] = w.check_phi[j]
-    st, piv, res = lemke_in_work(w, A, w.lcp_vector[:n], n, opt, opt.piv_tol, True)
+    # np.bool_: typed as the island solvers' calls (a literal True compiled lemke_kernel a second time)
+    st, piv, res = lemke_in_work(w, A, w.lcp_vector[:n], n, opt, opt.piv_tol, np.bool_(True))
     if st != STATUS_SOLVED:
         stats[Stat.LEMKE_STATUS] = max(stats[Stat.LEMKE_STATUS], st)
         return True

@@ -25,7 +25,7 @@ def assemble_pgs(m, w, vk, nci, nsi, h, velocity_form, W, b):
     element [x, y, torque]. Returns its size."""
     poses, con_pair, con_phi, con_n, con_p = w.body_pose, w.con_pair, w.con_phi, w.con_n, w.con_p
     col_dyn, col_g, v_tilde, isl_sup = w.column_slot, w.column_g, w.v_tilde, w.island_sup
-    u = 0
+    u = np.int64(0)      # not a literal 0: the column kernels would compile for Literal[int](0) too
     for a in range(nci):
         j, nx, ny = normal_column(m, w, vk, h, velocity_form, a, u, b)
         u += 1
@@ -70,7 +70,7 @@ def solve_pgs(m, w, nci, nsi, n, h, W, b, x, iterations, nsb):
                 r += W[u, c] * x[c]
             new = max(0.0, x[u] - r / W[u, u]) if W[u, u] > 0.0 else 0.0
             if k >= 0:
-                new = _servo_clamp(m, w, k, isl_con[a], bb, False, x[u], new, 0.0, np.inf, h)
+                new = _servo_clamp(m, w, k, isl_con[a], bb, np.bool_(False), x[u], new, 0.0, np.inf, h)
             last = max(last, abs(new - x[u]))
             x[u] = new
             u += 1
@@ -82,7 +82,7 @@ def solve_pgs(m, w, nci, nsi, n, h, W, b, x, iterations, nsb):
                 new = x[u] - r / W[u, u] if W[u, u] > 0.0 else 0.0
                 new = min(lim, max(-lim, new))
                 if k >= 0:
-                    new = _servo_clamp(m, w, k, isl_con[a], bb, True, x[u], new, -lim, lim, h)
+                    new = _servo_clamp(m, w, k, isl_con[a], bb, np.bool_(True), x[u], new, -lim, lim, h)
                 last = max(last, abs(new - x[u]))
                 x[u] = new
                 u += 1
