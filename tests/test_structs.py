@@ -121,3 +121,77 @@ def test_the_fast_field_check_never_accepts_what_numba_types_differently(name):
                     accepted += 1
                     assert numba.typeof(x) == numba_type(f), (f.name, x.dtype if hasattr(x, "dtype") else type(x))
     assert accepted < checked
+
+
+
+#: compiles the kernels of a run and of a planner's run in this process, then prints every engine kernel compiled
+#: without numba's runtime with the return types of its compiled signatures
+_RUNTIME_FREE_KERNELS = """
+import importlib, json, pkgutil
+from numba.core import types
+from numba.core.dispatcher import Dispatcher
+import planar_lcp.engine as engine
+from planar_lcp import load_scene
+from planar_lcp.model import compile_scene
+from planar_lcp.sim import SimOptions, Simulator
+
+def holds_array(ty):
+    return isinstance(ty, types.Array) or (isinstance(ty, types.BaseTuple) and any(holds_array(t) for t in ty.types))
+
+for options in ({}, {"warm_start": True, "single_kernel": True}):
+    sc = load_scene("box_tip")
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, **options))
+    q, v, qk, vk = sim.initial_state()
+    sim.rollout(q, v, qk, vk[None], 5, record_contacts=True, trajectory_rows=True)
+found = []
+for info in pkgutil.walk_packages(engine.__path__, "planar_lcp.engine."):
+    for obj in vars(importlib.import_module(info.name)).values():
+        if isinstance(obj, Dispatcher) and obj.targetoptions.get("_nrt") is False:
+            found += [(obj.py_func.__qualname__, str(sig.return_type), holds_array(sig.return_type))
+                      for sig in obj.nopython_signatures]
+print(json.dumps(found))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not JIT, reason="numba's compiled signatures")
+def test_kernels_without_numbas_runtime_return_no_array(tmp_path):
+    """The engine's kernels compiled without numba's runtime (`_nrt=False`, docs/performance.md "Reference counts")
+    hold no reference to what they touch, so none may return an array (it would outlive its owner unowned): every
+    such kernel a run and a planner's run compile, on an empty cache in one process, returns none. A struct's field
+    cannot be assigned at all (engine/layout.py registers no setattr)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PLANAR_LCP_PRECOMPILE="0")
+    out = subprocess.run([sys.executable, "-c", _RUNTIME_FREE_KERNELS], env=env, capture_output=True, text=True,
+                         timeout=900)
+    assert out.returncode == 0, out.stderr[-2000:]
+    found = json.loads(out.stdout.strip().splitlines()[-1])
+    assert len(found) >= 30, found                  # the whole step: contacts, assembly, Lemke, the rollouts
+    assert [f for f in found if f[2]] == []
+
+
+@pytest.mark.skipif(not JIT, reason="numba's structs")
+def test_calls_of_kernels_without_numbas_runtime_leak_nothing():
+    """A kernel without numba's runtime takes a reference to each struct it is given from Python, which its call
+    wrapper would never drop: the struct's unboxing releases it after the call (engine/layout.py). Many calls from
+    Python (rollouts, steps) leave the structs' reference counts, and with NUMBA_NRT_STATS=1 numba's allocation
+    counts, as they were."""
+    from numba.core.runtime import rtsys
+    sc = load_scene("box_tip")
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
+    q, v, qk, vk = sim.initial_state()
+    sim.rollout(q, v, qk, vk[None], 5, record_contacts=True)
+    sim.step(q, v, qk, vk)
+    counts = (sim.kmodel._meminfo.refcount, sim.kwork._meminfo.refcount)
+    stats_on = numba.config.NRT_STATS
+    before = rtsys.get_allocation_stats() if stats_on else None
+    for _ in range(200):
+        sim.rollout(q, v, qk, vk[None], 5, record_contacts=True, trajectory_rows=True)
+        sim.step(q, v, qk, vk)
+    assert (sim.kmodel._meminfo.refcount, sim.kwork._meminfo.refcount) == counts
+    if stats_on:
+        after = rtsys.get_allocation_stats()
+        assert after.alloc - before.alloc == after.free - before.free
