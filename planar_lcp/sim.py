@@ -19,8 +19,9 @@ from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS, SUPPORT_POINTS
 from planar_lcp.engine.interpreted import compiled, python_version
 from planar_lcp.engine.layout import (INT_STATS, NSTAT, STATS, WORK_STRUCT, Stat, StepOptions, make_step_work,
                                       work_struct)
-from planar_lcp.engine.rollout import (RUN_ROWS, Recording, rollout_lemke, rollout_lemke_full, rollout_lemke_full_small,
-                                       rollout_lemke_small, rollout_lemke_warm, rollout_lemke_warm_small, rollout_pgs)
+from planar_lcp.engine.rollout import (RUN_ROWS, Recording, make_recording, rollout_lemke, rollout_lemke_full,
+                                       rollout_lemke_full_small, rollout_lemke_small, rollout_lemke_warm,
+                                       rollout_lemke_warm_small, rollout_pgs)
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES
 from planar_lcp.engine.step import (FORM_VELOCITY, STEP_LCP_FAILED, STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE,
                                     STEP_NONFINITE, STEP_OK, step_lemke, step_lemke_full, step_lemke_full_small,
@@ -277,20 +278,7 @@ class Simulator:
     def recording(self, nsteps, record_contacts=False, trajectory_rows=False):
         """The arrays a rollout of nsteps steps writes (engine/rollout.py `Recording`), for `rollout_into`."""
         m = self.model
-        nd, nk = m.ndyn, m.nkin
-        C = m.max_contacts() if record_contacts else 0
-        R = nsteps if trajectory_rows else 0
-        return Recording(q=np.zeros((nsteps + 1, nd, 3)), v=np.zeros((nsteps + 1, nd, 3)),
-                         qk=np.zeros((nsteps + 1, nk, 3)), stats=np.zeros((nsteps, NSTAT)),
-                         status=np.zeros(nsteps, np.int64), con_count=np.zeros(nsteps if C else 0, np.int64),
-                         con_pair=np.zeros((nsteps, C), np.int64), con_phi=np.zeros((nsteps, C)),
-                         con_n=np.zeros((nsteps, C, 2)), con_p=np.zeros((nsteps, C, 2)),
-                         con_cn=np.zeros((nsteps, C)), con_ft=np.zeros((nsteps, C)), con_vt=np.zeros((nsteps, C)),
-                         con_mode=np.zeros((nsteps, C), np.int64),
-                         # written up to the steps done (all that simulate reads): not zeroed
-                         stat_rows=np.empty((NSTAT if R else 0, R)),
-                         stat_ints=np.empty((len(INT_STATS) if R else 0, R), np.int64),
-                         energy=np.empty(R + 1 if R else 0))
+        return make_recording(nsteps, m.ndyn, m.nkin, m.max_contacts() if record_contacts else 0, trajectory_rows)
 
     def rollout_into(self, rec, q, v, qk, vk_seq, stop_on_failure=True):
         """`rollout` into the arrays `rec` (from `recording(nsteps)`, reusable: every row a rollout reads it writes

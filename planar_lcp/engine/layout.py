@@ -203,6 +203,7 @@ warm_size_saved    | i8    | dyn               | -          | step      | warm_s
 sparse_pair_mode   | i8    | pair x 2          | -          | sparse    | its contacts' modes in the last sparse answer
 sparse_pair_saved  | i8    | pair x 2          | -          | step      | sparse_pair_mode before a step
 warm_basic_z_saved | bool  | dyn x unknown     | -          | step      | warm_basic_z before a step
+body_energy        | f8    | dyn               | J          | rollout   | each body's energy term (Trajectory rows)
 """, init={'fail_size': -1, 'warm_size': -1, 'warm_size_saved': -1, 'sparse_pair_mode': -1, 'sparse_pair_saved': -1})
 
 OPTIONS_LAYOUT = _table("""

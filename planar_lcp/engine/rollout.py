@@ -30,80 +30,89 @@ Recording = namedtuple("Recording", ["q", "v", "qk", "stats", "status", "con_cou
 #: the Recording fields a chunk of a run gets whole (see Recording)
 RUN_ROWS = ("stat_rows", "stat_ints", "energy")
 
+
+def make_recording(nsteps, ndyn, nkin, contacts=0, rows=False):
+    """The Recording of a rollout of nsteps steps of ndyn dynamic and nkin kinematic bodies, with room for
+    `contacts` contacts a step (0: none recorded) and, with `rows`, the Trajectory's rows (written up to the steps
+    done, all that simulate reads: not zeroed)."""
+    C, R = contacts, (nsteps if rows else 0)
+    return Recording(q=np.zeros((nsteps + 1, ndyn, 3)), v=np.zeros((nsteps + 1, ndyn, 3)),
+                     qk=np.zeros((nsteps + 1, nkin, 3)), stats=np.zeros((nsteps, NSTAT)),
+                     status=np.zeros(nsteps, np.int64), con_count=np.zeros(nsteps if C else 0, np.int64),
+                     con_pair=np.zeros((nsteps, C), np.int64), con_phi=np.zeros((nsteps, C)),
+                     con_n=np.zeros((nsteps, C, 2)), con_p=np.zeros((nsteps, C, 2)), con_cn=np.zeros((nsteps, C)),
+                     con_ft=np.zeros((nsteps, C)), con_vt=np.zeros((nsteps, C)),
+                     con_mode=np.zeros((nsteps, C), np.int64), stat_rows=np.empty((NSTAT if R else 0, R)),
+                     stat_ints=np.empty((len(INT_STATS) if R else 0, R), np.int64), energy=np.empty(R + 1 if R else 0))
+
 #: numpy's pairwise summation works in blocks of this many terms (numpy/_core/src/umath/loops_utils.h.src)
 PAIRWISE_BLOCK = 128
 
 
-@njit(cache=True, inline='always')
-def _energy_term(m, q, v, b, kinetic):
-    """Body b's kinetic energy 0.5 m |v|^2 + 0.5 I omega^2, or m (g . x) (the potential energy's negative), as
-    planar_lcp.trajectory computes them elementwise: the same operations in the same order."""
-    if kinetic:
-        return (0.5 * m.dyn_mass[b] * (v[b, 0] * v[b, 0] + v[b, 1] * v[b, 1])
-                + 0.5 * m.dyn_inertia[b] * (v[b, 2] * v[b, 2]))
-    return m.dyn_mass[b] * (m.gravity[0] * q[b, 0] + m.gravity[1] * q[b, 1])
-
-
 @njit(cache=True, _nrt=False)
-def _pairwise_energy(m, q, v, lo, n, kinetic):
-    """The sum of the energy terms of bodies lo .. lo + n - 1 as numpy's pairwise summation adds them (`np.sum` of
-    a row: sequential below 8 terms, 8 partial sums up to a block, halves above), so that the Trajectory's energy
-    is `planar_lcp.trajectory.energy` bit for bit (tests/test_sim_scenes.py)."""
+def pairwise_sum(a, lo, n):
+    """a[lo] + ... + a[lo + n - 1] as numpy's pairwise summation adds them (what `np.sum` of a row does: sequential
+    below 8 terms, 8 partial sums up to a block of PAIRWISE_BLOCK, halves above), so that the Trajectory's energy is
+    `planar_lcp.trajectory.energy` bit for bit (tests/test_sim_scenes.py)."""
     if n < 8:
         res = -0.0
-        for b in range(lo, lo + n):
-            res += _energy_term(m, q, v, b, kinetic)
+        for i in range(lo, lo + n):
+            res += a[i]
         return res
     if n <= PAIRWISE_BLOCK:
-        r0 = _energy_term(m, q, v, lo, kinetic)
-        r1 = _energy_term(m, q, v, lo + 1, kinetic)
-        r2 = _energy_term(m, q, v, lo + 2, kinetic)
-        r3 = _energy_term(m, q, v, lo + 3, kinetic)
-        r4 = _energy_term(m, q, v, lo + 4, kinetic)
-        r5 = _energy_term(m, q, v, lo + 5, kinetic)
-        r6 = _energy_term(m, q, v, lo + 6, kinetic)
-        r7 = _energy_term(m, q, v, lo + 7, kinetic)
+        r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+        r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
         i = 8
         while i < n - n % 8:
-            r0 += _energy_term(m, q, v, lo + i, kinetic)
-            r1 += _energy_term(m, q, v, lo + i + 1, kinetic)
-            r2 += _energy_term(m, q, v, lo + i + 2, kinetic)
-            r3 += _energy_term(m, q, v, lo + i + 3, kinetic)
-            r4 += _energy_term(m, q, v, lo + i + 4, kinetic)
-            r5 += _energy_term(m, q, v, lo + i + 5, kinetic)
-            r6 += _energy_term(m, q, v, lo + i + 6, kinetic)
-            r7 += _energy_term(m, q, v, lo + i + 7, kinetic)
+            r0 += a[lo + i]
+            r1 += a[lo + i + 1]
+            r2 += a[lo + i + 2]
+            r3 += a[lo + i + 3]
+            r4 += a[lo + i + 4]
+            r5 += a[lo + i + 5]
+            r6 += a[lo + i + 6]
+            r7 += a[lo + i + 7]
             i += 8
         res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
         while i < n:
-            res += _energy_term(m, q, v, lo + i, kinetic)
+            res += a[lo + i]
             i += 1
         return res
     half = n // 2
     half -= half % 8
-    return _pairwise_energy(m, q, v, lo, half, kinetic) + _pairwise_energy(m, q, v, lo + half, n - half, kinetic)
+    return pairwise_sum(a, lo, half) + pairwise_sum(a, lo + half, n - half)
 
 
 @njit(cache=True, inline='always')
-def state_energy(m, q, v):
-    """Kinetic + potential energy (J) of the dynamic bodies at COM poses q and velocities v (ndyn, 3): what
-    `planar_lcp.trajectory.energy` gives for the row (numpy's sum over the bodies starts from 0.0)."""
+def sum_terms(terms, n):
+    """`pairwise_sum(terms, 0, n)`, its sequential case (fewer than 8 terms: every shipped scene but the piles) in
+    place of a call."""
+    if n < 8:
+        res = -0.0
+        for i in range(n):
+            res += terms[i]
+        return res
+    return pairwise_sum(terms, np.int64(0), n)     # np.int64: one compilation (a literal 0 would make another)
+
+
+@njit(cache=True, inline='always')
+def state_energy(m, q, v, terms):
+    """Kinetic + potential energy (J) of the dynamic bodies at COM poses q and velocities v (ndyn, 3), with `terms`
+    (ndyn,) as scratch: what `planar_lcp.trajectory.energy` gives for the row, each body's term computed by the same
+    operations in the same order and summed in numpy's order (its sum over the bodies starts from 0.0)."""
     nb = q.shape[0]
-    if nb < 8:       # numpy's sum of fewer than 8 terms, in place of a call of _pairwise_energy (issue M)
-        kinetic = -0.0
-        potential = -0.0
-        for b in range(nb):
-            kinetic += _energy_term(m, q, v, b, True)
-            potential += _energy_term(m, q, v, b, False)
-    else:
-        # np.int64 and np.bool_: one compilation of _pairwise_energy (literal arguments would each make another)
-        kinetic = _pairwise_energy(m, q, v, np.int64(0), nb, np.bool_(True))
-        potential = _pairwise_energy(m, q, v, np.int64(0), nb, np.bool_(False))
-    return (0.0 + kinetic) + -(0.0 + potential)
+    for b in range(nb):
+        terms[b] = (0.5 * m.dyn_mass[b] * (v[b, 0] * v[b, 0] + v[b, 1] * v[b, 1])
+                    + 0.5 * m.dyn_inertia[b] * (v[b, 2] * v[b, 2]))
+    kinetic = 0.0 + sum_terms(terms, nb)
+    for b in range(nb):
+        terms[b] = m.dyn_mass[b] * (m.gravity[0] * q[b, 0] + m.gravity[1] * q[b, 1])   # -(its potential energy)
+    potential = -(0.0 + sum_terms(terms, nb))
+    return kinetic + potential
 
 
 @njit(cache=True, _nrt=False)
-def record_rows(m, step0, done, rec):
+def record_rows(m, w, step0, done, rec):
     """The Trajectory rows of a rollout call's `done` steps at the run's step indices step0 ... (none if rec.energy
     is empty): the stats by stat, the integer-valued ones as integers (truncated, as numpy's astype(int)), the energy
     of each state from the call's first. Once per call, after its steps."""
@@ -116,7 +125,7 @@ def record_rows(m, step0, done, rec):
             for i in range(done):
                 rec.stat_ints[a, step0 + i] = int(rec.stats[i, k])
         for i in range(done + 1):
-            rec.energy[step0 + i] = state_energy(m, rec.q[i], rec.v[i])
+            rec.energy[step0 + i] = state_energy(m, rec.q[i], rec.v[i], w.body_energy)
 
 
 @njit(cache=True, inline='always')
@@ -197,7 +206,7 @@ def rollout_loop(step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, st
         if st != STEP_OK and stop_on_failure:
             done = i + 1
             break
-    record_rows(m, step0, done, rec)
+    record_rows(m, w, step0, done, rec)
     return done
 
 
