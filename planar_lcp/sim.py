@@ -462,8 +462,8 @@ _CONTACT_KEYS = [(k, {"con_n": "normal", "con_p": "point"}.get(k, k[4:]))
 
 def _trajectory_stats(out, done):
     """Trajectory.stats' rows of the first `done` steps of a rollout made with trajectory_rows: every stat by its
-    name, each a contiguous row, the integer-valued ones as int (the kernel writes them by stat as it goes: a
-    transposed copy and a conversion here took 15 to 20 us of a call, issue M)."""
+    name, each a contiguous row, the integer-valued ones as int (the rollout kernel writes them after each call's
+    steps, engine/rollout.py `record_rows`: a transposed copy and a conversion here took 15 to 20 us, issue M)."""
     rows = (out["stat_rows"], out["stat_ints"])
     return {name: rows[integer][row, :done] for name, integer, row in _STAT_SLOTS}
 
