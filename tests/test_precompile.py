@@ -40,6 +40,12 @@ def _run(body, cache, **env):
     return out.stdout.strip().splitlines()
 
 
+def _inline_overload(name):
+    """An `inline="always"` overload's implementation (layout.matrix_view's): typed in every process that compiles a
+    caller, and not a cached kernel of its own."""
+    return name.endswith("_overload.<locals>.impl")
+
+
 @pytest.mark.slow
 def test_a_planners_helper_caches_the_kernels_its_propagations_load(tmp_path):
     """The helper's work for a planner's model (compile_scene's single_kernel hint) on an empty cache, then a
@@ -48,7 +54,7 @@ def test_a_planners_helper_caches_the_kernels_its_propagations_load(tmp_path):
     pytest.importorskip("shapely")
     helper = json.loads(_run("from planar_lcp.engine.precompile import compile_kinds\n"
                              "compile_kinds(['lemke_kernel', 'pgs', 'lemke_reversed', 'lemke_small'])", tmp_path)[-1])
-    ours = {f for f in helper if f.startswith("planar_lcp.") and "._drive" not in f}
+    ours = {f for f in helper if f.startswith("planar_lcp.") and "._drive" not in f and not _inline_overload(f)}
     assert {"planar_lcp.engine.solvers.lemke.lemke_kernel", "planar_lcp.engine.assemble.assemble_lcp"} <= ours
     lines = _run("from planners.tasks import TaskModel\n"
                  "tm = TaskModel('push_box')\n"
@@ -66,7 +72,7 @@ def test_the_helpers_kernels_are_the_ones_the_step_loads_and_step_alike(tmp_path
     from planar_lcp import simulate
     helper = json.loads(_run("from planar_lcp.engine.precompile import compile_kinds\n"
                              "compile_kinds(['lemke_small_cold', 'pgs', 'lemke_small', 'projection'])", tmp_path)[-1])
-    ours = {f for f in helper if f.startswith("planar_lcp.") and "._drive" not in f}
+    ours = {f for f in helper if f.startswith("planar_lcp.") and "._drive" not in f and not _inline_overload(f)}
     assert {"planar_lcp.engine.solvers.lemke.lemke_kernel", "planar_lcp.engine.assemble.assemble_lcp",
             "planar_lcp.engine.islands.find_islands", "planar_lcp.engine.layout._new_struct"} <= ours
     lines = _run("import numpy as np\nfrom planar_lcp import simulate\n"
