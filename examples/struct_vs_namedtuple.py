@@ -17,8 +17,7 @@ import numpy as np
 from planar_lcp import load_scene
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
-from planar_lcp.engine.layout import NSTAT
-from planar_lcp.engine.rollout import Recording, rollout_lemke_full
+from planar_lcp.engine.rollout import make_recording, rollout_lemke_full
 
 kind, name = sys.argv[1], sys.argv[2]
 sc = load_scene(name)
@@ -26,10 +25,7 @@ sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
 m, w = (sim.kmodel, sim.kwork) if kind == "struct" else (sim.model.arrays, sim.work)
 q, v, qk, vk = sim.initial_state()
 n = 400
-z = np.zeros
-rec = Recording(z((n + 1,) + q.shape), z((n + 1,) + v.shape), z((n + 1,) + qk.shape), z((n, NSTAT)), z(n, np.int64),
-                z(0, np.int64), z((n, 0), np.int64), z((n, 0)), z((n, 0, 2)), z((n, 0, 2)), z((n, 0)), z((n, 0)),
-                z((n, 0)), z((n, 0), np.int64), z((0, 0)), z((0, 0), np.int64), z(0))
+rec = make_recording(n, q.shape[0], qk.shape[0])
 args = (m, q, v, qk, vk.reshape(1, -1, 3).copy(), 0, n, sim.h, sim.kopt, w, rec, False, True)
 t0 = time.perf_counter()
 rollout_lemke_full(*args)

@@ -15,7 +15,7 @@ import pytest
 
 from planar_lcp import load_scene, simulate
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.rollout import (Recording, rollout_lemke_full, rollout_lemke_full_small, rollout_lemke_small,
+from planar_lcp.engine.rollout import (make_recording, rollout_lemke_full, rollout_lemke_full_small, rollout_lemke_small,
                                        rollout_lemke_warm_small)
 from planar_lcp.engine.solvers.lemke import (default_max_pivots, lemke_from_basis, lemke_kernel,
                                              make_lemke_work)
@@ -216,12 +216,7 @@ def test_planner_propagation_warm_starts():
 def _full_variant_rollout(sim, q, v, qk, vk, n, stop_on_failure):
     """The rollout kernel of the step variant with the PGS fallback, called once from a fresh simulator."""
     C = sim.model.max_contacts()
-    rec = Recording(q=np.zeros((n + 1,) + q.shape), v=np.zeros((n + 1,) + v.shape), qk=np.zeros((n + 1,) + qk.shape),
-                    stats=np.zeros((n, sim.stats.shape[0])), status=np.zeros(n, np.int64),
-                    con_count=np.zeros(n, np.int64), con_pair=np.zeros((n, C), np.int64), con_phi=np.zeros((n, C)),
-                    con_n=np.zeros((n, C, 2)), con_p=np.zeros((n, C, 2)), con_cn=np.zeros((n, C)),
-                    con_ft=np.zeros((n, C)), con_vt=np.zeros((n, C)), con_mode=np.zeros((n, C), np.int64),
-                    stat_rows=np.zeros((0, 0)), stat_ints=np.zeros((0, 0), np.int64), energy=np.zeros(0))
+    rec = make_recording(n, q.shape[0], qk.shape[0], C)
     done = rollout_lemke_full(sim.kmodel, q, v, qk, vk[None], 0, n, sim.h, sim.kopt, sim.kwork, rec, stop_on_failure,
                               True)
     return int(done), rec._asdict()
