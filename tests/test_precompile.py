@@ -165,6 +165,48 @@ def test_the_cold_start_example_runs_end_to_end():
     assert "this tree: median" in run.stdout
 
 
+@pytest.mark.slow
+def test_the_compile_events_example_logs_every_process(tmp_path):
+    """docs/performance.md's per-process compile figures: `python examples/compile_events.py` end to end on a cold
+    `simulate` (the command, its background compilation and that one's second process). Each process's compile
+    events are exclusive (a function's time less the functions it compiled on the way), so their sum cannot exceed
+    the process's CPU time; the background compiled the run's rollout kernel, which the command itself did not."""
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ)
+    env.pop("NUMBA_DISABLE_JIT", None)
+    out = tmp_path / "events.json"
+    run = subprocess.run([sys.executable, str(root / "examples" / "compile_events.py"), "--top", "3", "--json",
+                          str(out), "--", "simulate", "falling_rod", "--t-end", "0.01"], capture_output=True,
+                         text=True, env=env, timeout=900)
+    assert run.returncode == 0, run.stderr
+    assert "simulate falling_rod --t-end 0.01, empty numba cache:" in run.stdout
+    procs = json.loads(out.read_text())
+    roles = [Path(p["argv"][0]).name for p in procs]
+    assert "background.py" in roles and "precompile.py" in roles, roles
+    for p in procs:
+        assert sum(e["cpu"] for e in p["events"]) <= p["cpu"] + 0.05, (p["argv"], p["cpu"])
+    names = {Path(p["argv"][0]).name: {e["name"] for e in p["events"]} for p in procs}
+    assert "planar_lcp.engine.rollout.rollout_lemke_small" in names["background.py"]
+    assert "planar_lcp.engine.rollout.rollout_lemke_small" not in names["planar-lcp"]
+    assert "background compilation (planar_lcp/background.py), pid" in run.stdout
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--top", "-1", "--", "scenes"], "--top must be >= 0, got -1"),
+    (["--json", "/nonexistent_dir_x/e.json", "--", "scenes"], "--json: the directory of /nonexistent_dir_x/e.json"),
+    ([], "give the command after --"),
+])
+def test_the_compile_events_example_refuses_bad_arguments_before_running(args, message):
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    run = subprocess.run([sys.executable, str(root / "examples" / "compile_events.py"), *args], capture_output=True,
+                         text=True, timeout=120)
+    assert run.returncode == 2
+    assert message in run.stderr
+    assert "Traceback" not in run.stderr
+
+
 def _inlined_kernel():
     """A fresh kernel (not cached) with two levels of inline='always' callees, each called at two sites."""
     from numba import njit
