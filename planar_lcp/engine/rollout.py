@@ -11,10 +11,9 @@ import numpy as np
 from numba import njit
 
 from planar_lcp.engine.layout import INT_STATS, NSTAT, Stat
-from planar_lcp.engine.solvers.lemke import solve_island_lemke, solve_island_lemke_small
-from planar_lcp.engine.solvers.pgs import solve_island_pgs
-from planar_lcp.engine.step import (STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE, STEP_OK, step_lemke, step_lemke_full,
-                                    step_lemke_full_small, step_lemke_small, step_pgs, step_pipeline)
+from planar_lcp.engine.step import (STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE, STEP_OK, lemke_step, lemke_step_full,
+                                    lemke_step_full_small, lemke_step_small, lemke_step_warm, lemke_step_warm_small,
+                                    pgs_step)
 
 #: A rollout's output buffers. States q, v (nsteps + 1, ndyn, 3) and qk (nsteps + 1, nkin, 3), row 0 the initial
 #: state; per step: stats (nsteps, NSTAT), status (nsteps,) STEP_* codes, and the contacts of the step's active set
@@ -210,66 +209,53 @@ def rollout_loop(step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, st
     return done
 
 
-# The compiled variants, one per step variant (same arguments as `rollout_loop` without `step`).
+# The compiled variants, one per step variant (same arguments as `rollout_loop` without `step`), each with its step
+# inlined into the loop (engine/step.py: the step variants).
 
 @njit(cache=True, _nrt=False)
 def rollout_lemke(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
-    return rollout_loop(step_lemke, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
+    return rollout_loop(lemke_step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                         reset_warm_start)
 
 
 @njit(cache=True, _nrt=False)
 def rollout_lemke_full(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
-    return rollout_loop(step_lemke_full, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
+    return rollout_loop(lemke_step_full, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                         reset_warm_start)
 
 
 @njit(cache=True, _nrt=False)
 def rollout_lemke_small(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
-    return rollout_loop(step_lemke_small, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
+    return rollout_loop(lemke_step_small, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                         reset_warm_start)
 
 
 @njit(cache=True, _nrt=False)
 def rollout_lemke_full_small(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                              reset_warm_start):
-    return rollout_loop(step_lemke_full_small, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec,
+    return rollout_loop(lemke_step_full_small, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec,
                         stop_on_failure, reset_warm_start)
 
 
 @njit(cache=True, _nrt=False)
 def rollout_pgs(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
-    return rollout_loop(step_pgs, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
+    return rollout_loop(pgs_step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                         reset_warm_start)
 
 
 # The planners' kernels (`SimOptions(single_kernel=True)` or the warm start, position forms: sim.py `_variants`): the
-# warm start and the PGS fallback, without the velocity form's projection (a velocity-form step is handed back,
-# STEP_NEEDS_FALLBACK, to the full kernel), and the step inlined into the loop instead of a kernel of its own. A
-# position-form step never reaches the projection, so they step as `rollout_lemke_full(_small)` bit for bit; a cold
-# cache compiles the step once (not as a kernel, then again linked into the rollout) and without the projection:
-# 8.1 s of CPU against 13.0 s with every other kernel cached (docs/performance.md, "Compile time").
-
-@njit(cache=True, inline='always')
-def _step_lemke_warm(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    return step_pipeline(solve_island_lemke, solve_island_pgs, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out,
-                         stats)
-
-
-@njit(cache=True, inline='always')
-def _step_lemke_warm_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    return step_pipeline(solve_island_lemke_small, solve_island_pgs, None, m, q, v, qk, vk, h, opt, w, q_out, v_out,
-                         qk_out, stats)
-
+# warm start and the PGS fallback, without the velocity form's projection (engine/step.py `lemke_step_warm`), so they
+# step as `rollout_lemke_full(_small)` bit for bit; a cold cache compiles the step without the projection: 8.1 s of
+# CPU against 13.0 s with every other kernel cached (docs/performance.md, "Compile time").
 
 @njit(cache=True, _nrt=False)
 def rollout_lemke_warm(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
-    return rollout_loop(_step_lemke_warm, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
+    return rollout_loop(lemke_step_warm, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                         reset_warm_start)
 
 
 @njit(cache=True, _nrt=False)
 def rollout_lemke_warm_small(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                              reset_warm_start):
-    return rollout_loop(_step_lemke_warm_small, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec,
+    return rollout_loop(lemke_step_warm_small, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec,
                         stop_on_failure, reset_warm_start)

@@ -369,38 +369,91 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
     return write_outputs(w, ncon, q_out, v_out, stats, fp_iter, worst)
 
 
-# The compiled variants (each a cached kernel of its own). Simulator picks one by solver and formulation.
+# The step variants, each defined once, inline: the rollout kernels inline their step into their loop
+# (engine/rollout.py), so a cold cache compiles a run's step once, not as a kernel of its own and again linked into
+# the rollout (the background compilation of a cold `simulate falling_rod` ended 1.5 s sooner: docs/performance.md,
+# "Compile time"). The step kernels below (`Simulator.step`) are the same functions, each a cached kernel of its own,
+# compiled only when a run calls them.
 
-@njit(cache=True, _nrt=False)
-def step_lemke(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """Lemke, position forms, no fallback and no warm start: the smallest kernel, the default's (PGS, the projection
-    and the warm start compile only when a run needs them; a run with opt.warm_start takes `step_lemke_full`)."""
+@njit(cache=True, inline='always')
+def lemke_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """Lemke, position forms, no fallback and no warm start: the smallest variant, the default's (PGS, the projection
+    and the warm start compile only when a run needs them; a run with opt.warm_start takes `lemke_step_full`)."""
     return step_pipeline(solve_island_lemke_cold, None, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
 
 
-@njit(cache=True, _nrt=False)
-def step_lemke_full(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+@njit(cache=True, inline='always')
+def lemke_step_full(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     """Lemke with the PGS fallback, the velocity form's projection and the warm start."""
     return step_pipeline(solve_island_lemke, solve_island_pgs, project_positions, m, q, v, qk, vk, h, opt, w, q_out,
                          v_out, qk_out, stats)
 
 
-@njit(cache=True, _nrt=False)
-def step_lemke_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """`step_lemke` for a model whose islands stay below opt.sparse_min unknowns (`solve_island_lemke_small_cold`)."""
+@njit(cache=True, inline='always')
+def lemke_step_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """`lemke_step` for a model whose islands stay below opt.sparse_min unknowns (`solve_island_lemke_small_cold`)."""
     return step_pipeline(solve_island_lemke_small_cold, None, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out,
                          stats)
 
 
-@njit(cache=True, _nrt=False)
-def step_lemke_full_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """`step_lemke_full` for a model whose islands stay below opt.sparse_min unknowns."""
+@njit(cache=True, inline='always')
+def lemke_step_full_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """`lemke_step_full` for a model whose islands stay below opt.sparse_min unknowns."""
     return step_pipeline(solve_island_lemke_small, solve_island_pgs, project_positions, m, q, v, qk, vk, h, opt, w,
                          q_out, v_out, qk_out, stats)
 
 
-@njit(cache=True, _nrt=False)
-def step_pgs(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+@njit(cache=True, inline='always')
+def pgs_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     """PGS (never fails, so no fallback) with the velocity form's projection."""
     return step_pipeline(solve_island_pgs, None, project_positions, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out,
                          stats)
+
+
+@njit(cache=True, inline='always')
+def lemke_step_warm(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """The planners' variant (engine/rollout.py `rollout_lemke_warm`): `lemke_step_full` without the velocity form's
+    projection, which a position-form step never reaches (a velocity-form step is handed back, STEP_NEEDS_FALLBACK, to
+    the full kernel). Its steps are `lemke_step_full`'s bit for bit; it has no step kernel of its own
+    (`Simulator.step` runs `step_lemke_full`)."""
+    return step_pipeline(solve_island_lemke, solve_island_pgs, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out,
+                         stats)
+
+
+@njit(cache=True, inline='always')
+def lemke_step_warm_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """`lemke_step_warm` for a model whose islands stay below opt.sparse_min unknowns."""
+    return step_pipeline(solve_island_lemke_small, solve_island_pgs, None, m, q, v, qk, vk, h, opt, w, q_out, v_out,
+                         qk_out, stats)
+
+
+# The step kernels (each a cached kernel of its own). Simulator picks one by solver and formulation.
+
+@njit(cache=True, _nrt=False)
+def step_lemke(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """`lemke_step` as a kernel."""
+    return lemke_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
+
+
+@njit(cache=True, _nrt=False)
+def step_lemke_full(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """`lemke_step_full` as a kernel."""
+    return lemke_step_full(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
+
+
+@njit(cache=True, _nrt=False)
+def step_lemke_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """`lemke_step_small` as a kernel."""
+    return lemke_step_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
+
+
+@njit(cache=True, _nrt=False)
+def step_lemke_full_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """`lemke_step_full_small` as a kernel."""
+    return lemke_step_full_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
+
+
+@njit(cache=True, _nrt=False)
+def step_pgs(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+    """`pgs_step` as a kernel."""
+    return pgs_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
