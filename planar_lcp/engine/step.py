@@ -27,8 +27,9 @@ from planar_lcp.engine.solvers.pgs import solve_island_pgs
 
 # The stages are inline='always' (and so are the island solvers, through the pipeline's arguments): every separately
 # compiled numba function links in its callees and generates their machine code again, so a stack of separately
-# compiled stages would compile the collision, assembly and Lemke kernels once per stage. The variants below and the
-# leaf kernels they call (find_contacts, assemble_lcp, lemke_kernel, ...) are the separately compiled functions.
+# compiled stages would compile the collision, assembly and Lemke kernels once per stage. The step kernels below, the
+# rollout kernels (engine/rollout.py) and the leaf kernels they call (find_contacts, assemble_lcp, lemke_kernel, ...)
+# are the separately compiled functions.
 
 # formulation codes: the index of each name in spec.scene.FORMULATIONS (sim.FORMULATIONS maps the names to them)
 FORM_POSITION, FORM_FIXED_POINT, FORM_VELOCITY = 0, 1, 2
@@ -371,9 +372,9 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
 
 # The step variants, each defined once, inline: the rollout kernels inline their step into their loop
 # (engine/rollout.py), so a cold cache compiles a run's step once, not as a kernel of its own and again linked into
-# the rollout (the background compilation of a cold `simulate falling_rod` ended 1.5 s sooner: docs/performance.md,
-# "Compile time"). The step kernels below (`Simulator.step`) are the same functions, each a cached kernel of its own,
-# compiled only when a run calls them.
+# the rollout (the background compilation of a cold `simulate falling_rod` ended by 18.1-18.4 s against 19.9-20.2 s:
+# docs/performance.md, "Issue M, eighth session"). The step kernels below (`Simulator.step`) are the same functions,
+# each a cached kernel of its own, compiled only when a run calls them.
 
 @njit(cache=True, inline='always')
 def lemke_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
