@@ -23,12 +23,20 @@ HERE = Path(__file__).resolve().parents[1]
 _MAIN = "import sys; from planar_lcp.cli import main; sys.argv[0] = 'planar-lcp'; sys.exit(main())"
 
 
-def cold_run(tree, args, helper=True):
+def cold_run(tree, args, helper=True, env_extra=None, path_first=None):
     """(seconds of wall clock for `planar-lcp ARGS` run from `tree`'s sources on an empty numba cache, seconds until
-    a background compilation it started has ended too: the same when there is none)."""
+    a background compilation it started has ended too: the same when there is none). env_extra: more environment
+    variables for the run (a value None removes one); path_first: a directory put on PYTHONPATH before `tree`
+    (examples/compile_events.py's sitecustomize)."""
     with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as cwd:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(tree),
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache,
+                   PYTHONPATH=os.pathsep.join(str(p) for p in (path_first, tree) if p is not None),
                    PLANAR_LCP_PRECOMPILE="1" if helper else "0")
+        for name, value in (env_extra or {}).items():
+            if value is None:
+                env.pop(name, None)
+            else:
+                env[name] = value
         t0 = time.perf_counter()
         out = subprocess.run([sys.executable, "-c", _MAIN, *args], cwd=cwd, env=env, capture_output=True, text=True)
         dt = time.perf_counter() - t0

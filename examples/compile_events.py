@@ -15,17 +15,12 @@ as examples/cold_start.py does. Another `sitecustomize` the interpreter would ha
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from planar_lcp.background import Background, lock_file
-
-HERE = Path(__file__).resolve().parents[1]
-_MAIN = "import sys; from planar_lcp.cli import main; sys.argv[0] = 'planar-lcp'; sys.exit(main())"
+from cold_start import HERE, cold_run  # examples/cold_start.py, beside this script
 
 # The listener, as the child processes' sitecustomize: imported at interpreter start-up, it waits for numba's own
 # import (a meta-path finder) so that it neither imports numba earlier nor slows a process that never compiles.
@@ -98,23 +93,16 @@ def role(argv):
 
 
 def run_logged(tree, args):
-    """Run `planar-lcp ARGS` from `tree`'s sources on an empty cache with the listener in every process. Returns
-    (wall clock of the command, seconds until a background compilation it started ended, the processes' logs sorted
-    by start, the command's CompletedProcess)."""
-    with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as cwd, \
-            tempfile.TemporaryDirectory() as site, tempfile.TemporaryDirectory() as logs:
+    """Run `planar-lcp ARGS` from `tree`'s sources on an empty cache with the listener in every process
+    (examples/cold_start.py `cold_run`). Returns (wall clock of the command, seconds until a background compilation
+    it started ended, the processes' logs sorted by start)."""
+    with tempfile.TemporaryDirectory() as site, tempfile.TemporaryDirectory() as logs:
         Path(site, "sitecustomize.py").write_text(_SITECUSTOMIZE)
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=os.pathsep.join([site, str(tree)]),
-                   PLANAR_LCP_COMPILE_EVENTS=logs)
-        env.pop("NUMBA_DISABLE_JIT", None)
-        t0 = time.perf_counter()
-        out = subprocess.run([sys.executable, "-c", _MAIN, *args], cwd=cwd, env=env, capture_output=True, text=True)
-        wall = time.perf_counter() - t0
-        Background(None, lock_file(cache), 0.0).wait()
-        ended = time.perf_counter() - t0
+        wall, ended = cold_run(tree, args, env_extra={"PLANAR_LCP_COMPILE_EVENTS": logs, "NUMBA_DISABLE_JIT": None},
+                               path_first=site)
         time.sleep(0.2)                 # a stopped helper's log is written as it exits
         procs = sorted((json.loads(p.read_text()) for p in Path(logs).glob("*.json")), key=lambda r: r["start"])
-    return wall, ended, procs, out
+    return wall, ended, procs
 
 
 def report(procs, top):
@@ -155,9 +143,7 @@ def main():
         ap.error(f"--top must be >= 0, got {a.top}")
     if a.json and not Path(a.json).resolve().parent.is_dir():
         ap.error(f"--json: the directory of {a.json} does not exist")
-    wall, ended, procs, out = run_logged(Path(a.tree), args)
-    if out.returncode != 0:
-        sys.exit(f"planar-lcp {' '.join(args)} failed (exit status {out.returncode}):\n{out.stderr}")
+    wall, ended, procs = run_logged(Path(a.tree), args)
     if not procs:
         sys.exit("no process wrote a compile log (was the sitecustomize shadowed?)")
     print(f"planar-lcp {' '.join(args)}, empty numba cache: {wall:.1f} s wall clock"
