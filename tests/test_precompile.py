@@ -87,19 +87,21 @@ def test_the_helpers_kernels_are_the_ones_the_step_loads_and_step_alike(tmp_path
 
 
 def test_the_helper_starts_only_on_a_cold_cache(monkeypatch):
-    """In this process the kernels are compiled (or cached) once any test has simulated: no helper. Nor with the
-    switch off, nor on one CPU. A cold cache (faked) starts one, once per process, with the model's kinds."""
-    from planar_lcp import simulate
+    """Once the run's rollout kernel is compiled (or loaded) in this process: no helper. Nor with the switch off, nor
+    on one CPU. A cold cache (faked) starts one, once per process, with the model's kinds."""
     from planar_lcp.model import compile_scene
+    from planar_lcp.sim import SimOptions, Simulator
     from planar_lcp.spec.scene import load_scene
     if precompile.numba.config.DISABLE_JIT:
         pytest.skip("no JIT: nothing compiles")
-    simulate("falling_rod", t_end=0.01)
-    model = compile_scene(load_scene("falling_rod"))
+    scene = load_scene("falling_rod")
+    model = compile_scene(scene)
+    # a Simulator of its own compiles in the foreground (`simulate` on a cold cache would run as Python instead,
+    # leaving the kernel to a background process: this test then depended on an earlier run having warmed the cache)
+    Simulator(model, SimOptions(h=scene.sim.h)).rollout(model.q0, model.v0, model.qk0, model.vk0[None], 1)
     monkeypatch.setattr(precompile, "_helper", None)
     assert precompile.start_if_cold(model) is None                       # compiled here: warm
     # the drivers' options are typed as the step's (SimOptions.kernel_options)
-    from planar_lcp.sim import SimOptions
     assert precompile._options_type() == precompile.numba.typeof(SimOptions(h=0.01).kernel_options())
     started = []
 
