@@ -23,14 +23,14 @@ from planar_lcp.sim import SimOptions, Simulator
 @njit
 def _full(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st, n):
     for _ in range(n):
-        S.step_lemke(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st)
+        S.lemke_step(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st)
 
 
 @njit
 def _full_warm(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st, n):
-    # the warm start's code is in the kernel with the fallbacks only (the simulator runs that one with warm_start)
+    # the same step, run with opt.warm_start
     for _ in range(n):
-        S.step_lemke_full(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st)
+        S.lemke_step(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st)
 
 
 @njit

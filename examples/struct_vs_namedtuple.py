@@ -17,7 +17,7 @@ import numpy as np
 from planar_lcp import load_scene
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
-from planar_lcp.engine.rollout import make_recording, rollout_lemke_full
+from planar_lcp.engine.rollout import make_recording, rollout_lemke
 
 kind, name = sys.argv[1], sys.argv[2]
 sc = load_scene(name)
@@ -28,12 +28,12 @@ n = 400
 rec = make_recording(n, q.shape[0], qk.shape[0])
 args = (m, q, v, qk, vk.reshape(1, -1, 3).copy(), 0, n, sim.h, sim.kopt, w, rec, False, True)
 t0 = time.perf_counter()
-rollout_lemke_full(*args)
+rollout_lemke(*args)
 t1 = time.perf_counter()
 best = np.inf
 for _ in range(10):
     t = time.perf_counter()
-    rollout_lemke_full(*args)
+    rollout_lemke(*args)
     best = min(best, time.perf_counter() - t)
 print(f"{t1 - t0:.1f} {best / n * 1e6:.2f}")
 """

@@ -1,30 +1,58 @@
-"""The background compilation of a cold cache's first run (issue M: docs/performance.md, "Issue M, sixth session").
+"""The simulation kernels compiled once, in a process of their own, on a cold numba cache.
 
-`Simulator(..., python_while_cold=True)`, what `simulate` makes, calls `start_background(model, options)` when the
-run's rollout kernel is neither compiled in this process nor in numba's cache: a process of its own compiles what a
-run of (model, options) compiles, as a cold run in the foreground would (engine/precompile.py's helper included),
-while the run goes on as Python (engine/interpreted.py) and switches to the kernels once they are in the cache. The
-process outlives the run if it must, so that the next run finds the kernels cached. One such process per cache
-directory at a time, by a lock file there holding its pid.
+No kernel's type depends on a scene: the model and work structs have the same fields for every scene (sizes are
+run-time values), and every Lemke run, whatever its plane, formulation, options, large islands, force-limited or
+turning kinematic bodies, takes the one rollout kernel `rollout_lemke` (engine/rollout.py). So one compilation
+serves every scene, and `compile_kernels` makes it on a small built-in scene.
+
+What compiles, by set:
+
+- "default": what a run with the default solver reaches: the model's and the work buffers' structs, the contacts of
+  one configuration (a scene's start-overlap check, the pymunk bridge), the limit surface's fixed twists, the rollout
+  kernel, the checks of a failed step (planar_lcp/infeasibility.py) and `planar_lcp.lemke`.
+- "all" (`planar-lcp warmup`): "default", and the solver "pgs"'s rollout kernel and the kernels the solver "osqp"'s
+  Python pipeline calls (where osqp is installed).
+
+A cold run (`Simulator`, `compile_scene`) calls `start_background()`: the process `python -m planar_lcp.background`
+compiles the default set into numba's cache while the run goes on as Python (`simulate`) or waits for it (Ctrl-C
+stops the wait at once; the compilation goes on, so the next run finds the cache warm); its second core goes to the
+helper of engine/precompile.py, which compiles the island solvers meanwhile. One such process per cache directory at
+a time, by a lock file there holding its pid; a run that finds one running waits for it instead of starting another.
 """
 
 import os
-import pickle
 import subprocess
 import sys
-import tempfile
 import time
 
 import numba
 import numpy as np
 
 from planar_lcp.engine.compile_notice import COLD_START_SECONDS, announce_background
-from planar_lcp.engine.contacts import contacts_at
-from planar_lcp.engine.limit_surface import unit_load_wrench
-from planar_lcp.engine.precompile import may_start, start_if_cold
+from planar_lcp.engine.interpreted import compiled
+from planar_lcp.engine.precompile import may_start, start_helper
 
 #: the lock file's name in numba's cache directory
 BACKGROUND_LOCK = "planar_lcp_compiling.pid"
+
+#: the kernel sets of `compile_kernels`
+KERNEL_SETS = ("default", "all")
+
+#: The built-in scene the kernels compile on (a run's kernels are typed alike for every scene): a box pushed on a
+#: table (limit surface) by a force-limited disk against a wall, so that every stage of the step runs.
+SAMPLE_SCENE = {
+    "name": "compile_sample",
+    "world": {"plane": "horizontal", "support_gravity": 9.81, "friction": 0.3},
+    "sim": {"h": 0.01, "t_end": 0.05},
+    "bodies": [
+        {"name": "box", "type": "dynamic", "mass": 1.0, "position": [0.0, 0.0], "support_friction": 0.35,
+         "shapes": [{"type": "box", "width": 0.2, "height": 0.1}]},
+        {"name": "pusher", "type": "kinematic", "position": [-0.12, 0.02], "velocity": [0.1, 0.0],
+         "max_force": 50.0, "shapes": [{"type": "disk", "radius": 0.02}]},
+        {"name": "wall", "type": "static", "position": [0.3, 0.0],
+         "shapes": [{"type": "box", "width": 0.05, "height": 0.5}]},
+    ],
+}
 
 
 def lock_file(cache_dir):
@@ -58,6 +86,8 @@ class Background:
 
 
 _background = None
+#: True in the background process itself: its own runs compile in-process
+_inside = False
 
 
 def started():
@@ -76,12 +106,22 @@ def _lock_holder(lock):
     return pid
 
 
-def start_background(model, options):
-    """Compile the kernels that `Simulator(model, options)` runs in a background process, if a second process may
-    compile (engine/precompile.py `may_start`) and numba has a cache directory; at most one per cache directory (a
-    running one is returned instead of a new one). The caller has found the cache cold. Returns a `Background`, or
-    None: the caller then compiles in-process."""
+def default_kernel():
+    """The kernel whose presence in numba's cache says the default set is compiled (the set's largest)."""
+    from planar_lcp.engine.rollout import rollout_lemke
+    return rollout_lemke
+
+
+def start_background(kernel=None):
+    """On a cold cache, start the background compilation of the default set (module docstring), or join the one
+    another process runs; `kernel`: the rollout kernel the caller needs (default `rollout_lemke`). Returns a
+    `Background`, or None when there is nothing to wait for: the kernel is compiled or cached, it is not one the
+    background compiles, or no second process may compile (engine/precompile.py `may_start`: the JIT off, one CPU,
+    PLANAR_LCP_PRECOMPILE=0) or numba has no cache directory; the caller then compiles in-process."""
     global _background
+    kernel = default_kernel() if kernel is None else kernel
+    if _inside or kernel is not default_kernel() or compiled(kernel):
+        return None
     cache_dir = numba.config.CACHE_DIR
     if not may_start() or not cache_dir:
         return None
@@ -90,25 +130,36 @@ def start_background(model, options):
     lock = lock_file(cache_dir)
     if _lock_holder(lock) is not None:         # another process's: this run waits for it as for its own
         try:
-            started = os.path.getmtime(lock)
+            started_at = os.path.getmtime(lock)
         except OSError:
-            started = time.time()
-        return Background(None, lock, started)
+            started_at = time.time()
+        return Background(None, lock, started_at)
     try:
         os.makedirs(cache_dir, exist_ok=True)
-        fd, payload = tempfile.mkstemp(prefix="planar_lcp_run_", suffix=".pickle", dir=cache_dir)
-        with os.fdopen(fd, "wb") as f:
-            pickle.dump((model, options), f)
         env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
-        popen = subprocess.Popen([sys.executable, "-m", __name__, payload], env=env,
-                                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                 start_new_session=True)
-    except (OSError, pickle.PicklingError, TypeError, AttributeError):
+        # a session of its own: a Ctrl-C at the terminal stops the run, not the compilation the next run needs
+        popen = subprocess.Popen([sys.executable, "-m", __name__, "default"], env=env, stdin=subprocess.DEVNULL,
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    except OSError:
         return None
     _take_lock(lock, popen.pid)  # for it, now: it takes the lock as its own once it has imported numba
     _background = Background(popen, lock, time.time())
     announce_background()
     return _background
+
+
+def wait_for(kernel):
+    """Before a first call of `kernel` (a numba dispatcher of the default set) from Python: on a cold cache, start
+    the background compilation (or join the running one) and wait, Ctrl-C stopping the wait, until `kernel` is in
+    numba's cache; at once when it is compiled or cached, or when no background can run (the call then compiles
+    it in-process)."""
+    from planar_lcp.interrupt import raise_if_interrupted
+    if _inside or compiled(kernel):
+        return
+    bg = start_background()
+    while bg is not None and bg.running() and not compiled(kernel):
+        time.sleep(0.05)
+        raise_if_interrupted()
 
 
 def _take_lock(lock, pid):
@@ -134,28 +185,90 @@ def _take_lock(lock, pid):
     return False
 
 
-def _compile_in_background(payload):
-    """The background process: the kernels of a run of (model, options) from `payload`, compiled into the cache as a
-    cold run in the foreground compiles them: the model's (the start-overlap check's contacts, the limit surfaces'
-    fixed columns), the structs' constructors, the first rollout kernel (one step of the run)."""
-    lock = lock_file(numba.config.CACHE_DIR)
+def sample_model():
+    """The built-in scene's Model (SAMPLE_SCENE)."""
+    from planar_lcp.model import compile_scene
+    from planar_lcp.spec.scene import parse_scene
+    return compile_scene(parse_scene(SAMPLE_SCENE, source="planar_lcp.background.SAMPLE_SCENE"))
+
+
+def compilation_stages(kernel_set="default"):
+    """The stages of `compile_kernels(kernel_set)`, in order: (label, function of no arguments)."""
+    if kernel_set not in KERNEL_SETS:
+        raise ValueError(f"kernel_set must be one of {', '.join(KERNEL_SETS)}, got {kernel_set!r}")
+    from planar_lcp.engine.contacts import contacts_at
+    from planar_lcp.engine.limit_surface import unit_load_wrench
+    from planar_lcp.sim import SimOptions, Simulator
+
+    state = {}
+
+    def structs():
+        model = state["model"] = sample_model()
+        model.struct
+        Simulator(model, SimOptions(h=0.01)).kwork
+
+    def contacts():
+        model = state["model"]
+        contacts_at(model.arrays, model.q0, model.qk0, 0.0, m=model.struct)
+        unit_load_wrench(model.struct, 0, 1.0, 0.0, 0.0, np.zeros(3))
+
+    def run(solver):
+        def stage():
+            model = state["model"]
+            sim = Simulator(model, SimOptions(h=0.01, solver=solver))
+            sim.rollout(model.q0, model.v0, model.qk0, model.vk0[None], 1, record_contacts=True,
+                        trajectory_rows=True)
+        return stage
+
+    def checks():
+        from planar_lcp.engine.solvers.lemke import lcp_scale
+        from planar_lcp.lcp import lemke
+        A, b = np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0])
+        lcp_scale(A, b)
+        lemke(A, b)
+
+    stages = [("structs", structs), ("contacts", contacts), ("step (lemke)", run("lemke")), ("checks", checks)]
+    if kernel_set == "all":
+        stages.append(("step (pgs)", run("pgs")))
+        try:
+            import osqp  # noqa: F401
+        except ImportError:
+            pass
+        else:
+            stages.append(("step (osqp)", run("osqp")))
+    return stages
+
+
+def compile_kernels(kernel_set="default", progress=None, helper=True):
+    """Compile `kernel_set` (module docstring) into numba's cache in this process, the helper process compiling the
+    island solvers meanwhile (`helper`: where it may start). progress: called as progress(label, done, total) after
+    each stage."""
+    global _inside
+    _inside = True
     try:
-        with open(payload, "rb") as f:
-            model, options = pickle.load(f)
+        if helper:
+            start_helper()
+        stages = compilation_stages(kernel_set)
+        for i, (label, stage) in enumerate(stages):
+            stage()
+            if progress is not None:
+                progress(label, i + 1, len(stages))
     finally:
-        os.unlink(payload)
+        _inside = False
+
+
+def _compile_in_background(kernel_set):
+    """The background process: `compile_kernels(kernel_set)` under the lock."""
+    lock = lock_file(numba.config.CACHE_DIR)
     if not _take_lock(lock, os.getpid()):
         return
     try:
-        from planar_lcp.sim import Simulator
-        start_if_cold(model, options.single_kernel or options.warm_start, options.formulation == "velocity")
-        contacts_at(model.arrays, model.q0, model.qk0, 0.0, m=model.struct)
-        if model.arrays.ls_wrench.shape[0] and model.arrays.ls_wrench.shape[1]:
-            unit_load_wrench(model.struct, 0, 1.0, 0.0, 0.0, np.zeros(3))
-        Simulator(model, options).rollout(model.q0, model.v0, model.qk0, model.vk0[None], 1, record_contacts=True)
+        compile_kernels(kernel_set)
     finally:
         os.unlink(lock)
 
 
 if __name__ == "__main__":
-    _compile_in_background(sys.argv[1])
+    # the module's own copy, not __main__'s: the simulators it makes read its `_inside`
+    from planar_lcp.background import _compile_in_background as compile_in_background
+    compile_in_background(sys.argv[1] if len(sys.argv) > 1 else "default")

@@ -283,6 +283,34 @@ def _cmd_scenes(args):
     return 0
 
 
+def _cmd_warmup(args):
+    """Compile every kernel a user can reach into numba's cache (planar_lcp/background.py, kernel set "all"), one
+    line per stage; nothing to do on a warm cache."""
+    import time
+
+    import numba
+
+    from planar_lcp.background import compilation_stages, compile_kernels, lock_file, Background
+    from planar_lcp.engine.compile_notice import uninstall_all
+    uninstall_all()              # this command's own line per stage says what compiles
+    if numba.config.DISABLE_JIT:
+        print("planar-lcp warmup: NUMBA_DISABLE_JIT is set: nothing is compiled")
+        return 0
+    where = numba.config.CACHE_DIR or "numba's default cache (__pycache__ beside the sources)"
+    # a background compilation another run started: let it finish first (its work is the first stages' work)
+    if numba.config.CACHE_DIR:
+        Background(None, lock_file(numba.config.CACHE_DIR), 0.0).wait()
+    total = len(compilation_stages("all"))
+    t0 = time.perf_counter()
+    print(f"planar-lcp warmup: compiling every kernel into {where} ({total} stages)", flush=True)
+
+    def progress(label, done, n):
+        print(f"  [{done}/{n}] {label:<14} {time.perf_counter() - t0:6.1f} s", flush=True)
+    compile_kernels("all", progress)
+    print(f"planar-lcp warmup: done in {time.perf_counter() - t0:.1f} s; later runs load the kernels from the cache")
+    return 0
+
+
 def _cmd_simulate(args):
     try:
         return _simulate(args)
@@ -512,6 +540,14 @@ def build_parser():
 
     sc = one_line_errors(sub.add_parser("scenes", help="list the shipped scenes with their descriptions"))
     sc.set_defaults(func=_cmd_scenes)
+
+    wu = one_line_errors(sub.add_parser(
+        "warmup", help="compile every simulation kernel into numba's cache now (every solver and formulation)",
+        description="Compile every kernel a run can reach (every solver, formulation and scene: one compilation "
+                    "serves them all) into numba's on-disk cache, with a line per stage, so that no later run "
+                    "waits for the compiler. The first run on a cold cache does the same for the default solver "
+                    "in a background process."))
+    wu.set_defaults(func=_cmd_warmup)
     for module in COMMAND_MODULES:
         importlib.import_module(module).register(sub)
     for ep in sorted(importlib.metadata.entry_points(group=COMMAND_ENTRY_POINTS), key=lambda e: e.name):

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planar_lcp.background import wait_for
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES, default_max_pivots, lcp_scale, lemke_solve
 
 #: Default tolerances (see docs/lcp.md for what each one governs).
@@ -107,6 +108,8 @@ def lemke(M, q, *, max_pivots=None, piv_tol=DEFAULT_PIV_TOL, ratio_tol=DEFAULT_R
     for name, val in (("piv_tol", piv_tol), ("ratio_tol", ratio_tol), ("res_tol", res_tol)):
         if not (np.isfinite(val) and val >= 0.0):
             raise ValueError(f"lemke: {name} must be a finite number >= 0, got {val}")
+    # a cold numba cache: the kernel compiles once, in the background, for every later call and run
+    wait_for(lemke_solve)
     z, w, status, pivots, res = lemke_solve(M, q, int(max_pivots), float(piv_tol), float(ratio_tol), float(res_tol),
                                             bool(equilibrate))
     return LCPResult(z=z, w=w, status=STATUS_NAMES[status], pivots=int(pivots), residual=float(res),

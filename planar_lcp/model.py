@@ -26,7 +26,7 @@ from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STAT
 from planar_lcp.engine.interpreted import compiled, python_version
 from planar_lcp.engine.layout import ModelArrays, model_struct, step_work_bytes
 from planar_lcp.engine.limit_surface import unit_load_wrench
-from planar_lcp.engine.precompile import start_if_cold
+from planar_lcp.background import start_background
 
 
 @dataclass(frozen=True)
@@ -169,15 +169,10 @@ def _fill_fixed_columns(model, bodies, nls):
 
 
 def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=False, support_model=None,
-                  limit_surface_twists=None, limit_surface_resolution=None, single_kernel=False) -> Model:
+                  limit_surface_twists=None, limit_surface_resolution=None) -> Model:
     """Flatten a validated Scene into a Model. `friction_directions`, `limit_surface_twists` and
     `limit_surface_resolution` override the scene's [sim] keys, `support_model` its world.support_model (the
     horizontal plane's table friction: docs/method.md, "Table friction").
-
-    single_kernel: the model will run with the single kernel (`SimOptions(single_kernel=True)` or the warm start, as
-    the planners run it): on a cold numba cache, the second process compiles that kernel's island solvers first
-    (engine/precompile.py; the scene's [sim] formulation says whether it needs the velocity form's projection).
-    Nothing else depends on it.
 
     seed_friction_arm: apply contact friction at each shape's core point (a capsule's end-cap centre) instead of the
     contact point, reproducing the seed paper's friction vectors d = [+-1, 0, +-(l/2) sin theta] (for comparison only;
@@ -344,7 +339,7 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
                   qk0=arr(qk0, shape=(0, 3)), vk0=arr(vk0, shape=(0, 3)))
     if ls_bodies:
         _fill_fixed_columns(model, ls_bodies, nls)
-    # on a cold numba cache, the island solvers' kernels compile in a second process meanwhile (engine/precompile.py)
-    start_if_cold(model, single_kernel, scene.sim.formulation == "velocity")
+    # on a cold numba cache, the kernels compile in a background process from now on (planar_lcp/background.py)
+    start_background()
     _check_start_overlaps(scene, model)
     return model

@@ -13,19 +13,14 @@ from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
-from numba.core.dispatcher import Dispatcher
 
 from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS, SUPPORT_POINTS
 from planar_lcp.engine.interpreted import compiled, python_version
-from planar_lcp.engine.layout import (INT_STATS, NSTAT, STATS, WORK_STRUCT, Stat, StepOptions, make_step_work,
+from planar_lcp.engine.layout import (INT_STATS, NSTAT, STATS, Stat, StepOptions, make_step_work,
                                       work_struct)
-from planar_lcp.engine.rollout import (RUN_ROWS, Recording, make_recording, rollout_lemke, rollout_lemke_full,
-                                       rollout_lemke_full_small, rollout_lemke_small, rollout_lemke_warm,
-                                       rollout_lemke_warm_small, rollout_pgs)
+from planar_lcp.engine.rollout import RUN_ROWS, Recording, make_recording, rollout_lemke, rollout_pgs
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES
-from planar_lcp.engine.step import (FORM_VELOCITY, STEP_LCP_FAILED, STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE,
-                                    STEP_NONFINITE, STEP_OK, step_lemke, step_lemke_full, step_lemke_full_small,
-                                    step_lemke_small, step_pgs)
+from planar_lcp.engine.step import STEP_LCP_FAILED, STEP_NEEDS_SPACE, STEP_NONFINITE, STEP_OK
 from planar_lcp.model import Model, compile_scene
 from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
 from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, restitution_setting, scene_path,
@@ -79,11 +74,6 @@ class SimOptions:
     # by the same residual test; dense Lemke when it gives no certified answer): docs/method.md, "Large islands".
     # 0: never. Smaller islands take the dense path as before, so the goldens and the committed plans are unchanged.
     sparse_min_unknowns: int = SPARSE_MIN_UNKNOWNS
-    # Run only the kernel with the fallbacks (PGS, the velocity form's projection) from the first step. By default
-    # the position forms run a kernel without them and hand a failed island's step to that one, so a run that never
-    # fails compiles one kernel; a run that meets a failed island (a planner's propagations into jams) compiles both,
-    # about 13 s more on a cold cache. The same results bit for bit either way (engine/step.py `step_pipeline`).
-    single_kernel: bool = False
 
     def kernel_options(self):
         if self.solver not in SOLVERS:
@@ -125,47 +115,31 @@ def _cause(status, stats, stopped, diagnosis=None):
     return "ok"
 
 
-def _variants(options, model):
-    """The (step, rollout) kernels a simulator runs, in the order tried: a step that one hands back
-    (STEP_NEEDS_FALLBACK) is run again by the next, which has a fallback (engine/step.py `step_pipeline`)."""
+def rollout_kernel(options):
+    """The rollout kernel a simulator with these options runs: `rollout_lemke` for every Lemke run (whatever the
+    scene, formulation or options: one compilation serves them all), `rollout_pgs` for solver "pgs", the osqp
+    solver's Python rollout for "osqp". `Simulator.step` runs the same kernel, one step a call."""
     if options.solver == "osqp":
-        from planar_lcp.engine.solvers.osqp import osqp_rollout, osqp_step
-        return ((osqp_step, osqp_rollout),)
-    if options.solver == "pgs":
-        return ((step_pgs, rollout_pgs),)
-    # A model none of whose islands can reach the large-island threshold runs the kernels without the large-island
-    # solvers: the same steps, and a cold cache compiles a third less (engine/solvers/lemke.py
-    # `solve_island_lemke_small`)
-    small = options.sparse_min_unknowns == 0 or model.max_unknowns() < options.sparse_min_unknowns
-    if small:
-        first, full = (step_lemke_small, rollout_lemke_small), (step_lemke_full_small, rollout_lemke_full_small)
-        warm = (step_lemke_full_small, rollout_lemke_warm_small)
-    else:
-        first, full = (step_lemke, rollout_lemke), (step_lemke_full, rollout_lemke_full)
-        warm = (step_lemke_full, rollout_lemke_warm)
-    # the velocity form needs the projection, the warm start the kernel with its code; the position forms try the
-    # kernel without PGS, the projection and the warm start first, so that those compile only when a run needs them
-    velocity = FORMULATIONS[options.formulation] == FORM_VELOCITY
-    if velocity:
-        return (full,)
-    if options.single_kernel or options.warm_start:
-        # the planners' rollout: the full kernel's steps without the projection's code, which a position form never
-        # runs (engine/rollout.py `rollout_lemke_warm`; its step, for `step`, is the full kernel's: the same steps)
-        return (warm, full)
-    return (first, full)
+        from planar_lcp.engine.solvers.osqp import osqp_rollout
+        return osqp_rollout
+    return rollout_pgs if options.solver == "pgs" else rollout_lemke
 
 
 class Simulator:
-    """A compiled model, step options, and the work buffers of its kernels.
+    """A compiled model, step options, and the work buffers of its kernel.
 
     State arrays: q, v (ndyn, 3) centre-of-mass poses and velocities of the dynamic bodies in scene order;
     qk, vk (nkin, 3) kinematic body poses (body frame) and velocities (the controls).
+
+    On a cold numba cache (the kernel neither compiled in this process nor in numba's on-disk cache), the kernels
+    compile in a background process (planar_lcp/background.py) that this simulator starts, or joins when another
+    process started it: a run then waits for it (Ctrl-C stops the wait at once; the compilation goes on for the next
+    run), or, with python_while_cold, runs as Python meanwhile (`simulate`'s setting: the same results bit for bit,
+    engine/interpreted.py) and switches to the compiled kernel when it is ready. Where no background process can run
+    (one CPU, no cache directory, PLANAR_LCP_PRECOMPILE=0) the first call compiles in this process.
     """
 
     def __init__(self, model: Model, options: SimOptions, python_while_cold=False):
-        """python_while_cold: on a cold numba cache, start compiling the kernels in the background and run rollouts
-        as Python meanwhile (the same results bit for bit; engine/interpreted.py), switching to the compiled kernels
-        when they are ready (`simulate`'s setting: a first run in seconds instead of 25 to 35 s)."""
         self.model = model
         self.options = options
         self.kopt = options.kernel_options()
@@ -173,15 +147,17 @@ class Simulator:
         self._kwork = None          # the kernels' view of the work buffers (`kwork`), made on first use
         self.stats = np.zeros(NSTAT)
         self._last_step_out = None  # (q, v, qk) returned by the last `step`, for its warm start
-        self._variants = _variants(options, model)
+        self._kernel = rollout_kernel(options)
         #: called as progress(steps_done, nsteps) after each of a rollout's kernel calls (CHUNK_SECONDS apart), or None
         self.progress = None
         self._chunk = 64            # steps of a rollout's first kernel call: measured and kept by each call
-        # the background compilation (planar_lcp/background.py) while rollouts run as Python, or None
-        self._background = None
-        self._python_rate = None
-        if python_while_cold and not compiled(self._variants[0][1]):
-            self._background = start_background(model, options)
+        self._step_rec = None       # `step`'s one-step recording, made on first use
+        self._python_while_cold = python_while_cold
+        self._python_rate = None    # steps per second of the kernel run as Python (a cold cache)
+        # the background compilation (planar_lcp/background.py) this simulator waits for or runs Python beside, or
+        # None: the kernel is compiled (or cached), or it compiles in this process at its first call
+        self._ready = compiled(self._kernel)
+        self._background = None if self._ready else start_background(self._kernel)
 
     @property
     def kmodel(self):
@@ -221,18 +197,6 @@ class Simulator:
                 fresh[...] = old
         self.work, self._kwork = new, None
 
-    def _step_into(self, q, v, qk, vk, q_out, v_out, qk_out, stats):
-        level = 0
-        while True:  # the last variant never hands a step back for a fallback
-            step = self._variants[level][0]
-            st = int(step(self.kmodel, q, v, qk, vk, self.h, self.kopt, self.kwork, q_out, v_out, qk_out, stats))
-            if st == STEP_NEEDS_SPACE:
-                self._grow_dense()
-            elif st == STEP_NEEDS_FALLBACK:
-                level += 1
-            else:
-                return st
-
     def reset_warm_start(self):
         """Forget the LCP bases kept for warm starts and the sparse solver's modes: the next `step` starts cold."""
         self.work.warm_size[:] = -1
@@ -242,6 +206,7 @@ class Simulator:
     def step(self, q, v, qk, vk):
         """One step. Returns (q+, v+, qk+, status code); self.stats holds the step's diagnostics.
 
+        The rollout kernel makes it, one step a call, so a loop of `step` is a `rollout` bit for bit.
         Warm start (SimOptions.warm_start): when (q, v, qk) is bitwise the state the previous `step` returned, each
         island's LCP is first tried on that step's final basis, kept only if certified as accurate as a cold solve;
         any other state starts cold, as every `rollout` does. The sparse solver's first guess of the contact modes
@@ -252,8 +217,20 @@ class Simulator:
                                 and np.array_equal(qk, last[2])):
             self.work.warm_size[:] = -1
             self.work.sparse_pair_mode[:] = -1
-        q_out, v_out, qk_out = np.empty_like(q), np.empty_like(v), np.empty_like(qk)
-        st = self._step_into(q, v, qk, vk, q_out, v_out, qk_out, self.stats)
+        rec = self._step_rec
+        if rec is None:
+            rec = self._step_rec = self.recording(1)
+        rec.q[0], rec.v[0], rec.qk[0] = q, v, qk
+        nk = self.model.nkin
+        vk_seq = np.ascontiguousarray(np.asarray(vk, dtype=float).reshape(1, nk, 3))
+        while True:
+            self._call(rec, vk_seq, 0, 1, False, False, 1)
+            st = int(rec.status[0])
+            if st != STEP_NEEDS_SPACE:
+                break
+            self._grow_dense()
+        self.stats[:] = rec.stats[0]
+        q_out, v_out, qk_out = rec.q[1].copy(), rec.v[1].copy(), rec.qk[1].copy()
         self._last_step_out = (q_out.copy(), v_out.copy(), qk_out.copy())
         return q_out, v_out, qk_out, st
 
@@ -289,68 +266,68 @@ class Simulator:
         rec.q[0], rec.v[0], rec.qk[0] = q, v, qk
         return self._run_chunks(rec, vk_seq, len(rec.status), bool(stop_on_failure))
 
-    def _python_or_wait(self, kernel, steps_left):
-        """A cold cache's rollout (planar_lcp/background.py): True to run the next chunk as Python;
-        False once `kernel` is compiled (the background's work is in numba's cache: the rest runs compiled, bit for
-        bit the same steps). When the steps left would take Python longer than the compilation is expected to, this
-        waits for the background instead (it then has both cores), or compiles here if the background stopped."""
+    def wait_for_kernel(self):
+        """On a cold cache, wait until the background compilation has put the kernel in numba's cache (Ctrl-C stops
+        the wait at once; the compilation goes on for the next run); at once when the kernel is compiled or cached,
+        or when it compiles in this process at its first call (no background: class docstring). For callers whose
+        first kernel call happens where a Ctrl-C cannot stop it (a planner's propagations, called from OMPL)."""
+        self._run_as_python(0, python=False)
+
+    def _run_as_python(self, steps_left, python=True):
+        """Whether the next kernel call runs as Python: on a cold cache (class docstring), while the background
+        compilation runs and the steps left would take Python no longer than the compilation is expected to (with
+        python_while_cold; else never). Otherwise this waits, Ctrl-C stopping the wait, until the kernel is in
+        numba's cache (the rest of the run is compiled, bit for bit the same steps), or compiles it here if the
+        background stopped without it."""
+        if self._ready:
+            return False
         bg = self._background
-        while not compiled(kernel):
+        while bg is not None and not compiled(self._kernel):
             if not bg.running():
-                break                          # it stopped without the kernel: compile it here, as without it
+                break                          # it stopped without the kernel: compile it here
             rate = self._python_rate
-            if rate is None or steps_left / rate <= bg.seconds_left():
+            if python and self._python_while_cold and (rate is None or steps_left / rate <= bg.seconds_left()):
                 return True
             time.sleep(0.05)
             raise_if_interrupted()
-        self._background = None
+        self._background, self._ready = None, True
         return False
 
-    @staticmethod
-    def _compile_first(kernel, args):
-        """Compile (or load) the rollout kernel `kernel` for the call `kernel(*args)` before the work buffers' struct
-        is made (args holds None for it): on a cold cache, its constructor is then loaded from the cache, where the
-        helper process compiled it meanwhile (engine/precompile.py), instead of compiled here first, 1.4 s of this
-        process's CPU (docs/performance.md, "Compile time"). The signature is the call's (the dispatcher's own
-        typing of each argument), so the call that follows finds it."""
-        if not isinstance(kernel, Dispatcher) or kernel.overloads:
-            return
-        kernel.compile(tuple(WORK_STRUCT if a is None else kernel.typeof_pyval(a) for a in args))
+    def _call(self, rec, vk_seq, start, n, stop_on_failure, reset_warm_start, steps_left):
+        """One call of the rollout kernel: n steps from state row `start` of `rec` (a view of n + 1 state rows and n
+        step rows), compiled or, on a cold cache, as Python (`_run_as_python`). Returns (steps done, steps per
+        second of the call, whether it ran as Python)."""
+        kernel = self._kernel
+        python = self._run_as_python(steps_left)
+        if python:           # a cold cache: the kernel's Python, on the namedtuples of the same buffers
+            kernel, m, w = python_version(kernel), self.model.arrays, self.work
+        else:
+            m, w = self.kmodel, self.kwork
+        t0 = time.perf_counter()
+        done = int(kernel(m, rec.q[0], rec.v[0], rec.qk[0], vk_seq, start, n, self.h, self.kopt, w, rec,
+                          stop_on_failure, reset_warm_start))
+        # a Ctrl-C that numba's dispatcher swallowed during the call (planar_lcp.interrupt) stops the run here
+        raise_if_interrupted()
+        return done, done / max(time.perf_counter() - t0, 1e-9), python
 
     #: Wall-clock length a rollout's kernel calls aim at: between two calls Python handles signals, so Ctrl-C stops a
     #: long simulation within about this long. Short rollouts (a planner's propagation) are one call.
     CHUNK_SECONDS = 0.25
 
     def _run_chunks(self, rec, vk_seq, nsteps, stop_on_failure):
-        """The rollout in calls of the rollout kernel of CHUNK_SECONDS each (the kernels are resumable, so the chunks
-        together equal one call bit for bit). A step that the first variant hands back (STEP_NEEDS_FALLBACK) is run
-        alone by the next one, then the first resumes: each step is computed by the same pipeline from the same
-        inputs and warm-start memory, so the result is that of the last variant alone. Returns the steps done."""
-        start, chunk, level = 0, self._chunk, 0
+        """The rollout in calls of the rollout kernel of CHUNK_SECONDS each (the kernel is resumable, so the chunks
+        together equal one call bit for bit). A step that needs larger dense buffers (STEP_NEEDS_SPACE) is run again
+        after they grow. Returns the steps done."""
+        start, chunk = 0, self._chunk
         while start < nsteps:
-            n = 1 if level else min(chunk, nsteps - start)
+            n = min(chunk, nsteps - start)
             # state rows start .. start + n, per-step rows start .. start + n - 1 (an empty contact array stays empty)
             # the Trajectory's rows go whole: the kernel writes them at the run's step index
             view = rec if n == nsteps else Recording(*(a[start:start + n + 1] if k in ("q", "v", "qk") else
                                                        a if k in RUN_ROWS else a[start:start + n]
                                                        for k, a in zip(Recording._fields, rec)))
-            kernel = self._variants[level][1]
-            python = self._background is not None and self._python_or_wait(kernel, nsteps - start)
-            if python:           # a cold cache: the kernel's Python, on the namedtuples of the same buffers
-                kernel, m, w = python_version(kernel), self.model.arrays, self.work
-            else:
-                m = self.kmodel
-                if self._kwork is None:
-                    self._compile_first(kernel, (m, rec.q[start], rec.v[start], rec.qk[start], vk_seq, start, n,
-                                                 self.h, self.kopt, None, view, stop_on_failure, start == 0))
-                w = self.kwork
-            t0 = time.perf_counter()
-            done = int(kernel(m, rec.q[start], rec.v[start], rec.qk[start], vk_seq, start, n, self.h, self.kopt, w,
-                              view, stop_on_failure, start == 0))
-            # a Ctrl-C that numba's dispatcher swallowed during the call (planar_lcp.interrupt) stops the run here
-            raise_if_interrupted()
-            if done and not level:
-                rate = done / max(time.perf_counter() - t0, 1e-9)        # steps per second
+            done, rate, python = self._call(view, vk_seq, start, n, stop_on_failure, start == 0, nsteps - start)
+            if done:
                 chunk = int(min(max(16, self.CHUNK_SECONDS * rate), 1 << 20))
                 if python:
                     self._python_rate = rate
@@ -361,10 +338,11 @@ class Simulator:
                 self.progress(start, nsteps)
             if done and stop_on_failure and rec.status[start - 1] != STEP_OK:
                 return start                  # stopped on a failed step
-            if done < n and rec.status[start] == STEP_NEEDS_SPACE:
-                self._grow_dense()            # and run that step again, by the same variant
-                continue
-            level = level + 1 if done < n else 0
+            if done < n:
+                if rec.status[start] != STEP_NEEDS_SPACE:
+                    raise RuntimeError(f"the rollout kernel stopped at step {start} with status "
+                                       f"{int(rec.status[start])}")
+                self._grow_dense()            # and run that step again
         return nsteps
 
 

@@ -126,8 +126,8 @@ class PushTEnv(gym.Env):
         self.pusher_max_force = None if pusher_max_force is None else float(pusher_max_force)
         self.model = compile_scene(parse_scene(self._scene_document(), source="PushT-v0"))
         # warm start: each action's ten steps are one rollout, which starts cold, so a step is a pure function of
-        # the state and the action (seeded resets reproduce); single_kernel: a jam's fallback compiled up front
-        self.sim = Simulator(self.model, SimOptions(h=DT, warm_start=True, single_kernel=True))
+        # the state and the action (seeded resets reproduce)
+        self.sim = Simulator(self.model, SimOptions(h=DT, warm_start=True))
         self.rec = self.sim.recording(SUBSTEPS)
         self.vk_seq = np.zeros((SUBSTEPS, self.model.nkin, 3))
         self.com_local1 = self.model.com_local[:1].copy()

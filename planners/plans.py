@@ -58,6 +58,8 @@ def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=N
     ou.RNG.setSeed(seed)
     ou.setLogLevel(ou.LOG_ERROR)
     prob = Problem(t, planner, tm=tm)
+    # a cold numba cache: wait here, where Ctrl-C stops the wait, for the kernels the propagations run
+    tm.sim.wait_for_kernel()
     res = prob.solve(time_limit=time_limit, iterations=iterations)
     # the rest of a time budget bounds the shortening too (an iteration budget: the candidate counts alone)
     deadline = None if time_limit is None else time.perf_counter() + max(time_limit - res["solve_time"], 0.0)

@@ -55,7 +55,7 @@ class TaskModel:
 
         self.task = task = load_task(task)
         self.scene = scene = task.scene
-        self.model = model = compile_scene(scene, single_kernel=True)     # the kernel self.sim runs
+        self.model = model = compile_scene(scene)
         want = [task.object, *task.obstacles]
         # the scene's index of each body in the flat state's order (object first, then the obstacles)
         self.dyn_order = np.array([model.dyn_names.index(b) for b in want])
@@ -64,11 +64,9 @@ class TaskModel:
         self.h = float(scene.sim.h)
         self.steps_per_prop = int(round(task.step_duration / self.h))
         # warm start: 2.5 to 3.5 times faster pushing steps (docs/performance.md); a rollout starts cold, so each
-        # propagation is still a pure function of its inputs and replays bit for bit. single_kernel: propagations
-        # meet jams, whose failed islands would compile the fallback kernel too (the first plan on a cold cache)
+        # propagation is still a pure function of its inputs and replays bit for bit
         self.sim = Simulator(model, SimOptions(h=self.h, solver=scene.sim.solver if scene.sim.solver != "osqp"
-                                               else "lemke", formulation=scene.sim.formulation, warm_start=True,
-                                               single_kernel=True))
+                                               else "lemke", formulation=scene.sim.formulation, warm_start=True))
         self.ipusher = model.kin_names.index(task.pusher)
         self.qk0 = model.qk0.copy()
         # advance()'s inputs and its recordings (one per rollout length), reused from call to call

@@ -52,13 +52,14 @@ def interrupt_cli(args, started, tmp_path, wait=1.0):
             p.kill()
 
 
-def ctrl_c_cli(args, ready, cwd, timeout=300):
+def ctrl_c_cli(args, ready, cwd, timeout=300, env=None):
     """Run `planar-lcp ARGS` in a process group of its own, wait until `ready()` is true, then press Ctrl-C as a
     terminal does: SIGINT to the whole foreground group, the command and every process it started (a local Dask
-    cluster's workers too). Returns a subprocess.CompletedProcess (returncode, stdout, stderr) with `seconds` from
-    the signal to the exit and `group_left`: whether any process of the group outlived the command by 10 s."""
+    cluster's workers too). `env`: extra environment variables. Returns a subprocess.CompletedProcess (returncode,
+    stdout, stderr) with `seconds` from the signal to the exit and `group_left`: whether any process of the group
+    outlived the command by 10 s."""
     p = subprocess.Popen(CLI + [str(a) for a in args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         cwd=cwd, env=cli_env(PYTHONUNBUFFERED="1"), start_new_session=True)
+                         cwd=cwd, env=cli_env(PYTHONUNBUFFERED="1", **(env or {})), start_new_session=True)
     try:
         t0 = time.monotonic()
         while not ready():

@@ -17,7 +17,7 @@ from planar_lcp import simulate
 from planar_lcp import background
 from planar_lcp.engine.compile_notice import BACKGROUND_NOTICE, NOTICE
 from planar_lcp.engine.interpreted import python_version
-from planar_lcp.engine.rollout import rollout_lemke, rollout_lemke_small
+from planar_lcp.engine.rollout import rollout_lemke
 from planar_lcp.model import compile_scene
 from planar_lcp.spec.scene import load_scene
 
@@ -59,7 +59,7 @@ def _go_cold(monkeypatch, ready_after=None, seconds_left=1e9):
         return ready_after is not None and len(asked) > ready_after
     monkeypatch.setattr(sim_module, "compiled", rollout_compiled)
     monkeypatch.setattr("planar_lcp.model.compiled", lambda kernel: False)        # compile_scene's kernels
-    monkeypatch.setattr(sim_module, "start_background", lambda model, options: _Compiling(seconds_left))
+    monkeypatch.setattr(sim_module, "start_background", lambda *args: _Compiling(seconds_left))
     monkeypatch.setattr(sim_module, "python_version", spy)
     monkeypatch.setattr(sim_module, "_run_setups", OrderedDict())
     monkeypatch.setattr(sim_module, "_idle_simulators", OrderedDict())
@@ -91,7 +91,7 @@ def _assert_same_trajectory(a, b):
 
 def test_the_python_version_calls_no_dispatcher():
     """Every function the Python rollouts reach is Python: no numba dispatcher is left in their globals."""
-    seen, todo = set(), [python_version(rollout_lemke), python_version(rollout_lemke_small)]
+    seen, todo = set(), [python_version(rollout_lemke)]
     made = {id(f) for f in python_version.__globals__["_python"].values()}   # by identity: globals hold arrays too
     while todo:
         f = todo.pop()
@@ -154,7 +154,7 @@ def test_a_run_too_long_for_python_waits_for_the_compiled_kernel(monkeypatch):
 def test_a_warm_cache_runs_compiled(monkeypatch):
     """No background and no Python where the kernel is compiled (here: in this process)."""
     started = []
-    monkeypatch.setattr(sim_module, "start_background", lambda model, options: started.append(1))
+    monkeypatch.setattr(sim_module, "start_background", lambda *args: started.append(1))
     simulate("box_tip", t_end=0.01)
     sim = sim_module.Simulator(compile_scene(load_scene("box_tip")), sim_module.SimOptions(h=0.005),
                                python_while_cold=True)

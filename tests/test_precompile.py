@@ -1,5 +1,5 @@
-"""Issue M, cold start: the second process that compiles the island solvers' kernels while the first compiles the
-rest (planar_lcp/engine/precompile.py). What must hold: the kernels it caches are the ones the step asks for (the
+"""Cold start: the second process that compiles the island solvers' kernels while the first compiles the rest
+(planar_lcp/engine/precompile.py). What must hold: the kernels it caches are the ones the step asks for (the
 same argument types, so the step loads them instead of compiling them again), the steps they make are bit for bit
 the steps of kernels compiled in-process, and it starts only on a cold cache."""
 
@@ -47,35 +47,24 @@ def _inline_overload(name):
 
 
 @pytest.mark.slow
-def test_a_planners_helper_caches_the_kernels_its_propagations_load(tmp_path):
-    """The helper's work for a planner's model (compile_scene's single_kernel hint) on an empty cache, then a
-    planner's propagations on that cache in another process: none of the kernels the helper compiled is compiled
-    again."""
-    pytest.importorskip("shapely")
-    helper = json.loads(_run("from planar_lcp.engine.precompile import compile_kinds\n"
-                             "compile_kinds(['lemke_kernel', 'pgs', 'lemke_reversed', 'lemke_small'])", tmp_path)[-1])
-    ours = {f for f in helper if f.startswith("planar_lcp.") and "._drive" not in f and not _inline_overload(f)}
-    assert {"planar_lcp.engine.solvers.lemke.lemke_kernel", "planar_lcp.engine.assemble.assemble_lcp"} <= ours
-    lines = _run("from planners.tasks import TaskModel\n"
-                 "tm = TaskModel('push_box')\n"
-                 "x, ok = tm.advance(tm.initial_state(), (0.1, 0.0), tm.steps_per_prop)\n"
-                 "assert ok", tmp_path)
-    again = set(json.loads(lines[-1])) & ours
-    assert again <= {"planar_lcp.engine.layout._new_struct"}, sorted(again)
-
-
-@pytest.mark.slow
 def test_the_helpers_kernels_are_the_ones_the_step_loads_and_step_alike(tmp_path):
-    """The helper's work on an empty cache, then `simulate` on that cache in another process: none of the planar_lcp
-    kernels the helper compiled is compiled again (a driver typed unlike the step's call would leave them unused),
-    and the run equals, bit for bit, the same run with every kernel compiled by this (the test) process."""
+    """The helper's work on an empty cache, then a planner's propagations and `simulate` on that cache in another
+    process: none of the planar_lcp kernels the helper compiled is compiled again (a driver typed unlike the step's
+    call would leave them unused), and the run equals, bit for bit, the same run with every kernel compiled by this
+    (the test) process."""
+    pytest.importorskip("shapely")
     from planar_lcp import simulate
-    helper = json.loads(_run("from planar_lcp.engine.precompile import compile_kinds\n"
-                             "compile_kinds(['lemke_small_cold', 'pgs', 'lemke_small', 'projection'])", tmp_path)[-1])
+    helper = json.loads(_run("from planar_lcp.engine.precompile import HELPER_KINDS, compile_kinds\n"
+                             "compile_kinds(HELPER_KINDS)", tmp_path)[-1])
     ours = {f for f in helper if f.startswith("planar_lcp.") and "._drive" not in f and not _inline_overload(f)}
     assert {"planar_lcp.engine.solvers.lemke.lemke_kernel", "planar_lcp.engine.assemble.assemble_lcp",
-            "planar_lcp.engine.islands.find_islands", "planar_lcp.engine.layout._new_struct"} <= ours
-    lines = _run("import numpy as np\nfrom planar_lcp import simulate\n"
+            "planar_lcp.engine.islands.find_islands", "planar_lcp.engine.layout._new_struct",
+            "planar_lcp.engine.solvers.block_lemke.block_lemke",
+            "planar_lcp.engine.solvers.sparse.solve_island_sparse"} <= ours
+    lines = _run("import numpy as np\nfrom planar_lcp import simulate\nfrom planners.tasks import TaskModel\n"
+                 "tm = TaskModel('push_box')\n"
+                 "x, ok = tm.advance(tm.initial_state(), (0.1, 0.0), tm.steps_per_prop)\n"
+                 "assert ok\n"
                  "tr = simulate('box_push')\n"
                  "np.save(%r, np.concatenate([tr.q.ravel(), tr.v.ravel()]))"
                  % str(tmp_path / "run.npy"), tmp_path)
@@ -87,8 +76,8 @@ def test_the_helpers_kernels_are_the_ones_the_step_loads_and_step_alike(tmp_path
 
 
 def test_the_helper_starts_only_on_a_cold_cache(monkeypatch):
-    """Once the run's rollout kernel is compiled (or loaded) in this process: no helper. Nor with the switch off, nor
-    on one CPU. A cold cache (faked) starts one, once per process, with the model's kinds."""
+    """Once the rollout kernel is compiled (or loaded) in this process: no helper. Nor with the switch off, nor on one
+    CPU. A cold cache (faked) starts one, once per process, with the island solvers' kinds."""
     from planar_lcp.model import compile_scene
     from planar_lcp.sim import SimOptions, Simulator
     from planar_lcp.spec.scene import load_scene
@@ -96,11 +85,9 @@ def test_the_helper_starts_only_on_a_cold_cache(monkeypatch):
         pytest.skip("no JIT: nothing compiles")
     scene = load_scene("falling_rod")
     model = compile_scene(scene)
-    # a Simulator of its own compiles in the foreground (`simulate` on a cold cache would run as Python instead,
-    # leaving the kernel to a background process: this test then depended on an earlier run having warmed the cache)
     Simulator(model, SimOptions(h=scene.sim.h)).rollout(model.q0, model.v0, model.qk0, model.vk0[None], 1)
     monkeypatch.setattr(precompile, "_helper", None)
-    assert precompile.start_if_cold(model) is None                       # compiled here: warm
+    assert precompile.start_helper() is None                             # compiled here: warm
     # the drivers' options are typed as the step's (SimOptions.kernel_options)
     assert precompile._options_type() == precompile.numba.typeof(SimOptions(h=0.01).kernel_options())
     started = []
@@ -115,40 +102,17 @@ def test_the_helper_starts_only_on_a_cold_cache(monkeypatch):
     monkeypatch.setattr(precompile.subprocess, "Popen", FakePopen)
     monkeypatch.setattr(precompile, "compiled", lambda dispatcher: False)
     monkeypatch.setenv(precompile.ENV_SWITCH, "0")
-    assert precompile.start_if_cold(model) is None and not started      # switched off
+    assert precompile.start_helper() is None and not started             # switched off
     monkeypatch.delenv(precompile.ENV_SWITCH)
     monkeypatch.setattr(precompile, "_cpus", lambda: 1)
-    assert precompile.start_if_cold(model) is None and not started      # one CPU: nothing to gain
+    assert precompile.start_helper() is None and not started             # one CPU: nothing to gain
     monkeypatch.setattr(precompile, "_cpus", lambda: 2)
-    assert isinstance(precompile.start_if_cold(model), FakePopen)
-    assert precompile.start_if_cold(model) is None                       # once per process
+    assert isinstance(precompile.start_helper(), FakePopen)
+    assert precompile.start_helper() is None                             # once per process
     (args, env), = started
-    assert args[1:] == ["-m", "planar_lcp.engine.precompile", "lemke_small_cold", "pgs", "lemke_small",
-                        "projection"]
-    assert env[precompile.ENV_SWITCH] == "0"                              # the helper starts no helper
-    tower = compile_scene(load_scene("tower"))
-    monkeypatch.setattr(precompile, "_helper", None)
-    started.clear()
-    precompile.start_if_cold(tower)
-    assert started[0][0][3:] == ["lemke_cold", "pgs", "lemke", "projection"]            # a large model's solvers
-    # a model that will run the single kernel (a planner's TaskModel): no cold variant, its own kernel is checked
-    monkeypatch.setattr(precompile, "_helper", None)
-    started.clear()
-    checked = []
-    monkeypatch.setattr(precompile, "compiled", lambda dispatcher: checked.append(dispatcher) and False)
-    compile_scene(load_scene("push_box"), single_kernel=True)
-    assert started[0][0][3:] == ["lemke_kernel", "pgs", "lemke_reversed", "lemke_small"]
-    from planar_lcp.engine import rollout
-    assert checked == [rollout.rollout_lemke_warm_small]
-    # the same in the velocity form: the full kernel, with the projection
-    push_box = compile_scene(load_scene("push_box"))
-    monkeypatch.setattr(precompile, "_helper", None)
-    started.clear()
-    checked.clear()
-    precompile.start_if_cold(push_box, True, True)
-    assert started[0][0][3:] == ["lemke_small", "pgs", "projection"]
-    assert checked == [rollout.rollout_lemke_full_small]
-
+    assert args[1:] == ["-m", "planar_lcp.engine.precompile", *precompile.HELPER_KINDS]
+    assert set(precompile.HELPER_KINDS) == set(precompile._DRIVERS) | set(precompile._CALLS)   # every kind
+    assert env[precompile.ENV_SWITCH] == "0"                             # the helper starts no helper
 
 
 @pytest.mark.slow
@@ -189,8 +153,8 @@ def test_the_compile_events_example_logs_every_process(tmp_path):
     for p in procs:
         assert sum(e["cpu"] for e in p["events"]) <= p["cpu"] + 0.05, (p["argv"], p["cpu"])
     names = {Path(p["argv"][0]).name: {e["name"] for e in p["events"]} for p in procs}
-    assert "planar_lcp.engine.rollout.rollout_lemke_small" in names["background.py"]
-    assert "planar_lcp.engine.rollout.rollout_lemke_small" not in names["planar-lcp"]
+    assert "planar_lcp.engine.rollout.rollout_lemke" in names["background.py"]
+    assert "planar_lcp.engine.rollout.rollout_lemke" not in names["planar-lcp"]
     assert "background compilation (planar_lcp/background.py), pid" in run.stdout
 
 

@@ -110,29 +110,17 @@ def test_csv_layout(tmp_path):
     np.testing.assert_array_equal(last[1:7], np.concatenate([tr.q[-1, 0], tr.v[-1, 0]]))
 
 
-def test_models_below_the_large_island_threshold_run_the_kernels_without_its_solvers():
-    """Issue M (cold start): a model none of whose islands can reach sparse_min_unknowns (Model.max_unknowns) runs
-    `step_lemke_small` / `step_lemke_full_small`, which do not compile the sparse solver and block Lemke; the piles
-    keep the full kernels. The same steps bit for bit: box_push by either kernel."""
-    import planar_lcp.engine.step as S
-    from planar_lcp.engine.rollout import rollout_lemke, rollout_lemke_full_small
+def test_every_lemke_run_takes_the_one_rollout_kernel():
+    """No kernel depends on the scene or the options: every Lemke run (both planes, a pile, the velocity form, the warm
+    start) takes `rollout_lemke`, solver pgs `rollout_pgs` (the compiled kernels' signatures: tests/test_compile_once.py)."""
+    from planar_lcp.engine.rollout import rollout_lemke, rollout_pgs
 
-    def first_variant(name, **options):
+    def kernel(name, **options):
         sc = load_scene(name)
-        return Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, **options))._variants[0][0]
-    assert first_variant("falling_rod") is S.step_lemke_small and first_variant("tower") is S.step_lemke
-    assert first_variant("tower", sparse_min_unknowns=0) is S.step_lemke_small
-    assert first_variant("box_push", formulation="velocity") is S.step_lemke_full_small
-    assert compile_scene(load_scene("box_push")).max_unknowns() < SimOptions.sparse_min_unknowns
-    sc = load_scene("box_push")
-    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
-    q, v, qk, vk = sim.initial_state()
-    small = sim.rollout(q, v, qk, vk[None], 150)
-    sim._variants = ((S.step_lemke, rollout_lemke),) + sim._variants[1:]
-    large = sim.rollout(q, v, qk, vk[None], 150)
-    for key in ("q", "v", "qk", "stats", "status"):
-        assert np.array_equal(small[key], large[key]), key
-    assert sim._variants[1][1] is rollout_lemke_full_small
+        return Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, **options))._kernel
+    assert kernel("falling_rod") is kernel("tower") is kernel("box_push", formulation="velocity") is rollout_lemke
+    assert kernel("push_t", warm_start=True) is kernel("bin", sparse_min_unknowns=0) is rollout_lemke
+    assert kernel("box_push", solver="pgs") is rollout_pgs
 
 
 def test_simulate_compiles_a_scene_once_for_the_same_settings():

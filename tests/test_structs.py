@@ -138,7 +138,7 @@ from planar_lcp.sim import SimOptions, Simulator
 def holds_array(ty):
     return isinstance(ty, types.Array) or (isinstance(ty, types.BaseTuple) and any(holds_array(t) for t in ty.types))
 
-for options in ({}, {"warm_start": True, "single_kernel": True}):
+for options in ({}, {"warm_start": True}):
     sc = load_scene("box_tip")
     sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, **options))
     q, v, qk, vk = sim.initial_state()

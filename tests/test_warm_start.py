@@ -7,7 +7,6 @@ the LCP conditions checked with numpy (for a non-unique LCP); the cold-start sim
 step); bitwise equality where the contract promises it.
 """
 
-import dataclasses
 import itertools
 
 import numpy as np
@@ -15,8 +14,7 @@ import pytest
 
 from planar_lcp import load_scene, simulate
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.rollout import (make_recording, rollout_lemke_full, rollout_lemke_full_small, rollout_lemke_small,
-                                       rollout_lemke_warm_small)
+from planar_lcp.engine.rollout import make_recording, rollout_lemke
 from planar_lcp.engine.solvers.lemke import (default_max_pivots, lemke_from_basis, lemke_kernel,
                                              make_lemke_work)
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL
@@ -213,20 +211,19 @@ def test_planner_propagation_warm_starts():
     assert tm.sim.options.warm_start is True
 
 
-def _full_variant_rollout(sim, q, v, qk, vk, n, stop_on_failure):
-    """The rollout kernel of the step variant with the PGS fallback, called once from a fresh simulator."""
+def _one_kernel_call(sim, q, v, qk, vk, n, stop_on_failure):
+    """The rollout kernel called once, from a fresh simulator."""
     C = sim.model.max_contacts()
     rec = make_recording(n, q.shape[0], qk.shape[0], C)
-    done = rollout_lemke_full(sim.kmodel, q, v, qk, vk[None], 0, n, sim.h, sim.kopt, sim.kwork, rec, stop_on_failure,
-                              True)
+    done = rollout_lemke(sim.kmodel, q, v, qk, vk[None], 0, n, sim.h, sim.kopt, sim.kwork, rec, stop_on_failure, True)
     return int(done), rec._asdict()
 
 
 @pytest.mark.parametrize("warm", [False, True])
-def test_lemke_rollout_with_fallback_steps_equals_the_full_variant_bit_for_bit(warm):
-    """Solver lemke runs the variant without the PGS fallback (`rollout_lemke`) and re-runs a step on which Lemke
-    fails with the variant that has it. res_tol = 0 makes Lemke 'fail' on many steps (a controlled failure), so the
-    stitched rollout is compared with one call of `rollout_lemke_full` on every output, and with a loop of `step`."""
+def test_failed_islands_take_the_pgs_fallback_in_rollout_and_step_alike(warm):
+    """res_tol = 0 makes Lemke 'fail' on many steps (a controlled failure): each such island takes PGS's answer and
+    the step is reported as failed. `Simulator.rollout` (in chunks) equals one call of the kernel on every output,
+    and a loop of `step`."""
     sc = load_scene("falling_rod")
     opts = SimOptions(h=sc.sim.h, res_tol=0.0, warm_start=warm)
     sim, ref = Simulator(compile_scene(sc), opts), Simulator(compile_scene(sc), opts)
@@ -235,29 +232,22 @@ def test_lemke_rollout_with_fallback_steps_equals_the_full_variant_bit_for_bit(w
     out = sim.rollout(q, v, qk, vk[None], n, stop_on_failure=False, record_contacts=True)
     failed = np.flatnonzero(out["status"] != 0)
     assert len(failed) >= 3 and out["steps_done"] == n
+    assert np.all(out["stats"][failed, Stat.PGS_UNCERTIFIED] >= 1)
     assert ref.model.max_contacts() > 0
-    done, z = _full_variant_rollout(ref, q, v, qk, vk, n, False)
+    done, z = _one_kernel_call(ref, q, v, qk, vk, n, False)
     assert done == n
     for k, a in z.items():
         assert np.array_equal(out[k], a), k
-    # SimOptions(single_kernel=True) (the planners') runs only the kernel with the fallback, the warm start's code and
-    # no projection (`rollout_lemke_warm_small`: the full variant without the velocity form's projection, the step
-    # inlined): the same outputs; so does a run with the warm start, whose code only those kernels have
-    single = Simulator(compile_scene(sc), dataclasses.replace(opts, single_kernel=True))
-    assert single._variants[0][1] is rollout_lemke_warm_small and single._variants[1][1] is rollout_lemke_full_small
-    assert sim._variants[0][1] is (rollout_lemke_warm_small if warm else rollout_lemke_small)
-    alone = single.rollout(q, v, qk, vk[None], n, stop_on_failure=False, record_contacts=True)
-    for k in ("q", "v", "qk", "stats", "status", "con_pair", "con_cn", "con_ft"):
-        assert np.array_equal(out[k], alone[k]), k
-    # and a loop of step, which takes the same path
     loop = Simulator(compile_scene(sc), opts)
     for i in range(n):
         q, v, qk, st = loop.step(q, v, qk, vk)
         assert st == out["status"][i] and np.array_equal(q, out["q"][i + 1]) and np.array_equal(v, out["v"][i + 1])
+        assert np.array_equal(loop.stats, out["stats"][i])
 
 
-def test_lemke_rollout_stops_at_the_first_failure_like_the_full_variant():
-    """stop_on_failure: the stitched rollout stops after the same step, with the same states and statuses."""
+def test_a_rollout_stops_at_the_first_failure():
+    """stop_on_failure: the rollout stops after the first failed step, with the states and statuses of one kernel
+    call."""
     sc = load_scene("falling_rod")
     opts = SimOptions(h=sc.sim.h, res_tol=0.0)
     sim, ref = Simulator(compile_scene(sc), opts), Simulator(compile_scene(sc), opts)
@@ -266,7 +256,7 @@ def test_lemke_rollout_stops_at_the_first_failure_like_the_full_variant():
     out = sim.rollout(q, v, qk, vk[None], n, stop_on_failure=True)
     done = out["steps_done"]
     assert 0 < done < n and out["status"][done - 1] != 0 and np.all(out["status"][:done - 1] == 0)
-    d, z = _full_variant_rollout(ref, q, v, qk, vk, n, True)
+    d, z = _one_kernel_call(ref, q, v, qk, vk, n, True)
     assert d == done
     for k in ("q", "v", "stats", "status"):
         assert np.array_equal(out[k], z[k]), k
@@ -276,7 +266,7 @@ def test_lemke_rollout_stops_at_the_first_failure_like_the_full_variant():
                                         ("four_disks", dict(formulation="velocity", warm_start=True))])
 def test_a_rollout_in_chunks_equals_one_kernel_call(name, opts):
     """Simulator.rollout runs long rollouts in chunks (so that Ctrl-C is handled between them): 16-step chunks and one
-    call give the same outputs bit for bit, warm-start memory, the Python-run fallback steps (res_tol = 0 makes
+    call give the same outputs bit for bit, warm-start memory, the fallback steps (res_tol = 0 makes
     failures) and recorded contacts included."""
     sc = load_scene(name)
     outs = []

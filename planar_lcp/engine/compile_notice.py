@@ -16,10 +16,10 @@ COLD_START_SECONDS = 25
 NOTICE = (f"compiling the simulation kernels once (about {COLD_START_SECONDS} s on 2 cores); "
           "later runs start at once")
 
-#: `Simulator(..., python_while_cold=True)` (what `simulate` runs) on a cold cache: the run goes on as Python while a
-#: background process compiles (planar_lcp/background.py)
-BACKGROUND_NOTICE = (f"compiling the simulation kernels once, in the background (about {COLD_START_SECONDS} s on 2 "
-                     "cores); this run goes on meanwhile as Python, with the same results; later runs start at once")
+#: A cold cache's background compilation started (planar_lcp/background.py): `simulate` goes on meanwhile as Python
+#: (the same results), other runs wait for it
+BACKGROUND_NOTICE = (f"compiling the simulation kernels once, in a background process (about {COLD_START_SECONDS} s "
+                     "on 2 cores); later runs start at once")
 
 _PACKAGES = ("planar_lcp",)  # the planners have no numba code of their own
 
@@ -60,8 +60,16 @@ def announce_compilation(prefix, stream=None):
 
 
 def uninstall(notice):
-    event.unregister("numba:compile", notice)
-    _installed.remove(notice)
+    """Uninstall a notice (nothing if it was already)."""
+    if notice in _installed:
+        event.unregister("numba:compile", notice)
+        _installed.remove(notice)
+
+
+def uninstall_all():
+    """Uninstall every installed notice (a command that reports its compilation itself)."""
+    for notice in list(_installed):
+        uninstall(notice)
 
 
 def announce_background():

@@ -1,22 +1,19 @@
-"""On a cold numba cache, compile half of the step's kernels in a second process while this one compiles the rest.
+"""On a cold numba cache, compile half of the step's kernels in a second process while the compiling one does the rest.
 
-numba compiles one function at a time in one thread, and a cold `simulate()` spends 30 to 45 s in it (issue M,
-docs/performance.md "Compile time"), while the machine has a second core. The step's kernels split in two
-independent halves: the contacts (compiled first: the model's start-overlap check needs them) and the island
-solvers (assembly, Lemke and its certification, the impulses). `start_if_cold(model)`, called by `compile_scene`
-before its first kernel call, starts `python -m planar_lcp.engine.precompile KIND ...` when the cache has not got
-this model's rollout kernel: that process compiles the island solvers' kernels into numba's on-disk cache, with
-exactly the argument types the step's pipeline gives them (the drivers below call them as `step_pipeline` does),
-and exits. When this process's own compilation of the step reaches those kernels, numba's dispatcher finds them in
-the cache (it tries the cache before compiling) and loads them instead. The results are the same machine code, bit
-for bit the same steps; if the helper is late or fails, this process compiles what it needs itself, as before.
+numba compiles one function at a time in one thread, while the machine has a second core. The step's kernels split
+in two independent halves: the contacts and the rollout loop (the compiling process's) and the island solvers
+(assembly, Lemke and its certification, PGS, the large-island solvers, the impulses: this helper's).
+`start_helper()`, called by the background compilation (planar_lcp/background.py `compile_kernels`) before its
+first stage, starts `python -m planar_lcp.engine.precompile KIND ...` when the cache has not got the rollout
+kernel: that process compiles the island solvers' kernels into numba's on-disk cache, with exactly the argument
+types the step's pipeline gives them (the drivers below call them as `step_pipeline` does), and exits. When the
+compiling process's own compilation of the step reaches those kernels, numba's dispatcher finds them in the cache
+(it tries the cache before compiling) and loads them instead. The results are the same machine code, bit for bit
+the same steps; if the helper is late or fails, the compiling process compiles what it needs itself.
 
 Nothing starts when the JIT is disabled, numba cannot cache, fewer than two CPUs are available, the kernel is
-already in the cache or compiled in this process, or PLANAR_LCP_PRECOMPILE=0. The helper is stopped when this
-process exits.
-
-`simulate` on a cold cache starts instead a background compilation of the whole run (planar_lcp/background.py),
-which starts this helper in turn, while the run goes on as Python (engine/interpreted.py).
+already in the cache or compiled in this process, or PLANAR_LCP_PRECOMPILE=0. The helper is stopped when the process
+that started it exits.
 """
 
 import atexit
@@ -34,12 +31,10 @@ from planar_lcp.engine.assemble import (assemble_lcp, assemble_servo, island_is_
                                         record_servo_lag, servo_within_limits)
 from planar_lcp.engine.interpreted import compiled
 from planar_lcp.engine.islands import contact_island, find_islands
-from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS
 from planar_lcp.engine.layout import (MODEL_STRUCT, OPTIONS_LAYOUT, WORK_LAYOUT, WORK_STRUCT, StepOptions, StepWork,
                                       numba_type)
 from planar_lcp.engine.solvers.lemke import (LEMKE_CHAIN, lemke_from_basis, lemke_in_work, record_failed_island,
-                                             solve_island_lemke, solve_island_lemke_cold, solve_island_lemke_small,
-                                             solve_island_lemke_small_cold)
+                                             solve_island_lemke)
 from planar_lcp.engine.solvers.pgs import solve_island_pgs
 from planar_lcp.engine.step import project_positions
 
@@ -97,21 +92,6 @@ def _drive_islands(m, w, ncon, j):
 # never lowered, cached or run.
 
 @_driver
-def _drive_lemke_small_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
-    return solve_island_lemke_small_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
-
-
-@_driver
-def _drive_lemke_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
-    return solve_island_lemke_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
-
-
-@_driver
-def _drive_lemke_small(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
-    return solve_island_lemke_small(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
-
-
-@_driver
 def _drive_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     return solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
 
@@ -163,10 +143,8 @@ def _drive_projection(m, w, opt, qk_out, stats):
     return project_positions(m, w, opt, qk_out, stats)
 
 
-_DRIVERS = {"lemke_small_cold": _drive_lemke_small_cold, "lemke_cold": _drive_lemke_cold,
-            "lemke_small": _drive_lemke_small, "lemke": _drive_lemke, "pgs": _drive_pgs,
-            "projection": _drive_projection, "lemke_reversed": _drive_lemke_reversed,
-            "lemke_kernel": _drive_lemke_kernel}
+_DRIVERS = {"lemke": _drive_lemke, "pgs": _drive_pgs, "projection": _drive_projection,
+            "lemke_reversed": _drive_lemke_reversed, "lemke_kernel": _drive_lemke_kernel}
 
 
 def _options_type():
@@ -180,19 +158,37 @@ def _solver_signature():
             types.boolean, _F1)
 
 
+def _compile_lcp():
+    """`planar_lcp.lemke`'s kernel and `lcp_scale` (a failed step's checks), by calls as their callers make them:
+    they share `lemke_kernel`, which the helper has compiled by then."""
+    import numpy as np
+
+    from planar_lcp.engine.solvers.lemke import lcp_scale
+    from planar_lcp.lcp import lemke
+    A, b = np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0])
+    lcp_scale(A, b)
+    lemke(A, b)
+
+
+#: kinds compiled by a call rather than by typing a driver
+_CALLS = {"lcp": _compile_lcp}
+
+
 def compile_kinds(kinds):
     """Compile (into numba's cache) what a step needs after its collision, in the order the step needs it: the
-    islands' kernels, then the kernels of each island solver in `kinds` (keys of _DRIVERS), then the work struct's
-    constructor (last: the first process compiles its rollout kernel before it makes its work struct, sim.py
-    `Simulator._compile_first`, and by then loads it). Each driver is typed only (`_TypeOnly`). The helper
-    process's work; also callable in-process."""
+    islands' kernels, then the kernels of each island solver in `kinds` (keys of _DRIVERS, or of _CALLS), then the
+    work struct's constructor. Each driver is typed only (`_TypeOnly`). The helper process's work; also callable
+    in-process."""
     from planar_lcp.engine.layout import _new_struct
     sig = _solver_signature()
-    drivers = [(_drive_islands, (MODEL_STRUCT, WORK_STRUCT, types.int64, types.int64))]
     special = {"projection": (MODEL_STRUCT, WORK_STRUCT, sig[2], _F2, _F1),
                "lemke_kernel": (WORK_STRUCT, sig[2], types.int64, types.int64, types.boolean)}
-    drivers += [(_DRIVERS[kind], special.get(kind, sig)) for kind in kinds]
-    for driver, driver_sig in drivers:
+    stages = [(_drive_islands, (MODEL_STRUCT, WORK_STRUCT, types.int64, types.int64))]
+    stages += [(_CALLS[kind], None) if kind in _CALLS else (_DRIVERS[kind], special.get(kind, sig)) for kind in kinds]
+    for driver, driver_sig in stages:
+        if driver_sig is None:
+            driver()
+            continue
         try:
             driver.compile(driver_sig)
         except _Typed:
@@ -204,27 +200,13 @@ def compile_kinds(kinds):
 _helper = None
 
 
-def _rollout_kernel(model, single_kernel, velocity=False):
-    """The rollout kernel a run of `model` starts with (`simulate`'s defaults, or the single kernel with the warm
-    start's code, as the planners run it: sim.py `_variants`), and the island solvers' kinds (keys of _DRIVERS) to
-    compile for it, in order: the first kernel's, then what the fallback kernel adds (PGS, the warm start, the
-    velocity form's projection), which shares the rest. A single-kernel run (a planner's) needs no cold variant:
-    compiling it first cost the first `plan` about 7 s of the helper's CPU time (docs/performance.md); in a position
-    form it runs `rollout_lemke_warm(_small)`, which has no projection. velocity: the run is in the velocity form."""
-    from planar_lcp.engine import rollout
-    small = model.max_unknowns() < SPARSE_MIN_UNKNOWNS
-    kind = "lemke_small" if small else "lemke"
-    if velocity:
-        return (rollout.rollout_lemke_full_small if small else rollout.rollout_lemke_full), [kind, "pgs", "projection"]
-    if single_kernel:
-        # The step reaches the assembly, the warm start, lemke_kernel, then PGS's kernels (after its contacts, about
-        # 8 s in): this process compiles lemke_kernel (the largest), PGS's kernels, then the others from the last,
-        # so that the two meet instead of compiling the same kernels; then the solver's driver, which finds them all
-        # cached unless one was missed
-        return (rollout.rollout_lemke_warm_small if small else rollout.rollout_lemke_warm), [
-            "lemke_kernel", "pgs", "lemke_reversed", kind]
-    return (rollout.rollout_lemke_small if small else rollout.rollout_lemke), [kind + "_cold", "pgs", kind,
-                                                                                "projection"]
+#: The kinds (keys of _DRIVERS and _CALLS) the helper compiles for `rollout_lemke`, in order. Its step reaches the
+#: assembly, the warm start, lemke_kernel, then PGS's kernels (after its contacts): the helper compiles lemke_kernel
+#: (the largest), `planar_lcp.lemke`'s kernel on it (a run on a cold cache may want it early: the demo does), PGS's
+#: kernels, then the others from the last, so that the two processes meet instead of compiling the same kernels at
+#: the same time; then the solver's driver (the large-island solvers, which the step reaches last) and the velocity
+#: form's projection.
+HELPER_KINDS = ("lemke_kernel", "lcp", "pgs", "lemke_reversed", "lemke", "projection")
 
 
 def _cpus():
@@ -239,22 +221,19 @@ def may_start():
     return os.environ.get(ENV_SWITCH, "1") != "0" and not numba.config.DISABLE_JIT and _cpus() >= 2
 
 
-def start_if_cold(model, single_kernel=False, velocity=False):
-    """Start the helper (module docstring) for `model`'s kernels if the cache is cold; at most once per process.
-    single_kernel: the run starts with the single kernel (compile_scene's hint); velocity: in the velocity form.
-    Returns the helper's Popen, or None."""
+def start_helper():
+    """Start the helper (module docstring) if the rollout kernel is not compiled or cached; at most once per
+    process. Returns its Popen, or None."""
     global _helper
-    if _helper is not None or not may_start():
-        return None
-    kernel, kinds = _rollout_kernel(model, single_kernel, velocity)
-    if compiled(kernel):
+    from planar_lcp.engine.rollout import rollout_lemke
+    if _helper is not None or not may_start() or compiled(rollout_lemke):
         return None
     env = dict(os.environ, **{ENV_SWITCH: "0"})
     if numba.config.CACHE_DIR:
         env["NUMBA_CACHE_DIR"] = numba.config.CACHE_DIR
     try:
-        _helper = subprocess.Popen([sys.executable, "-m", __name__, *kinds], env=env, stdin=subprocess.DEVNULL,
-                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        _helper = subprocess.Popen([sys.executable, "-m", __name__, *HELPER_KINDS], env=env,
+                                   stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     except OSError:
         return None
     atexit.register(stop)

@@ -1,8 +1,9 @@
-"""Many steps in one jitted call (for planners and `simulate`): exactly a loop of a step variant (engine/step.py).
+"""Many steps in one jitted call (for planners, `simulate` and `Simulator.step`): exactly a loop of a step function
+(engine/step.py).
 
-`rollout_loop` is the one loop; the kernels below are its compiled variants, one per step variant. It is resumable
-(a rollout run in pieces equals one call, warm-start memory included), which is how `Simulator.rollout` returns to
-Python between chunks and re-runs a step that a variant without fallback handed back (STEP_NEEDS_FALLBACK).
+`rollout_loop` is the one loop; the kernels below compile it with each step function. It is resumable (a rollout
+run in pieces equals one call, warm-start memory included), which is how `Simulator.rollout` returns to Python
+between chunks and runs a step again after growing the dense buffers (STEP_NEEDS_SPACE).
 """
 
 from collections import namedtuple
@@ -11,9 +12,7 @@ import numpy as np
 from numba import njit
 
 from planar_lcp.engine.layout import INT_STATS, NSTAT, Stat
-from planar_lcp.engine.step import (STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE, STEP_OK, lemke_step, lemke_step_full,
-                                    lemke_step_full_small, lemke_step_small, lemke_step_warm, lemke_step_warm_small,
-                                    pgs_step)
+from planar_lcp.engine.step import STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE, STEP_OK, lemke_step, pgs_step
 
 #: A rollout's output buffers. States q, v (nsteps + 1, ndyn, 3) and qk (nsteps + 1, nkin, 3), row 0 the initial
 #: state; per step: stats (nsteps, NSTAT), status (nsteps,) STEP_* codes, and the contacts of the step's active set
@@ -209,8 +208,9 @@ def rollout_loop(step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, st
     return done
 
 
-# The compiled variants, one per step variant (same arguments as `rollout_loop` without `step`), each with its step
-# inlined into the loop (engine/step.py: the step variants).
+# The rollout kernels, one per step function (engine/step.py), each with its step inlined into the loop: every Lemke
+# run takes `rollout_lemke`, solver = "pgs" `rollout_pgs`. `Simulator.step` runs them one step a call, so these two
+# are the whole of what a cold cache compiles for the steps, whatever the scene.
 
 @njit(cache=True, _nrt=False)
 def rollout_lemke(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
@@ -219,43 +219,6 @@ def rollout_lemke(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on
 
 
 @njit(cache=True, _nrt=False)
-def rollout_lemke_full(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
-    return rollout_loop(lemke_step_full, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
-                        reset_warm_start)
-
-
-@njit(cache=True, _nrt=False)
-def rollout_lemke_small(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
-    return rollout_loop(lemke_step_small, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
-                        reset_warm_start)
-
-
-@njit(cache=True, _nrt=False)
-def rollout_lemke_full_small(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
-                             reset_warm_start):
-    return rollout_loop(lemke_step_full_small, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec,
-                        stop_on_failure, reset_warm_start)
-
-
-@njit(cache=True, _nrt=False)
 def rollout_pgs(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
     return rollout_loop(pgs_step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
                         reset_warm_start)
-
-
-# The planners' kernels (`SimOptions(single_kernel=True)` or the warm start, position forms: sim.py `_variants`): the
-# warm start and the PGS fallback, without the velocity form's projection (engine/step.py `lemke_step_warm`), so they
-# step as `rollout_lemke_full(_small)` bit for bit; a cold cache compiles the step without the projection: 8.1 s of
-# CPU against 13.0 s with every other kernel cached (docs/performance.md, "Compile time").
-
-@njit(cache=True, _nrt=False)
-def rollout_lemke_warm(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
-    return rollout_loop(lemke_step_warm, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
-                        reset_warm_start)
-
-
-@njit(cache=True, _nrt=False)
-def rollout_lemke_warm_small(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
-                             reset_warm_start):
-    return rollout_loop(lemke_step_warm_small, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec,
-                        stop_on_failure, reset_warm_start)

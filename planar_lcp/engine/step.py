@@ -20,9 +20,7 @@ from planar_lcp.engine.constants import SUPPORT_LIMIT_SURFACE
 from planar_lcp.engine.contacts import body_poses, find_contacts, world_vertices
 from planar_lcp.engine.islands import find_islands, island_members
 from planar_lcp.engine.layout import Stat, matrix_view
-from planar_lcp.engine.solvers.lemke import (STATUS_NEEDS_SPACE, STATUS_SOLVED, lemke_in_work, solve_island_lemke,
-                                             solve_island_lemke_cold, solve_island_lemke_small,
-                                             solve_island_lemke_small_cold)
+from planar_lcp.engine.solvers.lemke import STATUS_NEEDS_SPACE, STATUS_SOLVED, lemke_in_work, solve_island_lemke
 from planar_lcp.engine.solvers.pgs import solve_island_pgs
 
 # The stages are inline='always' (and so are the island solvers, through the pipeline's arguments): every separately
@@ -370,38 +368,18 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
     return write_outputs(w, ncon, q_out, v_out, stats, fp_iter, worst)
 
 
-# The step variants, each defined once, inline: the rollout kernels inline their step into their loop
-# (engine/rollout.py), so a cold cache compiles a run's step once, not as a kernel of its own and again linked into
-# the rollout (the background compilation of a cold `simulate falling_rod` ended by 18.1-18.4 s against 19.9-20.2 s:
-# docs/performance.md, "Issue M, eighth session"). The step kernels below (`Simulator.step`) are the same functions,
-# each a cached kernel of its own, compiled only when a run calls them.
+# The two step functions: every Lemke run, whatever its scene, formulation or options, takes `lemke_step` (one
+# compilation serves every scene: the options and the model's sizes are run-time values, never compile-time
+# variants), and solver = "pgs" takes `pgs_step`. Each is inlined into its rollout kernel (engine/rollout.py), which
+# is also what `Simulator.step` runs, one step a call: a cold cache compiles each step once.
 
 @njit(cache=True, inline='always')
 def lemke_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """Lemke, position forms, no fallback and no warm start: the smallest variant, the default's (PGS, the projection
-    and the warm start compile only when a run needs them; a run with opt.warm_start takes `lemke_step_full`)."""
-    return step_pipeline(solve_island_lemke_cold, None, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
-
-
-@njit(cache=True, inline='always')
-def lemke_step_full(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """Lemke with the PGS fallback, the velocity form's projection and the warm start."""
+    """Lemke's certified chain (the warm start with opt.warm_start; large islands by the sparse solver and block Lemke
+    first, opt.sparse_min), PGS's uncertified answer for an island none of them certifies (the step is then reported
+    as failed), and the velocity form's projection."""
     return step_pipeline(solve_island_lemke, solve_island_pgs, project_positions, m, q, v, qk, vk, h, opt, w, q_out,
                          v_out, qk_out, stats)
-
-
-@njit(cache=True, inline='always')
-def lemke_step_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """`lemke_step` for a model whose islands stay below opt.sparse_min unknowns (`solve_island_lemke_small_cold`)."""
-    return step_pipeline(solve_island_lemke_small_cold, None, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out,
-                         stats)
-
-
-@njit(cache=True, inline='always')
-def lemke_step_full_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """`lemke_step_full` for a model whose islands stay below opt.sparse_min unknowns."""
-    return step_pipeline(solve_island_lemke_small, solve_island_pgs, project_positions, m, q, v, qk, vk, h, opt, w,
-                         q_out, v_out, qk_out, stats)
 
 
 @njit(cache=True, inline='always')
@@ -409,52 +387,3 @@ def pgs_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
     """PGS (never fails, so no fallback) with the velocity form's projection."""
     return step_pipeline(solve_island_pgs, None, project_positions, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out,
                          stats)
-
-
-@njit(cache=True, inline='always')
-def lemke_step_warm(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """The planners' variant (engine/rollout.py `rollout_lemke_warm`): `lemke_step_full` without the velocity form's
-    projection, which a position-form step never reaches (a velocity-form step is handed back, STEP_NEEDS_FALLBACK, to
-    the full kernel). Its steps are `lemke_step_full`'s bit for bit; it has no step kernel of its own
-    (`Simulator.step` runs `step_lemke_full`)."""
-    return step_pipeline(solve_island_lemke, solve_island_pgs, None, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out,
-                         stats)
-
-
-@njit(cache=True, inline='always')
-def lemke_step_warm_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """`lemke_step_warm` for a model whose islands stay below opt.sparse_min unknowns."""
-    return step_pipeline(solve_island_lemke_small, solve_island_pgs, None, m, q, v, qk, vk, h, opt, w, q_out, v_out,
-                         qk_out, stats)
-
-
-# The step kernels (each a cached kernel of its own). Simulator picks one by solver and formulation.
-
-@njit(cache=True, _nrt=False)
-def step_lemke(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """`lemke_step` as a kernel."""
-    return lemke_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
-
-
-@njit(cache=True, _nrt=False)
-def step_lemke_full(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """`lemke_step_full` as a kernel."""
-    return lemke_step_full(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
-
-
-@njit(cache=True, _nrt=False)
-def step_lemke_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """`lemke_step_small` as a kernel."""
-    return lemke_step_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
-
-
-@njit(cache=True, _nrt=False)
-def step_lemke_full_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """`lemke_step_full_small` as a kernel."""
-    return lemke_step_full_small(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)
-
-
-@njit(cache=True, _nrt=False)
-def step_pgs(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
-    """`pgs_step` as a kernel."""
-    return pgs_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats)

@@ -645,16 +645,12 @@ def bench_scaling_piles(kinds=SCALING_PILES, sizes=PILE_SCALING_SIZES, steps=PIL
     from planar_lcp.spec.scene import parse_scene
     say = progress or (lambda line: None)
     rows, fits, fit_spread, fit_bodies = [], {}, {}, {}
-    # Compile the kernels before any clock: on a fresh numba cache the first probe would take the compilation (about
-    # 2 minutes on the 2-core machine) for its steps, go over the step budget and skip the kind's larger sizes. Both
-    # kernels the two paths run: the defaults' on a pile has the large-island solvers (sparse_min_unknowns = 1
-    # chooses it for the two-box tower too), the dense path's is the one without them (sim.py `_variants`)
+    # Compile the kernel before any clock: on a fresh numba cache the first probe would take the compilation for its
+    # steps, go over the step budget and skip the kind's larger sizes (both paths run the one kernel)
     warm_scene, _ = scaling_pile_scene("tower", 2)
-    warm_model = compile_scene(parse_scene(warm_scene))
-    for smin in (1, 0):
-        warm = Simulator(warm_model, SimOptions(h=1.0 / 60.0, sparse_min_unknowns=smin))
-        q0, v0, qk0, vk0 = warm.initial_state()
-        warm.rollout(q0, v0, qk0, vk0[None], 1)
+    warm = Simulator(compile_scene(parse_scene(warm_scene)), SimOptions(h=1.0 / 60.0))
+    q0, v0, qk0, vk0 = warm.initial_state()
+    warm.rollout(q0, v0, qk0, vk0[None], 1)
     for kind in kinds:
         params, runners, kind_rows = [], {}, []
         for size in sorted(set(sizes)):

@@ -610,36 +610,6 @@ def block_lemke_equilibrated(m, w, opt, vk, nci, nsi, h, velocity_form, A, b, n)
     return STATUS_SOLVED, p, res
 
 
-@njit(cache=True, inline='always')
-def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
-    """Island solver (signature: engine/step.py): the island's LCP by the warm start (opt.warm_start), then the
-    certified LEMKE_CHAIN, large islands (opt.sparse_min) by the sparse solver and block Lemke first. When solved,
-    its impulses are added to w.v_new and recorded in w.con_*; returns the Lemke status (a failure leaves w.v_new
-    unchanged and forgets the island's warm-start basis)."""
-    return lemke_island(solve_island_sparse, lemke_from_basis, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
-
-
-@njit(cache=True, inline='always')
-def solve_island_lemke_small(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
-    """`solve_island_lemke` for a model whose islands never reach opt.sparse_min unknowns (Model.max_unknowns, or
-    opt.sparse_min = 0): the same steps bit for bit, without the large-island solvers' code, which a cold numba cache
-    then does not compile (measured: 11 s of the 40 s cold start of falling_rod)."""
-    return lemke_island(None, lemke_from_basis, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
-
-
-@njit(cache=True, inline='always')
-def solve_island_lemke_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
-    """`solve_island_lemke` without the warm start's code (for opt.warm_start False: the same steps bit for bit; a
-    cold numba cache then does not compile it, 1.5 to 2.5 s)."""
-    return lemke_island(solve_island_sparse, None, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
-
-
-@njit(cache=True, inline='always')
-def solve_island_lemke_small_cold(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
-    """`solve_island_lemke_small` without the warm start's code (for opt.warm_start False)."""
-    return lemke_island(None, None, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
-
-
 @njit(cache=True, _nrt=False)
 def record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf, nsb, ns):
     """Keep the LCP of an island no method certified, as the chain's first try assembled it (its rows as the
@@ -719,10 +689,11 @@ def lemke_chain(m, w, opt, vk, nci, nsi, h, velocity_form, stats, A, b, n, tried
 
 
 @njit(cache=True, inline='always')
-def lemke_island(large_island_solver, warm_solver, m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
-    """`solve_island_lemke`'s body; large_island_solver: solve_island_sparse, or None for a kernel without the
-    large-island solvers; warm_solver: lemke_from_basis, or None for a kernel without the warm start (numba prunes
-    the branches that test them against None).
+def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
+    """Island solver (signature: engine/step.py): the island's LCP by the warm start (opt.warm_start), then the
+    certified LEMKE_CHAIN, large islands (opt.sparse_min) by the sparse solver and block Lemke first. When solved,
+    its impulses are added to w.v_new and recorded in w.con_*; returns the Lemke status (a failure leaves w.v_new
+    unchanged and forgets the island's warm-start basis).
 
     An island with force-limited kinematic bodies (max_force) is solved first with their velocities prescribed, as
     any island; when that answer asks more of a servo than its limits (or there is none), the island is solved again
@@ -746,9 +717,9 @@ def lemke_island(large_island_solver, warm_solver, m, w, opt, vk, isl, nci, nsi,
     servo = False
     tried_block = np.bool_(False)
     large = ns == 0 and opt.sparse_min > 0 and n >= opt.sparse_min and nsi == 0
-    if large_island_solver is not None and large:
+    if large:
         # a large island: its sparse reduced system first (engine/solvers/sparse.py), dense Lemke if not certified
-        sparse, _, res = large_island_solver(m, w, opt, vk, nci, nsi, h, velocity_form)
+        sparse, _, res = solve_island_sparse(m, w, opt, vk, nci, nsi, h, velocity_form)
         if sparse:
             status = STATUS_SOLVED
             stats[Stat.SOLVED_SPARSE] += 1
@@ -780,14 +751,14 @@ def lemke_island(large_island_solver, warm_solver, m, w, opt, vk, isl, nci, nsi,
         assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector, np.bool_(True))
         if servo:
             assemble_servo(m, w, nci, nf, n, nsb, h, A, w.lcp_vector)
-        if phase == 0 and warm_solver is not None and opt.warm_start and w.warm_size[isl] == n:
+        if phase == 0 and opt.warm_start and w.warm_size[isl] == n:
             # the previous step's basis for this island: contact modes rarely change from one step to the next
-            warm, res = warm_solver(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu,
-                                    w.lemke_rhs, w.lemke_perm, w.lemke_basic)
+            warm, res = lemke_from_basis(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu,
+                                         w.lemke_rhs, w.lemke_perm, w.lemke_basic)
         if warm:
             status = STATUS_SOLVED
             stats[Stat.WARM_STARTS] += 1
-        elif phase == 0 and large_island_solver is not None and large:
+        elif phase == 0 and large:
             # a large island: Lemke's path pivoted on its basis's Schur complement (block_lemke.py), O(k^2) a pivot
             # where the tableau's costs O(n^2); the tableau if it is not certified (a cycle on a degenerate tie)
             tried_block = np.bool_(True)

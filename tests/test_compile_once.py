@@ -1,0 +1,208 @@
+"""One compilation serves every scene (planar_lcp/background.py): no kernel's type depends on a scene's layout, the
+first run on an empty cache compiles what every later run with the defaults reaches, and `planar-lcp warmup` what
+any run reaches. Measured with numba's compile events, in subprocesses with caches of their own."""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from cli_helpers import run_cli
+from planar_lcp import background
+
+pytestmark = pytest.mark.needs_jit
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# A process that records numba's compile events (the functions it compiled, not those it loaded from the cache), runs
+# `body`, and prints them as JSON on its last line.
+_LISTENER = textwrap.dedent("""
+    import json
+    from numba.core import event
+    compiled = []
+    class L(event.Listener):
+        def on_start(self, ev):
+            d = ev.data.get("dispatcher")
+            compiled.append(d.py_func.__module__ + "." + d.py_func.__qualname__ if d is not None else "?")
+        def on_end(self, ev):
+            pass
+    event.register("numba:compile", L())
+""")
+
+# Every kind of scene a user can write, with the defaults and with options: both planes, every shipped scene and task,
+# the piles (large islands), force-limited and turning kinematic bodies, the velocity and fixed-point forms, the warm
+# start, failed islands (PGS's fallback, the jam certificates), random scenes of both planes and a planner's
+# propagations on tasks of two to eight bodies. Prints the number of runs last but one.
+_EVERY_SCENE = textwrap.dedent("""
+    import numpy as np
+    from planar_lcp import simulate
+    from planar_lcp.model import compile_scene
+    from planar_lcp.sim import SimOptions, Simulator
+    from planar_lcp.spec.random_scenes import jam_scene, random_scene, random_task
+    from planar_lcp.spec.scene import list_scenes, load_scene, parse_scene
+    from planners.tasks import TaskModel
+    runs = 0
+
+    def run(scene, n=20, **options):
+        global runs
+        sim = Simulator(compile_scene(scene), SimOptions(h=scene.sim.h, **options))
+        q, v, qk, vk = sim.initial_state()
+        sim.rollout(q, v, qk, vk[None], n, stop_on_failure=False, record_contacts=True, trajectory_rows=True)
+        sim.step(q, v, qk, vk)
+        runs += 1
+
+    for name, _ in list_scenes():
+        scene = load_scene(name)
+        simulate(scene, t_end=min(scene.sim.t_end, 25 * scene.sim.h), on_failure="record")
+        for options in ({"formulation": "velocity"}, {"formulation": "fixed_point"}, {"warm_start": True},
+                        {"res_tol": 0.0}):
+            run(scene, **options)
+    for seed in range(NRANDOM):
+        run(parse_scene(random_scene(seed), source=f"random {seed}"), n=60)
+        run(parse_scene(jam_scene(seed), source=f"jam {seed}"), n=60)
+    tasks = ["push_box", "push_clutter", "push_table", "tip_box", "push_t"] + sorted(TASKS_DIR.glob("*.toml"))
+    tasks += [random_task(seed) for seed in range(NTASKS)] + [SIX_BODIES]
+    for task in tasks:
+        tm = TaskModel(task)
+        x = tm.initial_state()
+        for u in ((0.1, 0.0), (0.0, 0.1), (-0.05, 0.05)):
+            x, ok = tm.advance(x, u, tm.steps_per_prop)
+        runs += 1
+    print(runs)
+""")
+
+# A top-down task of six bodies: an object, three movable obstacles, a pusher and a static wall.
+SIX_BODIES = {
+    "name": "six_bodies", "world": {"plane": "horizontal", "support_gravity": 9.81, "friction": 0.4},
+    "sim": {"h": 0.01, "t_end": 1.0},
+    "bodies": [
+        {"name": "box", "type": "dynamic", "mass": 1.0, "position": [0.0, 0.0], "support_friction": 0.3,
+         "shapes": [{"type": "box", "width": 0.1, "height": 0.1}]},
+        *({"name": f"ob{i}", "type": "dynamic", "mass": 0.5, "position": [0.12, 0.12 * (i - 1)],
+           "support_friction": 0.3, "shapes": [{"type": "disk", "radius": 0.04}]} for i in range(3)),
+        {"name": "pusher", "type": "kinematic", "position": [-0.1, 0.0],
+         "shapes": [{"type": "disk", "radius": 0.02}]},
+        {"name": "wall", "type": "static", "position": [0.4, 0.0],
+         "shapes": [{"type": "box", "width": 0.05, "height": 1.0}]},
+    ],
+    "task": {"object": "box", "pusher": "pusher", "goal": {"x": 0.3, "y": 0.25, "angle_deg": 30.0}},
+}
+
+
+def _python(body, cache, timeout=1800, **env):
+    """Run `body` after the compile listener in a fresh process on the numba cache `cache`; returns (its stdout lines
+    but the last, the functions it compiled)."""
+    full = dict(os.environ, NUMBA_CACHE_DIR=str(cache), MPLBACKEND="Agg", **env)
+    full.pop("NUMBA_DISABLE_JIT", None)
+    out = subprocess.run([sys.executable, "-c", _LISTENER + body], capture_output=True, text=True, env=full,
+                         timeout=timeout, cwd=ROOT)
+    assert out.returncode == 0, out.stderr[-3000:]
+    lines = out.stdout.strip().splitlines()
+    return lines[:-1], json.loads(lines[-1])
+
+
+def _every_scene(nrandom, ntasks):
+    return (f"from pathlib import Path\nNRANDOM, NTASKS = {nrandom}, {ntasks}\n"
+            f"TASKS_DIR = Path({str(ROOT / 'tasks')!r})\nSIX_BODIES = {SIX_BODIES!r}\n" + _EVERY_SCENE
+            + "print(json.dumps(compiled))\n")
+
+
+def _signatures():
+    """A process's body printing, as its last line, {dispatcher: number of compiled signatures} of every numba
+    dispatcher of planar_lcp."""
+    return textwrap.dedent("""
+        import importlib, pkgutil, planar_lcp
+        from numba.core.dispatcher import Dispatcher
+        counts = {}
+        for info in pkgutil.walk_packages(planar_lcp.__path__, "planar_lcp."):
+            module = importlib.import_module(info.name)
+            for obj in vars(module).values():
+                if isinstance(obj, Dispatcher) and obj.py_func.__module__ == info.name:
+                    counts[info.name + "." + obj.py_func.__qualname__] = len(obj.signatures)
+        print(json.dumps(counts))
+    """)
+
+
+def test_no_kernel_type_depends_on_the_scene(tmp_path):
+    """After runs of every kind of scene and option (_EVERY_SCENE, 10 random scenes of each kind), every kernel of
+    planar_lcp was compiled (or loaded) for one signature: none depends on the number of bodies, shapes, contacts or
+    kinematic bodies, the plane, or the options. The struct constructor is the one function with two (the model's
+    and the work buffers' structs, the same for every scene)."""
+    lines, counts = _python(_every_scene(10, 4).replace("print(json.dumps(compiled))\n", "") + _signatures(),
+                            os.environ.get("NUMBA_CACHE_DIR") or tmp_path / "cache", PLANAR_LCP_PRECOMPILE="0")
+    assert int(lines[-1]) >= 100                                   # the runs
+    assert counts["planar_lcp.engine.rollout.rollout_lemke"] == 1
+    several = {name: n for name, n in counts.items() if n > 1}
+    assert several == {"planar_lcp.engine.layout._new_struct": 2}, several
+
+
+@pytest.mark.slow
+def test_after_the_first_run_nothing_compiles(tmp_path):
+    """The README's first command's main job (`planar-lcp demo`) on an empty cache, then every shipped scene and task
+    (with the defaults and options), 50 random scenes of both planes, 50 jam scenes, 12 random tasks and a task of six
+    bodies on that cache: not one function compiles (the background compilation the demo started compiled it all)."""
+    cache = tmp_path / "cache"
+    demo = run_cli("demo", "--out", str(tmp_path / "demo"), cwd=tmp_path, env={"NUMBA_CACHE_DIR": str(cache)},
+                   timeout=1800)
+    assert demo.returncode == 0, demo.stderr
+    assert background.Background(None, background.lock_file(str(cache)), 0.0).wait(timeout=900)
+    lines, compiled = _python(_every_scene(50, 12), cache)
+    assert int(lines[-1]) >= 200
+    assert compiled == [], sorted(set(compiled))
+
+
+@pytest.mark.slow
+def test_warmup_compiles_every_solver(tmp_path):
+    """`planar-lcp warmup` on an empty cache, one line per stage; then runs of every solver (lemke, pgs, osqp) and
+    formulation and `planar_lcp.lemke` compile nothing, and a second warmup has nothing to do."""
+    cache = tmp_path / "cache"
+    env = {"NUMBA_CACHE_DIR": str(cache)}
+    first = run_cli("warmup", cwd=tmp_path, env=env, timeout=1800)
+    assert first.returncode == 0, first.stderr
+    stages = [line for line in first.stdout.splitlines() if line.lstrip().startswith("[")]
+    assert len(stages) == len(background.compilation_stages("all")) and stages[-1].lstrip().startswith(
+        f"[{len(stages)}/{len(stages)}]")
+    _, compiled = _python(textwrap.dedent("""
+        import numpy as np
+        from planar_lcp import lemke, simulate
+        for solver in ("lemke", "pgs", "osqp"):
+            for formulation in ("position", "fixed_point", "velocity"):
+                for name in ("falling_rod", "box_push", "four_disks"):
+                    simulate(name, t_end=0.05, solver=solver, formulation=formulation, on_failure="record")
+        lemke(np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0]))
+        print(json.dumps(compiled))
+    """), cache)
+    assert compiled == [], sorted(set(compiled))
+    second = run_cli("warmup", cwd=tmp_path, env=env, timeout=600)
+    assert second.returncode == 0 and second.stderr == "", second.stderr
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_a_cold_plan_at_once_and_the_compilation_goes_on(tmp_path):
+    """`planar-lcp plan` on an empty cache waits for the background compilation; Ctrl-C (SIGINT to the command's
+    process group, as a terminal sends it) stops it within 2 s with exit status 130 and one line, while the
+    compilation, in a session of its own, goes on and leaves the kernels cached for the next run."""
+    from cli_helpers import ctrl_c_cli
+    cache = tmp_path / "cache"
+    lock = Path(background.lock_file(str(cache)))
+    started = []
+
+    def waiting():
+        if lock.exists() and not started:
+            started.append(time.monotonic())
+        return bool(started) and time.monotonic() - started[0] > 3.0
+    r = ctrl_c_cli(["plan", "push_box", "--iterations", "3000", "--seed", "5", "--out", tmp_path / "out"], waiting,
+                   tmp_path, env={"NUMBA_CACHE_DIR": str(cache)})
+    assert r.returncode == 130, r.stderr
+    assert r.seconds < 2.0, r.seconds
+    assert r.stderr.strip().splitlines()[-1] == "planar-lcp plan: error: interrupted (Ctrl-C); stopped"
+    assert "Traceback" not in r.stderr
+    assert lock.exists(), "the compilation stopped with the command"
+    assert background.Background(None, str(lock), 0.0).wait(timeout=900)
+    second = run_cli("simulate", "box_push", "--t-end", "0.1", cwd=tmp_path, env={"NUMBA_CACHE_DIR": str(cache)})
+    assert second.returncode == 0 and second.stderr == "", second.stderr
