@@ -113,6 +113,26 @@ def test_a_plan_names_a_shipped_file_the_same_from_any_installation(kind, name, 
     assert _task_file_status(f"{kind}/no_such_file.toml", sha) == "missing"
 
 
+def test_the_scenes_command_lists_an_added_folder_and_refuses_a_bad_one(tmp_path):
+    """$PLANAR_LCP_SCENES through the command line: `scenes` names both folders and lists the added scene beside the
+    shipped ones, its own falling_rod in place of the shipped one; a variable naming no folder is one line, exit 2."""
+    rod = (shipped_dir("scenes") / "falling_rod.toml").read_text()
+    assert 'description = "' in rod
+    (tmp_path / "falling_rod.toml").write_text(re.sub(r'description = ".*"', 'description = "my own rod"', rod))
+    (tmp_path / "my_rod.toml").write_text(rod.replace('name = "falling_rod"', 'name = "my_rod"'))
+    r = run_cli("scenes", env={"PLANAR_LCP_SCENES": str(tmp_path)})
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    n = len(list(shipped_dir("scenes").glob("*.toml"))) + 1
+    assert r.stdout.startswith(f"{n} scenes in $PLANAR_LCP_SCENES ({tmp_path}) and {shipped_dir('scenes')} (a name "
+                               "in both: $PLANAR_LCP_SCENES's) "), r.stdout
+    assert re.search(r"^  falling_rod +my own rod$", r.stdout, re.M) and re.search(r"^  my_rod ", r.stdout, re.M)
+    assert re.search(r"^  push_box +\[task\] ", r.stdout, re.M), r.stdout
+    r = run_cli("scenes", env={"PLANAR_LCP_SCENES": str(tmp_path / "nope")})
+    assert r.returncode == 2 and r.stdout == "" and r.stderr == (
+        f"planar-lcp scenes: error: $PLANAR_LCP_SCENES: must be a folder of scene files (NAME.toml), got "
+        f"'{tmp_path / 'nope'}' (no such file or folder)\n"), r.stderr
+
+
 WHEEL_LAYOUT_PROBE = """
 import json, sys
 import planar_lcp
