@@ -265,18 +265,21 @@ SIMULATE_FLAGS = {"h": "--h", "t_end": "--t-end", "solver": "--solver", "formula
 
 
 def _cmd_scenes(args):
-    from planar_lcp.spec.scene import SceneError, list_scenes, scenes_dir
+    from planar_lcp.spec.scene import SCENES_ENV, SceneError, list_scenes, scene_dirs
 
     try:
         scenes = list_scenes(tasks=True)
+        dirs = scene_dirs()
     except SceneError as e:
         print(f"planar-lcp scenes: error: {e}", file=sys.stderr)
         return 2
+    where = str(dirs[0]) if len(dirs) == 1 else (f"${SCENES_ENV} ({dirs[0]}) and {dirs[1]} (a name in both: "
+                                                 f"${SCENES_ENV}'s)")
     if not scenes:
-        print(f"no scenes in {scenes_dir()}")
+        print(f"no scenes in {where}")
         return 0
     width = max(len(n) for n, _, _ in scenes)
-    print(f"{len(scenes)} scenes in {scenes_dir()} (run one with: planar-lcp simulate NAME; [task]: a planning "
+    print(f"{len(scenes)} scenes in {where} (run one with: planar-lcp simulate NAME; [task]: a planning "
           "task too, plan it with: planar-lcp plan NAME):")
     for name, description, has_task in scenes:
         print(f"  {name:<{width}}  {'[task]' if has_task else '      '}  {description}")
@@ -450,12 +453,28 @@ COMMAND_MODULES = ["planar_lcp.experiments.compare_cli", "planar_lcp.experiments
 COMMAND_ENTRY_POINTS = "planar_lcp.commands"
 
 
+class _VersionAction(argparse.Action):
+    """--version: the installed distribution's version (planar_lcp.__version__) and where the package runs from,
+    looked up only when asked for."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
+        super().__init__(option_strings=option_strings, dest=dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        import planar_lcp
+        from pathlib import Path
+        print(f"planar-lcp {planar_lcp.__version__} ({Path(planar_lcp.__file__).parent}, Python "
+              f"{sys.version.split()[0]})")
+        parser.exit()
+
+
 def build_parser():
     from planar_lcp.spec.scene import (FORMULATIONS, MAX_FIXED_POINT_ITERATIONS, MAX_FRICTION_DIRECTIONS,
                                        MAX_LIMIT_SURFACE_RESOLUTION, MAX_LIMIT_SURFACE_TWISTS, MAX_STEPS, SOLVERS,
                                        SUPPORT_MODELS)
 
     p = argparse.ArgumentParser(prog="planar-lcp", description=__doc__)
+    p.add_argument("--version", action=_VersionAction, help="print the installed version and exit")
     sub = p.add_subparsers(dest="command", required=True)
 
     d = sub.add_parser("demo", help="the main job: a short tour of what the toolkit does")

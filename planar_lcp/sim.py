@@ -474,7 +474,7 @@ RUN_SETUPS = 32
 #: (immutable: shared safely); an edited file has another key.
 _loaded_scenes = OrderedDict()
 LOADED_SCENES = 32
-#: shipped scene name -> its file's absolute path
+#: (scene name, $PLANAR_LCP_SCENES) -> its file's absolute path
 _shipped_paths = {}
 
 
@@ -503,13 +503,14 @@ def _hashes(obj):
 def _load_scene_once(name_or_path):
     """`load_scene(name_or_path)`, read once per version of the file (see _loaded_scenes)."""
     try:
-        # a shipped name's file is where it was (the package's scenes/); a path is resolved again (the working
-        # directory may have changed)
-        path = _shipped_paths.get(name_or_path) if isinstance(name_or_path, str) else None
+        # a name's file is where it was (the shipped scenes, or $PLANAR_LCP_SCENES as it is now); a path is resolved
+        # again (the working directory may have changed)
+        name = (name_or_path, os.environ.get("PLANAR_LCP_SCENES")) if isinstance(name_or_path, str) else None
+        path = _shipped_paths.get(name) if name else None
         if path is None:
             path = os.path.abspath(scene_path(name_or_path))
-            if isinstance(name_or_path, str) and os.path.basename(path) == f"{name_or_path}.toml":
-                _shipped_paths[name_or_path] = path
+            if name and os.path.basename(path) == f"{name_or_path}.toml":
+                _shipped_paths[name] = path
         st = os.stat(path)
     except (OSError, SceneError, TypeError):
         return load_scene(name_or_path)               # raises its own error

@@ -10,7 +10,6 @@ step duration, exactly as the planner propagates it (TaskModel.advance).
 """
 
 import math
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -19,7 +18,7 @@ from gymnasium import spaces
 from planar_lcp.frames import com_to_frame, frame_to_com
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
-from planar_lcp.spec.scene import load_scene, parse_scene
+from planar_lcp.spec.scene import load_scene, parse_scene, shipped_dir
 
 from .raster import Raster
 
@@ -49,7 +48,7 @@ SLATE_GRAY, ROYAL_BLUE, RED = (143, 163, 184), (78, 126, 255), (255, 0, 0)
 def _push_t_bodies():
     """The push_t scene's T and pusher, in gym-pusht's T frame: the bar's top edge's midpoint at the origin, the bar
     y in [0, 30] mm, the stem y in [30, 120] mm (push_t's frame turned by 180 degrees and moved 15 mm)."""
-    scene = load_scene("push_t")
+    scene = load_scene(shipped_dir("scenes") / "push_t.toml")   # the shipped T, whatever $PLANAR_LCP_SCENES holds
     t, pusher = scene.body("T"), scene.body("pusher")
     boxes = []
     for s in t.shapes:
@@ -351,8 +350,9 @@ class PushTEnv(gym.Env):
 
 
 # ---- Task-v0 ------------------------------------------------------------------------------------------------------
-#: where the benchmark's task files live (tasks/*.toml), so that Task-v0 takes their names as well as the shipped ones
-TASKS_DIR = Path(__file__).resolve().parents[1] / "tasks"
+#: where the benchmark's task files live (tasks/*.toml, shipped with the package), so that Task-v0 takes their names as
+#: well as the shipped tasks'
+TASKS_DIR = shipped_dir("tasks")
 
 
 def task_source(task):

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from planar_lcp.spec.scene import SceneError, read_document, scenes_dir
+from planar_lcp.spec.scene import SHIPPED_FOLDERS, SceneError, read_document, shipped_dir
 from planar_lcp.spec.task import document_sha256, parse_task
 
 from .shorten import costs
@@ -246,8 +246,9 @@ def _task_file_status(source, sha):
         return "none"
     p = Path(source)
     candidates = [p]
-    if p.parts[:1] == ("scenes",):
-        candidates.insert(0, scenes_dir().joinpath(*p.parts[1:]))
+    # scenes/NAME.toml, tasks/NAME.toml: a shipped file (display_source), wherever this installation keeps it
+    if not p.is_absolute() and len(p.parts) > 1 and p.parts[0] in SHIPPED_FOLDERS:
+        candidates.insert(0, shipped_dir(p.parts[0]).joinpath(*p.parts[1:]))
     for c in candidates:
         if c.is_file():
             try:

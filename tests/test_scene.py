@@ -9,7 +9,7 @@ import pytest
 from shapely.geometry import LineString, Point, Polygon
 
 from planar_lcp.spec.scene import (BodySpec, Scene, SceneError, ShapeSpec, SimSpec, WorldSpec, list_scenes, load_scene,
-                                   parse_scene, scenes_dir)
+                                   parse_scene, scene_dirs, scenes_dir, shipped_dir)
 
 SHIPPED = ["block_on_incline", "box_push", "box_stack", "box_tip", "falling_rod", "four_disks", "painleve_rod",
            "push_t"]
@@ -27,14 +27,57 @@ def test_list_scenes_has_the_eight_shipped_scenes_sorted():
         assert (scenes_dir() / f"{name}.toml").is_file()
 
 
-def test_scenes_dir_default_and_env(monkeypatch, tmp_path):
+def test_scenes_dir_is_the_shipped_folder_wherever_the_package_runs_from(monkeypatch):
+    """From this tree (editable or on PYTHONPATH): the tree's scenes/ and tasks/; from a wheel, planar_lcp/data/
+    (tests/test_wheel.py)."""
     monkeypatch.delenv("PLANAR_LCP_SCENES", raising=False)
-    assert scenes_dir() == Path(__file__).resolve().parents[1] / "scenes"
-    (tmp_path / "only.toml").write_text('name = "only"\ndescription = "one"\n' + STATIC_ONLY)
+    root = Path(__file__).resolve().parents[1]
+    assert scenes_dir() == shipped_dir("scenes") == root / "scenes"
+    assert shipped_dir("tasks") == root / "tasks"
+    assert scene_dirs() == [root / "scenes"]
+    with pytest.raises(ValueError, match="kind must be one of scenes, tasks, got 'figures'"):
+        shipped_dir("figures")
+
+
+def _scene_file(folder, name, description):
+    (folder / f"{name}.toml").write_text(f'name = "{name}"\ndescription = "{description}"\n' + STATIC_ONLY)
+    return folder / f"{name}.toml"
+
+
+def test_planar_lcp_scenes_adds_a_folder_and_wins_a_name_clash(monkeypatch, tmp_path):
+    """$PLANAR_LCP_SCENES adds a folder: its scenes are found by name and listed with the shipped ones; on a name in
+    both, its file is the one loaded (docs/scene-format.md); the shipped one stays at scenes_dir()."""
+    monkeypatch.delenv("PLANAR_LCP_SCENES", raising=False)
+    shipped = dict(list_scenes())
+    own = _scene_file(tmp_path, "only", "one")
+    mine = _scene_file(tmp_path, "falling_rod", "my own rod")
     monkeypatch.setenv("PLANAR_LCP_SCENES", str(tmp_path))
-    assert scenes_dir() == tmp_path
-    assert list_scenes() == [("only", "one")]
-    assert load_scene("only").source == str(tmp_path / "only.toml")
+    assert scene_dirs() == [tmp_path, scenes_dir()] and scenes_dir() == shipped_dir("scenes")
+    listed = dict(list_scenes())
+    assert listed == {**shipped, "only": "one", "falling_rod": "my own rod"}
+    assert load_scene("only").source == str(own)
+    assert load_scene("falling_rod").source == str(mine) and load_scene("falling_rod").description == "my own rod"
+    assert load_scene("box_push").source == str(scenes_dir() / "box_push.toml")    # shipped, still found
+    with pytest.raises(SceneError) as e:
+        load_scene("nosuch")
+    assert str(e.value).startswith(f"unknown scene 'nosuch': not a scene in $PLANAR_LCP_SCENES ({tmp_path}) and "
+                                   f"{scenes_dir()} (available: ")
+    assert "only" in str(e.value) and "box_push" in str(e.value)
+
+
+def test_planar_lcp_scenes_naming_no_folder_is_one_line(monkeypatch, tmp_path):
+    monkeypatch.setenv("PLANAR_LCP_SCENES", str(tmp_path / "nope"))
+    with pytest.raises(SceneError, match=r"^\$PLANAR_LCP_SCENES: must be a folder of scene files \(NAME.toml\), got "
+                                         r"'.*nope' \(no such file or folder\)$"):
+        load_scene("falling_rod")
+    f = _scene_file(tmp_path, "only", "one")
+    monkeypatch.setenv("PLANAR_LCP_SCENES", str(f))
+    with pytest.raises(SceneError, match=r"got '.*only.toml' \(not a folder\)$"):
+        list_scenes()
+    monkeypatch.setenv("PLANAR_LCP_SCENES", str(scenes_dir()))        # the shipped folder itself: listed once
+    assert scene_dirs() == [scenes_dir()]
+    monkeypatch.setenv("PLANAR_LCP_SCENES", "")                         # empty: unset
+    assert scene_dirs() == [scenes_dir()]
 
 
 STATIC_ONLY = ('[[bodies]]\nname = "table"\ntype = "static"\n'

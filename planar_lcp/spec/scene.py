@@ -13,6 +13,7 @@ the field path in the TOML structure and what was expected, e.g.
 from __future__ import annotations
 
 import dataclasses
+import importlib.resources
 import math
 import numbers
 import os
@@ -220,38 +221,99 @@ class Scene:
 # Locating and loading scene files
 
 
+#: the folders of files that ship with the package: the repository keeps them at its top (scenes/, tasks/), a wheel
+#: as package data (planar_lcp/data/scenes, planar_lcp/data/tasks: setup.py)
+SHIPPED_FOLDERS = ("scenes", "tasks")
+#: the environment variable naming a folder of scene files of one's own, looked up by name before the shipped ones
+SCENES_ENV = "PLANAR_LCP_SCENES"
+
+
+def shipped_dir(kind: str = "scenes") -> Path:
+    """The folder of the shipped `kind` files ("scenes": scenes/*.toml, "tasks": tasks/*.toml).
+
+    Installed from a wheel (or `pip install .`), the package data planar_lcp/data/KIND, found with
+    importlib.resources; in a source tree (an editable install, or the tree on PYTHONPATH), the tree's top-level
+    KIND/ folder. The one definition of where shipped files live."""
+    if kind not in SHIPPED_FOLDERS:
+        raise ValueError(f"shipped_dir: kind must be one of {', '.join(SHIPPED_FOLDERS)}, got {kind!r}")
+    data = importlib.resources.files("planar_lcp").joinpath("data", kind)
+    if isinstance(data, Path) and data.is_dir():
+        return data
+    return Path(__file__).resolve().parents[2] / kind
+
+
 def scenes_dir() -> Path:
-    """The directory of shipped scenes: $PLANAR_LCP_SCENES if set, else <repo>/scenes."""
-    env = os.environ.get("PLANAR_LCP_SCENES")
-    if env:
-        return Path(env)
-    return Path(__file__).resolve().parents[2] / "scenes"
+    """The folder of the shipped scenes (`shipped_dir("scenes")`); `scene_dirs` adds $PLANAR_LCP_SCENES."""
+    return shipped_dir("scenes")
 
 
-def _shipped_files() -> list[Path]:
-    d = scenes_dir()
-    return sorted(d.glob("*.toml")) if d.is_dir() else []
+def scene_dirs() -> list[Path]:
+    """The folders a scene name is looked up in, in order: $PLANAR_LCP_SCENES when set (a name there wins over a
+    shipped scene of the same name), then the shipped scenes. SceneError when the variable names no folder."""
+    shipped = scenes_dir()
+    env = os.environ.get(SCENES_ENV)
+    if not env:
+        return [shipped]
+    own = Path(env)
+    if not own.is_dir():
+        what = "no such file or folder" if not own.exists() else "not a folder"
+        raise SceneError(f"${SCENES_ENV}: must be a folder of scene files (NAME.toml), got {env!r} ({what})")
+    try:
+        if own.resolve() == shipped.resolve():
+            return [shipped]
+    except OSError:
+        pass
+    return [own, shipped]
+
+
+def _describe_scene_dirs(dirs) -> str:
+    """How messages name the folders of `scene_dirs()`."""
+    if len(dirs) == 1:
+        return str(dirs[0])
+    return f"${SCENES_ENV} ({dirs[0]}) and {dirs[1]}"
+
+
+def scene_files() -> list[Path]:
+    """The scene file each name stands for, sorted by name: every NAME.toml of `scene_dirs()`, the first folder's on
+    a name in both."""
+    found = {}
+    for d in scene_dirs():
+        if d.is_dir():
+            for p in d.glob("*.toml"):
+                found.setdefault(p.stem, p)
+    return [found[name] for name in sorted(found)]
+
+
+def find_scene_file(name: str) -> Path | None:
+    """The file the scene name `name` stands for (see `scene_dirs`), or None."""
+    for d in scene_dirs():
+        path = d / f"{name}.toml"
+        if path.is_file():
+            return path
+    return None
 
 
 def list_scenes(tasks: bool = False) -> list[tuple]:
-    """(name, description) of every scene in `scenes_dir()`, sorted by name; with `tasks`, (name, description,
-    has_task), has_task True for a scene file with a [task] table. Each file is loaded and validated."""
+    """(name, description) of every scene found by name (`scene_files()`: $PLANAR_LCP_SCENES's and the shipped ones),
+    sorted by name; with `tasks`, (name, description, has_task), has_task True for a scene file with a [task] table.
+    Each file is loaded and validated."""
     out = []
-    for path in _shipped_files():
+    for path in scene_files():
         s = load_scene(path)
         out.append((s.name, s.description, s.task is not None) if tasks else (s.name, s.description))
     return sorted(out)
 
 
 def display_source(scene) -> str:
-    """The scene's source for reports and files other people read: `scenes/NAME.toml` for a shipped scene, the path
-    relative to the working directory when it is below it, else the path as given (never this machine's
-    absolute path for a shipped scene)."""
+    """The scene's source for reports and files other people read: `scenes/NAME.toml` (`tasks/NAME.toml`) for a
+    shipped file wherever the package is installed, the path relative to the working directory when it is below it,
+    else the path as given (never this machine's absolute path for a shipped file)."""
     src = Path(scene.source)
-    try:
-        return str(Path("scenes") / src.resolve().relative_to(scenes_dir().resolve()))
-    except (ValueError, OSError):
-        pass
+    for kind in SHIPPED_FOLDERS:
+        try:
+            return str(Path(kind) / src.resolve().relative_to(shipped_dir(kind).resolve()))
+        except (ValueError, OSError):
+            pass
     try:
         return str(src.resolve().relative_to(Path.cwd().resolve()))
     except (ValueError, OSError):
@@ -259,8 +321,9 @@ def display_source(scene) -> str:
 
 
 def scene_path(name_or_path) -> Path:
-    """The file of a scene: a shipped name (looked up in `scenes_dir()`) or a path (a PathLike, or a string ending in
-    ".toml" or containing a path separator). SceneError for an unknown shipped name (the message lists them)."""
+    """The file of a scene: a name (looked up in `scene_dirs()`: $PLANAR_LCP_SCENES, then the shipped scenes) or a
+    path (a PathLike, or a string ending in ".toml" or containing a path separator). SceneError for an unknown name
+    (the message lists the known ones)."""
     if isinstance(name_or_path, os.PathLike):
         return Path(name_or_path)
     if not isinstance(name_or_path, str):
@@ -268,10 +331,12 @@ def scene_path(name_or_path) -> Path:
     s = name_or_path
     if s.endswith(".toml") or "/" in s or os.sep in s or (os.altsep and os.altsep in s):
         return Path(s)
-    path = scenes_dir() / f"{s}.toml"
-    if not path.is_file():
-        names = ", ".join(p.stem for p in _shipped_files()) or "none"
-        raise SceneError(f"unknown scene {s!r}: not a shipped scene in {scenes_dir()} (available: {names}); "
+    path = find_scene_file(s)
+    if path is None:
+        dirs = scene_dirs()
+        names = ", ".join(p.stem for p in scene_files()) or "none"
+        kind = "shipped scene" if len(dirs) == 1 else "scene"
+        raise SceneError(f"unknown scene {s!r}: not a {kind} in {_describe_scene_dirs(dirs)} (available: {names}); "
                          "give a path to a .toml file to load another")
     return path
 
@@ -304,13 +369,14 @@ def load_scene(name_or_path) -> Scene:
     Parameters
     ----------
     name_or_path : str or os.PathLike
-        A shipped scene name (e.g. "falling_rod", looked up in `scenes_dir()`), or a path to a .toml file (a
-        PathLike, or a string ending in ".toml" or containing a path separator).
+        A scene name (e.g. "falling_rod", looked up in `scene_dirs()`: $PLANAR_LCP_SCENES, then the shipped
+        scenes), or a path to a .toml file (a PathLike, or a string ending in ".toml" or containing a path
+        separator).
 
     Raises
     ------
     SceneError
-        For an unknown name (the message lists the shipped names), a missing or unreadable file, invalid TOML, or
+        For an unknown name (the message lists the known names), a missing or unreadable file, invalid TOML, or
         any validation failure.
     """
     path = scene_path(name_or_path)

@@ -29,8 +29,8 @@ import numpy as np
 
 from planar_lcp.frames import rotation
 from planar_lcp.spec.massprops import body_area_properties
-from planar_lcp.spec.scene import (MAX_SERVO_FORCE, SceneError, _is_real, _shipped_files, _Validator, display_source,
-                                   parse_scene, parse_toml, read_document, scene_path, scenes_dir)
+from planar_lcp.spec.scene import (MAX_SERVO_FORCE, SceneError, _is_real, _Validator, display_source, find_scene_file,
+                                   parse_scene, parse_toml, read_document, scene_files, scene_path)
 
 #: The OMPL control planners that the 2.0.1 wheel can construct from Python (SST and PDST have no constructor
 #: there, docs/planning.md). Here, not in planners.adapter, so that tasks and the CLI check them without ompl.
@@ -183,9 +183,10 @@ def document_sha256(document) -> str:
 
 
 def shipped_tasks() -> list[str]:
-    """Names of the shipped scene files that carry a [task] table (their stems), sorted."""
+    """Names of the scene files found by name (`planar_lcp.spec.scene.scene_files`: the shipped ones and
+    $PLANAR_LCP_SCENES's) that carry a [task] table (their stems), sorted."""
     out = []
-    for p in _shipped_files():
+    for p in scene_files():
         try:
             data, _ = read_document(p)
         except SceneError:
@@ -216,8 +217,8 @@ def load_task(src) -> Task:
     if isinstance(src, str) and "\n" in src:
         return parse_task(_as_task_error(parse_toml, src, "<string>"), source="<string>", name=None)
     if isinstance(src, str) and not (src.endswith(".toml") or "/" in src or os.sep in src):
-        path = scenes_dir() / f"{src}.toml"
-        if not path.is_file():
+        path = _as_task_error(find_scene_file, src)
+        if path is None:
             raise TaskError(f"unknown task {src!r}: not a shipped task (shipped tasks: {', '.join(shipped_tasks())}); "
                             "give a path to a scene file with a [task] table to plan another")
     elif isinstance(src, (str, os.PathLike)):
