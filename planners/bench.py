@@ -293,8 +293,8 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
     Raises
     ------
     TaskError
-        Before any work: a bad task, `runs` beyond OMPL's seeds (spec.task.MAX_SEED) or a time limit beyond a task
-        file's `time` bound.
+        Before any work: a bad task, `runs` beyond spec.task.MAX_RUNS or a time limit beyond a task file's `time`
+        bound.
     RecordFileError
         Before any work: the record file is of another benchmark (`resume`) or holds runs (not `resume`).
     BenchmarkInterrupted
@@ -302,13 +302,15 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
     SchedulerLost
         The scheduler went away during the benchmark; the finished runs are kept as after Ctrl-C.
     """
-    from planar_lcp.spec.task import check_seed, check_time_limit
+    from planar_lcp.spec.task import MAX_RUNS, check_time_limit
 
-    from .tasks import load_task
+    from .tasks import TaskError, load_task
 
     t = load_task(task)
     out = Path(out)
-    check_seed(runs, "runs (the last run's seed)")        # seeds 1..runs
+    if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or not 1 <= runs <= MAX_RUNS:
+        raise TaskError(f"runs must be an integer from 1 to {MAX_RUNS} (seeds 1..runs), got {runs!r}")
+    runs = int(runs)
     limit = None if iterations else check_time_limit(time_limit)
     header = bench_header(t, planners, runs, limit, iterations)
     previous = prepare(out, header, header_differences, resume, "plan-bench")     # before any work

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from planar_lcp.cli import finite_number, one_line_errors
 
-from planar_lcp.spec.task import MAX_SEED, MAX_TIME
+from planar_lcp.spec.task import MAX_RUNS, MAX_SEED, MAX_TIME
 
 from .tasks import PLANNERS, TaskError, check_planner
 
@@ -62,8 +62,8 @@ def register(sub):
     b.add_argument("task", metavar="TASK", help=TASK_HELP)
     b.add_argument("--planners", nargs="+", default=list(PLANNERS), metavar="NAME",
                    help=f"planners to compare (default: all of {', '.join(PLANNERS)})")
-    b.add_argument("--runs", type=finite_number(int, 0, True, MAX_SEED, " (the last run's seed, OMPL's seed)"),
-                   default=10, metavar="N", help="runs per planner, seeds 1..N")
+    b.add_argument("--runs", type=finite_number(int, 0, True, MAX_RUNS), default=10, metavar="N",
+                   help=f"runs per planner, seeds 1..N (N <= {MAX_RUNS})")
     b.add_argument("--time", type=finite_number(float, 0, True, MAX_TIME, TIME_BOUND), default=None, metavar="T",
                    help=f"seconds per run, at most {MAX_TIME:g} (default: the task's time, 60 s unless its file says "
                         "otherwise)")

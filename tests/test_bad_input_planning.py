@@ -15,7 +15,7 @@ import pytest
 from cli_helpers import ROOT, run_cli
 
 from planar_lcp.spec.scene import scenes_dir
-from planar_lcp.spec.task import MAX_SEED, MAX_TIME, TaskError
+from planar_lcp.spec.task import MAX_RUNS, MAX_SEED, MAX_TIME, TaskError
 
 pytest.importorskip("shapely")
 
@@ -168,14 +168,15 @@ def test_every_shipped_and_benchmark_position_goal_still_fits():
     ("plan", "--seed", str(2**64), f"argument --seed: must be <= {MAX_SEED} (OMPL's seed), got '{2**64}'"),
     ("plan", "--seed", str(MAX_SEED + 1), f"argument --seed: must be <= {MAX_SEED} (OMPL's seed), got "
                                           f"'{MAX_SEED + 1}'"),
-    ("plan-bench", "--runs", str(MAX_SEED + 1), f"argument --runs: must be <= {MAX_SEED} (the last run's seed, "
-                                                f"OMPL's seed), got '{MAX_SEED + 1}'"),
+    ("plan-bench", "--runs", str(MAX_RUNS + 1), f"argument --runs: must be <= {MAX_RUNS}, got '{MAX_RUNS + 1}'"),
+    ("plan-bench", "--runs", str(2**64), f"argument --runs: must be <= {MAX_RUNS}, got '{2**64}'"),
     ("plan", "--time", "1e12", "argument --time: must be <= 86400 s (as a task file's time), got '1e12'"),
     ("plan-bench", "--time", "86400.5", "argument --time: must be <= 86400 s (as a task file's time), got "
                                         "'86400.5'"),
 ])
 def test_seeds_and_time_limits_are_bounded_on_the_command_line(tmp_path, cmd, flag, value, msg):
-    assert refused(run_in(tmp_path, cmd, "tip_box", flag, value, "--out", "out"), cmd) == msg
+    small = ("--planners", "RRT", "--runs", "1") if cmd == "plan-bench" else ()    # short, were it not refused
+    assert refused(run_in(tmp_path, cmd, "tip_box", *small, flag, value, "--out", "out"), cmd) == msg
 
 
 def test_the_largest_seed_plans():
@@ -207,10 +208,12 @@ def test_the_planning_api_bounds_seeds_and_time_limits_before_any_work(kw, msg, 
     assert str(e.value) == msg
 
 
-def test_run_bench_bounds_its_seeds_and_time_limit(tmp_path):
+def test_run_bench_bounds_its_runs_and_time_limit(tmp_path):
+    pytest.importorskip("ompl")
     from planners.bench import run_bench
-    with pytest.raises(TaskError, match=rf"runs \(the last run's seed\) must be from 1 to {MAX_SEED}"):
-        run_bench("tip_box", ["RRT"], runs=MAX_SEED + 1, out=tmp_path / "b")
+    with pytest.raises(TaskError, match=rf"runs must be an integer from 1 to {MAX_RUNS} \(seeds 1..runs\), got "
+                                        rf"{MAX_RUNS + 1}"):
+        run_bench("tip_box", ["RRT"], runs=MAX_RUNS + 1, out=tmp_path / "b")
     with pytest.raises(TaskError, match=r"the time limit must be > 0 and <= 86400 s"):
         run_bench("tip_box", ["RRT"], runs=1, time_limit=MAX_TIME * 2, out=tmp_path / "b")
     assert not (tmp_path / "b").exists()

@@ -51,6 +51,8 @@ MAX_CONTROL_STEPS = 1_000          # propagation steps one control is held
 #: where the 2.0.1 wheel raises TypeError only above 2**64 - 1); the 32-bit bound keeps a seed valid, and its plan
 #: the same, on any machine
 MAX_SEED = 2**32 - 1
+#: runs per planner of a benchmark (seeds 1..N; at a second or more each, more than a day)
+MAX_RUNS = 100_000
 #: the default propagation step: the multiple of h nearest this (s)
 DEFAULT_STEP = 0.1
 
@@ -559,6 +561,6 @@ def check_time_limit(seconds, name="the time limit"):
     return x
 
 
-__all__ = ["DEFAULT_PLANNER", "GOAL_KEYS", "Goal", "MAX_SEED", "MAX_TIME", "PLANNERS", "TASK_KEYS", "Task", "TaskError",
+__all__ = ["DEFAULT_PLANNER", "GOAL_KEYS", "Goal", "MAX_RUNS", "MAX_SEED", "MAX_TIME", "PLANNERS", "TASK_KEYS", "Task", "TaskError",
            "canonical_json", "check_seed", "check_time_limit", "document_sha256", "load_task", "parse_task",
            "shipped_tasks"]
