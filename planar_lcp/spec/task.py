@@ -561,6 +561,6 @@ def check_time_limit(seconds, name="the time limit"):
     return x
 
 
-__all__ = ["DEFAULT_PLANNER", "GOAL_KEYS", "Goal", "MAX_RUNS", "MAX_SEED", "MAX_TIME", "PLANNERS", "TASK_KEYS", "Task", "TaskError",
-           "canonical_json", "check_seed", "check_time_limit", "document_sha256", "load_task", "parse_task",
+__all__ = ["DEFAULT_PLANNER", "GOAL_KEYS", "Goal", "MAX_RUNS", "MAX_SEED", "MAX_TIME", "PLANNERS", "TASK_KEYS", "Task",
+           "TaskError", "canonical_json", "check_seed", "check_time_limit", "document_sha256", "load_task", "parse_task",
            "shipped_tasks"]
