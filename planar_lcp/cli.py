@@ -192,8 +192,9 @@ class InputError(Exception):
     """Bad user input found after parsing: one line on stderr, exit status 2."""
 
 
-def finite_number(kind, minimum, strict):
-    """An argparse type: a finite number of `kind` (float or int) that is > (strict) or >= `minimum`."""
+def finite_number(kind, minimum, strict, maximum=None, why=""):
+    """An argparse type: a finite number of `kind` (float or int) that is > (strict) or >= `minimum`, and at most
+    `maximum` when given (`why` follows the bound in the message)."""
     def conv(text):
         try:
             x = kind(text)
@@ -204,6 +205,8 @@ def finite_number(kind, minimum, strict):
             raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
         if (strict and not x > minimum) or (not strict and not x >= minimum):
             raise argparse.ArgumentTypeError(f"must be {'>' if strict else '>='} {minimum}, got {text!r}")
+        if maximum is not None and not x <= maximum:
+            raise argparse.ArgumentTypeError(f"must be <= {maximum:{'d' if kind is int else 'g'}}{why}, got {text!r}")
         return x
     conv.__name__ = kind.__name__
     return conv

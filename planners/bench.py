@@ -292,6 +292,9 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
 
     Raises
     ------
+    TaskError
+        Before any work: a bad task, `runs` beyond spec.task.MAX_RUNS or a time limit beyond a task file's `time`
+        bound.
     RecordFileError
         Before any work: the record file is of another benchmark (`resume`) or holds runs (not `resume`).
     BenchmarkInterrupted
@@ -299,11 +302,16 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
     SchedulerLost
         The scheduler went away during the benchmark; the finished runs are kept as after Ctrl-C.
     """
-    from .tasks import load_task
+    from planar_lcp.spec.task import MAX_RUNS, check_time_limit
+
+    from .tasks import TaskError, load_task
 
     t = load_task(task)
     out = Path(out)
-    limit = None if iterations else float(time_limit)
+    if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or not 1 <= runs <= MAX_RUNS:
+        raise TaskError(f"runs must be an integer from 1 to {MAX_RUNS} (seeds 1..runs), got {runs!r}")
+    runs = int(runs)
+    limit = None if iterations else check_time_limit(time_limit)
     header = bench_header(t, planners, runs, limit, iterations)
     previous = prepare(out, header, header_differences, resume, "plan-bench")     # before any work
     planned = [(p, s) for s in range(1, runs + 1) for p in planners]

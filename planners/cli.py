@@ -9,8 +9,12 @@ from pathlib import Path
 
 from planar_lcp.cli import finite_number, one_line_errors
 
+from planar_lcp.spec.task import MAX_RUNS, MAX_SEED, MAX_TIME
+
 from .tasks import PLANNERS, TaskError, check_planner
 
+TIME_BOUND = " s (as a task file's time)"
+SEED_BOUND = " (OMPL's seed)"
 TASK_HELP = ("a shipped task's name (planar-lcp scenes marks them) or a scene file with a [task] table "
              "(docs/scene-format.md, \"Task files\")")
 
@@ -25,12 +29,13 @@ def register(sub):
     p.add_argument("--planner", default=None, metavar="NAME",
                    help=f"one of {', '.join(PLANNERS)} (default: the task's planner, RRT unless its file says "
                         "otherwise)")
-    p.add_argument("--time", type=finite_number(float, 0, True), default=None, metavar="SECONDS",
-                   help="wall-clock limit (default: the task's time, 60 s unless its file says otherwise)")
+    p.add_argument("--time", type=finite_number(float, 0, True, MAX_TIME, TIME_BOUND), default=None, metavar="SECONDS",
+                   help=f"wall-clock limit, at most {MAX_TIME:g} s (default: the task's time, 60 s unless its file "
+                        "says otherwise)")
     p.add_argument("--iterations", type=finite_number(int, 0, True), default=None, metavar="N",
                    help="iteration budget instead of a time limit: with --seed the plan is reproducible")
-    p.add_argument("--seed", type=finite_number(int, 0, True), default=1, metavar="N",
-                   help="OMPL random seed (>= 1, default 1)")
+    p.add_argument("--seed", type=finite_number(int, 0, True, MAX_SEED, SEED_BOUND), default=1, metavar="N",
+                   help=f"OMPL random seed (1 to {MAX_SEED}, default 1)")
     p.add_argument("--out", default="plan_out", metavar="DIR", help="output directory (default ./plan_out)")
     p.add_argument("--no-gif", action="store_true", help="skip plan.gif")
     p.add_argument("--no-shorten", action="store_true",
@@ -57,10 +62,11 @@ def register(sub):
     b.add_argument("task", metavar="TASK", help=TASK_HELP)
     b.add_argument("--planners", nargs="+", default=list(PLANNERS), metavar="NAME",
                    help=f"planners to compare (default: all of {', '.join(PLANNERS)})")
-    b.add_argument("--runs", type=finite_number(int, 0, True), default=10, metavar="N",
-                   help="runs per planner, seeds 1..N")
-    b.add_argument("--time", type=finite_number(float, 0, True), default=None, metavar="T",
-                   help="seconds per run (default: the task's time, 60 s unless its file says otherwise)")
+    b.add_argument("--runs", type=finite_number(int, 0, True, MAX_RUNS), default=10, metavar="N",
+                   help=f"runs per planner, seeds 1..N (N <= {MAX_RUNS})")
+    b.add_argument("--time", type=finite_number(float, 0, True, MAX_TIME, TIME_BOUND), default=None, metavar="T",
+                   help=f"seconds per run, at most {MAX_TIME:g} (default: the task's time, 60 s unless its file says "
+                        "otherwise)")
     b.add_argument("--iterations", type=finite_number(int, 0, True), default=None, metavar="N",
                    help="an iteration budget per run instead of --time: the same results on any machine")
     b.add_argument("--jobs", type=finite_number(int, 0, True), default=None, metavar="J",

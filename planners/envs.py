@@ -45,6 +45,51 @@ WHITE, LIGHT_GREEN, LIGHT_GRAY = (255, 255, 255), (144, 238, 144), (211, 211, 21
 SLATE_GRAY, ROYAL_BLUE, RED = (143, 163, 184), (78, 126, 255), (255, 0, 0)
 
 
+def _show(value, limit=120):
+    """A value for a message: its numbers as a list when it has some, else its repr; at most `limit` characters."""
+    try:
+        text = repr(value) if isinstance(value, (str, bytes)) else str(np.asarray(value).tolist())
+    except Exception:                                  # noqa: BLE001 (anything that is not array-like)
+        text = repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _finite_array(value):
+    """`value` as a float64 array when it is numbers, all finite; None otherwise."""
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    return a if np.isfinite(a).all() else None
+
+
+def _action(env, action, what):
+    """An action as a (2,) float64 array, checked before the environment changes: a ValueError naming it unless it
+    is 2 finite numbers."""
+    a = _finite_array(action)
+    if a is None or a.shape != (2,):
+        try:
+            shape = np.shape(action)
+        except Exception:                              # noqa: BLE001
+            shape = None
+        shown = f"{_show(action)}" + (f" of shape {shape}" if shape not in (None, (2,)) else "")
+        raise ValueError(f"{env}: the action ({what}) must be 2 finite numbers, got {shown}")
+    return a
+
+
+def _options_dict(env, options, allowed):
+    """reset()'s options as a dict (None: none); a ValueError naming an option that is not one of `allowed`."""
+    if options is None:
+        return {}
+    if not isinstance(options, dict):
+        raise ValueError(f"{env}: reset's options must be a dict (keys: {', '.join(allowed)}), got "
+                         f"{type(options).__name__}")
+    for k in options:
+        if k not in allowed:
+            raise ValueError(f"{env}: unknown reset option {k!r} (the options are {', '.join(allowed)})")
+    return options
+
+
 def _push_t_bodies():
     """The push_t scene's T and pusher, in gym-pusht's T frame: the bar's top edge's midpoint at the origin, the bar
     y in [0, 30] mm, the stem y in [30, 120] mm (push_t's frame turned by 180 degrees and moved 15 mm)."""
@@ -190,13 +235,18 @@ class PushTEnv(gym.Env):
     def agent_pos(self):
         return self._qk[0, :2] / MM
 
-    def _set_state(self, agent, block):
-        """Place the pusher at `agent` (mm) and the T at `block` = (x, y, angle) read as gym-pusht reads
-        reset_to_state: the T's frame put at (x, y) at angle 0, then turned about PUSHT_COG. Velocities zero."""
+    @staticmethod
+    def frame_pose(block):
+        """The T's frame pose (x, y mm, angle rad) of `block` = (x, y, angle) read as gym-pusht reads
+        reset_to_state: the T's frame put at (x, y) at angle 0, then turned about PUSHT_COG."""
         x, y, a = (float(b) for b in block)
         cx, cy = x + PUSHT_COG[0], y + PUSHT_COG[1]
         c, s = math.cos(a), math.sin(a)
-        x, y = cx - (c * PUSHT_COG[0] - s * PUSHT_COG[1]), cy - (s * PUSHT_COG[0] + c * PUSHT_COG[1])
+        return np.array([cx - (c * PUSHT_COG[0] - s * PUSHT_COG[1]), cy - (s * PUSHT_COG[0] + c * PUSHT_COG[1]), a])
+
+    def _set_state(self, agent, pose):
+        """Place the pusher at `agent` (mm) and the T's frame at `pose` (x, y mm, angle rad). Velocities zero."""
+        x, y, a = pose
         self._q = frame_to_com(np.array([[x * MM, y * MM, a]]), self.com_local1)
         self._v = np.zeros((1, 3))
         self._qk = self.model.qk0.copy()
@@ -208,8 +258,10 @@ class PushTEnv(gym.Env):
         return place_corners(self.t_corners, pose)
 
     def why_not_start(self, agent, pose):
-        """'' if the pusher and the T at these poses overlap neither each other nor the walls, else why."""
+        """'' if the pusher is in the arena and the T at these poses overlaps neither it nor the walls, else why."""
         import shapely
+        if not (0.0 <= min(agent) and max(agent) <= ARENA):
+            return f"the pusher at {np.round(agent, 3).tolist()} is outside the arena (0..{ARENA:g} mm)"
         corners = self.t_world_corners(pose)
         inner0, inner1 = WALL_LINES[0] + WALL_HALF, WALL_LINES[1] - WALL_HALF
         if corners.min() < inner0 or corners.max() > inner1:
@@ -224,42 +276,59 @@ class PushTEnv(gym.Env):
         return coverage(self.t_corners, self.block_pose(), self._goal)
 
     # ---- gymnasium ----------------------------------------------------------------------------------------------
-    def reset(self, *, seed=None, options=None):
-        super().reset(seed=seed)
-        options = options or {}
-        rng = self.np_random
-        # the start first: gym-pusht's draws in its order, so that a seed gives its start state (random goal or not)
-        state = options.get("reset_to_state")
-        if state is not None:
-            state = np.asarray(state, dtype=np.float64)
-            if state.shape != (5,) or not np.isfinite(state).all():
+    #: reset(options=...)'s keys
+    RESET_OPTIONS = ("reset_to_state", "goal")
+
+    def _reset_options(self, options):
+        """The start (agent mm, T frame pose) and the goal of reset's options, each None when not given, checked
+        before anything changes: a ValueError names the option, what it must be and what it got."""
+        options = _options_dict("PushT-v0", options, self.RESET_OPTIONS)
+        start = goal = None
+        if options.get("reset_to_state") is not None:
+            state = _finite_array(options["reset_to_state"])
+            if state is None or state.shape != (5,):
                 raise ValueError("PushT-v0: options['reset_to_state'] must be 5 finite numbers (agent x, y, block x, "
-                                 f"y mm, angle rad), got {np.asarray(options['reset_to_state']).tolist()}")
-            self._set_state(state[:2], state[2:])
-            why = self.why_not_start(self.agent_pos(), self.block_pose())
+                                 f"y mm, angle rad), got {_show(options['reset_to_state'])}")
+            start = (state[:2], self.frame_pose(state[2:]))
+            why = self.why_not_start(*start)
             if why:
                 raise ValueError(f"PushT-v0: options['reset_to_state'] = {state.tolist()} is not a start state: "
                                  f"{why}")
+        if options.get("goal") is not None:
+            goal = _finite_array(options["goal"])
+            if goal is None or goal.shape != (3,):
+                raise ValueError(f"PushT-v0: options['goal'] must be 3 finite numbers (x, y mm, angle rad), got "
+                                 f"{_show(options['goal'])}")
+            c = self.t_world_corners(goal)
+            inner0, inner1 = WALL_LINES[0] + WALL_HALF, WALL_LINES[1] - WALL_HALF
+            if c.min() < inner0 or c.max() > inner1:
+                raise ValueError(f"PushT-v0: options['goal'] must place the T inside the walls (its corners within "
+                                 f"{inner0:g}..{inner1:g} mm), got {goal.tolist()} (corners within "
+                                 f"{c.min():.4g}..{c.max():.4g} mm)")
+        return start, goal
+
+    def reset(self, *, seed=None, options=None):
+        start, goal = self._reset_options(options)           # before anything changes
+        super().reset(seed=seed)
+        rng = self.np_random
+        # the start first: gym-pusht's draws in its order, so that a seed gives its start state (random goal or not)
+        if start is not None:
+            self._set_state(*start)
         else:
             while True:           # gym-pusht's draws; a draw with overlaps is drawn again (docs/gym.md)
                 state = np.array([rng.integers(50, 450), rng.integers(50, 450), rng.integers(100, 400),
                                   rng.integers(100, 400), rng.uniform(-np.pi, np.pi)], dtype=np.float64)
-                self._set_state(state[:2], state[2:])
-                if not self.why_not_start(self.agent_pos(), self.block_pose()):
+                pose = self.frame_pose(state[2:])
+                if not self.why_not_start(state[:2], pose):
+                    self._set_state(state[:2], pose)
                     break
-        goal = options.get("goal")
-        if goal is not None:
-            goal = np.asarray(goal, dtype=np.float64)
-            if goal.shape != (3,) or not np.isfinite(goal).all():
-                raise ValueError(f"PushT-v0: options['goal'] must be 3 finite numbers (x, y mm, angle rad), got "
-                                 f"{goal.tolist()}")
-        elif self.random_goal:
+        if goal is None and self.random_goal:
             while True:
                 goal = np.array([rng.uniform(100, 400), rng.uniform(100, 400), rng.uniform(-np.pi, np.pi)])
                 c = self.t_world_corners(goal)
                 if c.min() >= WALL_LINES[0] + WALL_HALF and c.max() <= WALL_LINES[1] - WALL_HALF:
                     break
-        else:
+        elif goal is None:
             goal = np.array(GOAL_POSE)
         self._goal = goal
         self._last_action = None
@@ -269,7 +338,8 @@ class PushTEnv(gym.Env):
         return self._obs(), info
 
     def step(self, action):
-        target = np.asarray(action, dtype=np.float64).reshape(2) * MM
+        # checked before anything changes; a target outside the action space is clipped to it (the arena)
+        target = np.clip(_action("PushT-v0", action, "the pusher's target x, y in mm"), 0.0, ARENA) * MM
         self._last_action = target / MM
         # the pusher is kinematic, so its path over the ten substeps follows from the PD law alone: computed here,
         # then the ten steps are one rollout. Position update as the kernel's (q + h v), so the PD law sees the
@@ -409,16 +479,14 @@ class TaskEnv(gym.Env):
         self._drawing = None
 
     def reset(self, *, seed=None, options=None):
-        super().reset(seed=seed)
-        state = (options or {}).get("state")
-        if state is None:
-            self._x = self._x0.copy()
-        else:
-            x = np.asarray(state, dtype=np.float64)
-            if x.shape != self._x0.shape or not np.isfinite(x).all():
+        state = _options_dict("Task-v0", options, ("state",)).get("state")       # checked before anything changes
+        if state is not None:
+            x = _finite_array(state)
+            if x is None or x.shape != self._x0.shape:
                 raise ValueError(f"Task-v0: options['state'] must be {self._x0.size} finite numbers "
-                                 f"({', '.join(self.task.state_names())}), got {np.asarray(state).tolist()}")
-            self._x = x.copy()
+                                 f"({', '.join(self.task.state_names())}), got {_show(state, 400)}")
+        super().reset(seed=seed)
+        self._x = self._x0.copy() if state is None else x.copy()
         self._n = 0
         d = self.tm.goal_distance(self._x)
         return self._x.copy(), {"goal_distance": d, "is_success": d <= 1.0, "sim_ok": True,
@@ -426,7 +494,8 @@ class TaskEnv(gym.Env):
 
     def step(self, action):
         cm = self.task.control_max
-        u = np.clip(np.asarray(action, dtype=np.float64).reshape(2), -cm, cm)
+        # checked before anything changes; beyond the action space clipped to it
+        u = np.clip(_action("Task-v0", action, "the pusher's velocity vx, vy in m/s"), -cm, cm)
         x, ok = self.tm.advance(self._x, u, self.tm.steps_per_prop)
         self._n += 1
         if ok:

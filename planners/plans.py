@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from planar_lcp.spec.scene import SHIPPED_FOLDERS, SceneError, read_document, shipped_dir
-from planar_lcp.spec.task import document_sha256, parse_task
+from planar_lcp.spec.scene import SHIPPED_FOLDERS, SceneError, _is_real, read_document, shipped_dir
+from planar_lcp.spec.task import check_seed, check_time_limit, document_sha256, parse_task
 
 from .shorten import costs
 from .tasks import TaskError, TaskModel, check_planner
@@ -44,13 +44,11 @@ def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=N
         raise TaskError("give a time limit (--time) or an iteration budget (--iterations)")
     if time_limit is not None and iterations is not None:
         raise TaskError("give either a time limit (--time) or an iteration budget (--iterations), not both")
-    if time_limit is not None and not (math.isfinite(time_limit) and time_limit > 0):
-        raise TaskError(f"the time limit must be > 0 s, got {time_limit}")
+    if time_limit is not None:
+        time_limit = check_time_limit(time_limit)
     if iterations is not None and int(iterations) < 1:
         raise TaskError(f"the iteration budget must be >= 1, got {iterations}")
-    seed = int(seed)
-    if seed < 1:
-        raise TaskError(f"the seed must be >= 1, got {seed}")
+    seed = check_seed(seed)
     gc.disable()   # ompl 2.0.1: cyclic GC reads freed memory (see docs/planning.md)
     # re-seeding a worker that planned before logs "Random number generation already started" but does re-seed
     # (OMPL's RandomNumbers.cpp); keep that out of the output
@@ -213,12 +211,12 @@ def plan(task, planner=None, time=None, iterations=None, seed=1, shorten=True):
     planner : str, optional
         One of PLANNERS; default the task's `planner` ("RRT" unless the file says otherwise).
     time : float, optional
-        Wall-clock budget, s. Default: the task's `time` (60 s unless the file says otherwise), unless
-        `iterations` is given.
+        Wall-clock budget, s, at most 86400 (as a task file's `time`). Default: the task's `time` (60 s unless the
+        file says otherwise), unless `iterations` is given.
     iterations : int, optional
         An iteration budget instead of a time limit: with `seed`, the plan is the same on any machine.
     seed : int
-        OMPL's random seed, >= 1 (it seeds the shortening too).
+        OMPL's random seed, 1 to 2**32 - 1 (spec.task.MAX_SEED; it seeds the shortening too).
     shorten : bool
         Shorten the first exact plan (planners.shorten, docs/planning.md "Shorter plans"); False: the planner's
         first exact plan as it is.
@@ -229,6 +227,9 @@ def plan(task, planner=None, time=None, iterations=None, seed=1, shorten=True):
         `.exact` is True when the goal is reached; the planner stops at the first exact solution, which is then
         shortened (`.data["first_path_duration"]` is its duration).
     """
+    seed = check_seed(seed)                  # before any work: the task model compiles the scene
+    if time is not None:
+        time = check_time_limit(time)
     tm = TaskModel(task)
     if time is None and iterations is None:
         time = tm.task.time
@@ -283,6 +284,8 @@ def load_plan(path):
         plan = json.loads(p.read_text())
     except FileNotFoundError:
         raise TaskError(f"{path}: no such plan file") from None
+    except IsADirectoryError:
+        raise TaskError(f"{path}: is a directory, not a plan file") from None
     except (OSError, UnicodeDecodeError) as e:
         raise TaskError(f"{path}: cannot read: {e}") from None
     except json.JSONDecodeError as e:
@@ -339,10 +342,27 @@ def load_plan(path):
         sd = plan["step_duration"]
         if isinstance(sd, bool) or not isinstance(sd, (int, float)) or abs(sd - task.step_duration) > 1e-12:
             raise TaskError(f"{path}: step_duration must be the task's {task.step_duration:g} s, got {sd!r}")
+    # what the plan file says of its durations is what its steps make (the report and the drawings read them)
+    sd = task.step_duration
+    want = k * sd
+    if "durations" in plan:
+        d = plan["durations"]
+        if not isinstance(d, list) or len(d) != len(k):
+            raise TaskError(f"{path}: durations must be one number per control (steps[i] * step_duration), got "
+                            f"{len(d) if isinstance(d, list) else type(d).__name__} for {len(k)} controls")
+        for i, di in enumerate(d):
+            if not _is_real(di) or not abs(di - want[i]) <= 1e-9 * max(1.0, want[i]):
+                raise TaskError(f"{path}: durations[{i}] must be steps[{i}] * step_duration = {int(k[i])} * {sd:g} "
+                                f"= {want[i]:.6g} s, got {di!r}")
+    if "path_duration" in plan:
+        pd, total = plan["path_duration"], float(k.sum() * sd)
+        if not _is_real(pd) or not abs(pd - total) <= 1e-9 * max(1.0, total):
+            raise TaskError(f"{path}: path_duration must be the sum of steps * step_duration = {total:.6g} s, got "
+                            f"{pd!r}")
     for key in ("exact", "approximate"):
         plan.setdefault(key, False)
-    plan.setdefault("durations", (k * task.step_duration).tolist())
-    plan.setdefault("path_duration", float(k.sum() * task.step_duration))
+    plan.setdefault("durations", want.tolist())
+    plan.setdefault("path_duration", float(k.sum() * sd))
     return Plan(plan, task, task_file=_task_file_status(src, sha))
 
 

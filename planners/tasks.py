@@ -18,7 +18,8 @@ import math
 
 import numpy as np
 
-from planar_lcp.spec.task import PLANNERS, Task, TaskError, load_task, shipped_tasks
+from planar_lcp.spec.scene import SceneError
+from planar_lcp.spec.task import PLANNERS, Task, TaskError, body_extent, load_task, shipped_tasks
 
 __all__ = ["PLANNERS", "Task", "TaskError", "TaskModel", "check_planner", "load_task", "shipped_tasks", "wrap_angle"]
 
@@ -55,7 +56,13 @@ class TaskModel:
 
         self.task = task = load_task(task)
         self.scene = scene = task.scene
-        self.model = model = compile_scene(scene)
+        try:
+            # it refuses a start where bodies overlap, as `planar-lcp simulate` does
+            self.model = model = compile_scene(scene)
+        except TaskError:
+            raise
+        except SceneError as e:
+            raise TaskError(str(e)) from None
         want = [task.object, *task.obstacles]
         # the scene's index of each body in the flat state's order (object first, then the obstacles)
         self.dyn_order = np.array([model.dyn_names.index(b) for b in want])
@@ -93,10 +100,11 @@ class TaskModel:
         self.object_area = self.object_poly_body.area
         pusher_extent = body_extent(sc.body(t.pusher), about_origin=True)
         self.pusher_radius, pusher_inner = pusher_extent["circumradius"], pusher_extent["min_support"]
-        statics = []
+        statics, self.static_bodies = [], []
         for b in sc.bodies:
             if b.type == "dynamic" or b.name == t.pusher:
                 continue              # a kinematic body other than the pusher stands still (spec.task): a static
+            first = len(statics)
             for s in b.shapes:
                 if s.type == "halfplane":
                     p, nrm = np.asarray(s.point, float), np.asarray(s.normal, float)
@@ -106,6 +114,7 @@ class TaskModel:
                                             p + big * tan - big * nrm]))
                 else:
                     statics.append(_place(shape_geometry(s, quad_segs=8), b.position, b.angle))
+            self.static_bodies.append((b.name, unary_union(statics[first:])))
         self.statics = unary_union(statics) if statics else None
         # where the pusher's centre may not be: the statics grown by the pusher's least half-width (its radius for a
         # disk) less a slack, a necessary condition for the pusher not to overlap them
@@ -166,6 +175,17 @@ class TaskModel:
                 raise TaskError(f"{src}: task.goal must not place the object inside a static body, got "
                                 f"{overlap / self.goal_poly.area:.1%} of its area overlapping the static bodies at "
                                 f"({t.goal.x:g}, {t.goal.y:g}, {math.degrees(t.goal.angle):g} deg)")
+        g = t.goal
+        if g.pose is None and g.x is not None and g.y is not None and self.statics is not None:
+            p, tol = (g.x, g.y), g.position_tol
+            R = body_extent(self.scene.body(t.object), about_origin=True)["circumradius"]
+            if no_pose_fits(self.object_poly_body, self.statics, p, tol, R, 1e-6 * self.object_area):
+                at0 = _place(self.object_poly_body, p, 0.0)
+                names = [n for n, geom in self.static_bodies if geom.intersection(at0).area > 0.0]
+                raise TaskError(f"{src}: task.goal must leave room for the object {t.object!r} at some angle with "
+                                f"its position within task.goal.position_tol = {tol:g} m of ({g.x:g}, {g.y:g}), got "
+                                f"every such pose overlapping static bod{'ies' if len(names) > 1 else 'y'} "
+                                f"{', '.join(repr(n) for n in names)}")
         x0 = self.initial_state()
         why = self.why_invalid(x0)
         if why:
@@ -412,6 +432,45 @@ class TaskModel:
         else:
             x[self.ip], x[self.ip + 1] = rng(px0, px1), rng(py0, py1)
         return x
+
+
+def no_pose_fits(body_poly, statics, position, tol, radius, area_tol, n0=64, max_placements=4096):
+    """True when the body (`body_poly`, its body frame) overlaps `statics` by more than `area_tol` (m^2) at EVERY
+    pose with its origin within `tol` of `position`, at any angle; False when some pose fits, or when that could not
+    be shown within `max_placements` (it refuses only what it proves). `radius`: the farthest point of the body from
+    its origin (m).
+
+    The proof, over angle intervals [c - w, c + w]: turning by at most w about the origin and moving it by at most
+    tol moves no point of the body by more than d = radius w + tol, so the body at (position, c) shrunk by d (a
+    negative buffer) lies inside the body at every pose of the interval; its overlap with the statics then bounds
+    theirs from below. An interval whose shrunk body does not overlap is halved; the body placed at
+    (position, c) itself overlapping no more than area_tol is a pose that fits."""
+    cores = {}
+
+    def core(d):
+        if d not in cores:
+            cores[d] = body_poly.buffer(-1.01 * d, quad_segs=8)     # 1 %: the arcs' chords at inner corners
+        return cores[d]
+
+    w = math.pi / n0
+    centres = [-math.pi + (2 * i + 1) * w for i in range(n0)]
+    placements = 0
+    while centres:
+        shrunk, least = core(radius * w + tol), core(tol)
+        halves = []
+        for c in centres:
+            placements += 1
+            if placements > max_placements:
+                return False
+            if _place(body_poly, position, c).intersection(statics).area <= area_tol:
+                return False                                   # a pose at the position fits
+            if not shrunk.is_empty and _place(shrunk, position, c).intersection(statics).area > area_tol:
+                continue                                       # every pose of this interval overlaps
+            if least.is_empty or _place(least, position, c).intersection(statics).area <= area_tol:
+                return False                 # no interval about c can be shown to overlap: not proven
+            halves += [c - w / 2, c + w / 2]
+        centres, w = halves, w / 2
+    return True
 
 
 def _place(g, pos, angle):

@@ -140,6 +140,8 @@ def test_ctrl_c_stops_replay_cleanly(small_plan, tmp_path):
     # Python, see test_ctrl_c_during_a_compile_is_still_an_interrupt)
     plan["controls"] = [[0.0, 0.0]] * 40000
     plan["steps"] = [10] * 40000
+    plan["durations"] = [10 * plan["step_duration"]] * 40000          # what the steps make (load_plan checks it)
+    plan["path_duration"] = 40000 * 10 * plan["step_duration"]
     long_plan = tmp_path / "long.json"
     long_plan.write_text(json.dumps(plan))
     # the plan's own replay first: it compiles whatever kernel of the task the suite's cache does not hold yet (a

@@ -345,6 +345,8 @@ def read_document(path) -> tuple[dict, str]:
     """The TOML document of a scene file as (dict, text); SceneError for a missing or unreadable file, text that is
     not UTF-8, or invalid TOML."""
     path = Path(path)
+    if path.is_dir():
+        raise SceneError(f"{path}: is a directory, not a scene file")
     if not path.is_file():
         raise SceneError(f"{path}: no such scene file")
     try:

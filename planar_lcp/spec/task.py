@@ -29,8 +29,9 @@ import numpy as np
 
 from planar_lcp.frames import rotation
 from planar_lcp.spec.massprops import body_area_properties
-from planar_lcp.spec.scene import (MAX_SERVO_FORCE, SceneError, _is_real, _Validator, display_source, find_scene_file,
-                                   parse_scene, parse_toml, read_document, scene_files, scene_path)
+from planar_lcp.spec.scene import (MAX_LENGTH, MAX_SERVO_FORCE, SceneError, _fmt_num, _is_real, _Validator,
+                                   display_source, find_scene_file, parse_scene, parse_toml, read_document, scene_files,
+                                   scene_path)
 
 #: The OMPL control planners that the 2.0.1 wheel can construct from Python (SST and PDST have no constructor
 #: there, docs/planning.md). Here, not in planners.adapter, so that tasks and the CLI check them without ompl.
@@ -46,6 +47,12 @@ GOAL_KEYS = ("x", "y", "angle_deg", "position_tol", "angle_tol_deg", "at_rest", 
 # Upper bounds that keep a typo from asking for days of planning or a control held for hours.
 MAX_TIME = 86_400.0                # s of planning budget
 MAX_CONTROL_STEPS = 1_000          # propagation steps one control is held
+#: OMPL's seeds (ompl.util.RNG.setSeed) are a std::uint_fast32_t: 32 bits on every platform (64 on Linux x86-64,
+#: where the 2.0.1 wheel raises TypeError only above 2**64 - 1); the 32-bit bound keeps a seed valid, and its plan
+#: the same, on any machine
+MAX_SEED = 2**32 - 1
+#: runs per planner of a benchmark (seeds 1..N; at a second or more each, more than a day)
+MAX_RUNS = 100_000
 #: the default propagation step: the multiple of h nearest this (s)
 DEFAULT_STEP = 0.1
 
@@ -441,8 +448,8 @@ def _check_goal_in_workspace(v, goal, workspace, body):
 def _parse_goal(v, t, extent) -> Goal:
     g = v.table("task.goal", v.require("task", t, "goal"))
     v.keys("task.goal", g, GOAL_KEYS)
-    x = v.number("task.goal.x", g["x"]) if "x" in g else None
-    y = v.number("task.goal.y", g["y"]) if "y" in g else None
+    x = v.coordinate("task.goal.x", g["x"]) if "x" in g else None
+    y = v.coordinate("task.goal.y", g["y"]) if "y" in g else None
     ang = math.radians(v.number("task.goal.angle_deg", g["angle_deg"])) if "angle_deg" in g else None
     if x is None and y is None and ang is None:
         v.fail("task.goal must name at least one of x, y and angle_deg, got none")
@@ -508,6 +515,14 @@ class _TaskValidator(_Validator):
             self.fail(f"{path} must be <= {maximum:g}, got {x!r}")
         return x
 
+    def coordinate(self, path, value):
+        """A coordinate in m, bounded as a scene's positions are (+-MAX_LENGTH)."""
+        x = self.number(path, value)
+        if not abs(x) <= MAX_LENGTH:
+            self.fail(f"{path} must be within +-{MAX_LENGTH:g} m (a physical bound, as for positions), got "
+                      f"{_fmt_num(x)}")
+        return x
+
     def region(self, path, value):
         """[[xmin, xmax], [ymin, ymax]], finite, min < max."""
         ok = isinstance(value, (list, tuple)) and len(value) == 2 and all(
@@ -516,8 +531,8 @@ class _TaskValidator(_Validator):
             self.fail(f"{path} must be [[xmin, xmax], [ymin, ymax]] in m, got {value!r}")
         out = []
         for i, axis in enumerate("xy"):
-            lo = self.number(f"{path}[{i}][0]", value[i][0])
-            hi = self.number(f"{path}[{i}][1]", value[i][1])
+            lo = self.coordinate(f"{path}[{i}][0]", value[i][0])
+            hi = self.coordinate(f"{path}[{i}][1]", value[i][1])
             if not lo < hi:
                 self.fail(f"{path}[{i}] must be [{axis}min, {axis}max] with {axis}min < {axis}max, got "
                           f"[{lo!r}, {hi!r}]")
@@ -525,5 +540,28 @@ class _TaskValidator(_Validator):
         return tuple(out)
 
 
-__all__ = ["DEFAULT_PLANNER", "GOAL_KEYS", "Goal", "PLANNERS", "TASK_KEYS", "Task", "TaskError", "canonical_json",
-           "document_sha256", "load_task", "parse_task", "shipped_tasks"]
+def check_seed(seed, name="the seed"):
+    """`seed` as an int if it is an integer in 1..MAX_SEED (what OMPL's RNG.setSeed takes on any machine); a
+    TaskError naming `name` (a flag, or the API's keyword) otherwise."""
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)):
+        raise TaskError(f"{name} must be an integer from 1 to {MAX_SEED} (OMPL's seed), got {seed!r}")
+    if not 1 <= seed <= MAX_SEED:
+        raise TaskError(f"{name} must be from 1 to {MAX_SEED} (OMPL's seed), got {seed}")
+    return int(seed)
+
+
+def check_time_limit(seconds, name="the time limit"):
+    """`seconds` as a float if it is a planning budget in (0, MAX_TIME] s, the bound of a task file's `time`; a
+    TaskError naming `name` otherwise."""
+    try:
+        x = float(seconds) if _is_real(seconds) else math.nan
+    except OverflowError:                 # an int beyond a float
+        x = math.inf
+    if not (math.isfinite(x) and 0.0 < x <= MAX_TIME):
+        raise TaskError(f"{name} must be > 0 and <= {MAX_TIME:g} s (as a task file's time), got {seconds!r}")
+    return x
+
+
+__all__ = ["DEFAULT_PLANNER", "GOAL_KEYS", "Goal", "MAX_RUNS", "MAX_SEED", "MAX_TIME", "PLANNERS", "TASK_KEYS", "Task",
+           "TaskError", "canonical_json", "check_seed", "check_time_limit", "document_sha256", "load_task", "parse_task",
+           "shipped_tasks"]
