@@ -50,8 +50,9 @@ class LCPResult:
 
 
 def _as_problem(M, q):
-    M = np.asarray(M, dtype=np.float64)
-    q = np.asarray(q, dtype=np.float64)
+    # C-contiguous float64: the kernel's one signature, whatever layout the caller's arrays have
+    M = np.ascontiguousarray(M, dtype=np.float64)
+    q = np.ascontiguousarray(q, dtype=np.float64)
     if q.ndim != 1:
         raise ValueError(f"lemke: q must be a 1-D array of shape (n,), got shape {q.shape}")
     n = q.shape[0]

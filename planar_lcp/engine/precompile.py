@@ -159,15 +159,15 @@ def _solver_signature():
 
 
 def _compile_lcp():
-    """`planar_lcp.lemke`'s kernel and `lcp_scale` (a failed step's checks), by calls as their callers make them:
-    they share `lemke_kernel`, which the helper has compiled by then."""
+    """`planar_lcp.lemke`'s kernel and `lcp_scale` (a failed step's checks), by calls with the argument types their
+    callers give them (planar_lcp/lcp.py: float64 arrays, then int, float, float, float, bool): they share
+    `lemke_kernel`, which the helper has compiled by then."""
     import numpy as np
 
-    from planar_lcp.engine.solvers.lemke import lcp_scale
-    from planar_lcp.lcp import lemke
+    from planar_lcp.engine.solvers.lemke import lcp_scale, lemke_solve
     A, b = np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0])
     lcp_scale(A, b)
-    lemke(A, b)
+    lemke_solve(A, b, 100, 1e-9, 1e-12, 1e-9, False)
 
 
 #: kinds compiled by a call rather than by typing a driver
