@@ -76,7 +76,8 @@ for task in args.tasks:
     rs = [r for r in runs if r["task"] == task]
     if not rs:
         continue
-    line = [f"{task}: median first {statistics.median(r['first_steps'] for r in rs) * TaskModel(task).task.step_duration:.2f} s"]
+    dt = TaskModel(task).task.step_duration
+    line = [f"{task}: median first {statistics.median(r['first_steps'] for r in rs) * dt:.2f} s"]
     for name in ("old", "default"):
         if all(name in r for r in rs):
             line.append(f"{name}: final {statistics.median(r[name]['final'] for r in rs):.2f} s, "

@@ -180,7 +180,8 @@ def _plan_and_write(args, tm, planner, tlim, out):
     for line in task_lines(task):
         print(line)
     print(f"planner        {planner} (seed {args.seed}, budget {budget})", flush=True)
-    kept = []              # what plan.json holds, once it holds an exact plan (for Ctrl-C's message)
+    # what plan.json holds once it holds an exact plan, and what the command was doing: Ctrl-C's message
+    kept = dict(plan=None, doing="writing the first plan", first=None)
 
     def first_plan(data):
         """The planner's plan: announced, and written at once when the shortening is to follow."""
@@ -193,8 +194,10 @@ def _plan_and_write(args, tm, planner, tlim, out):
         # an exact plan to shorten: written first, then announced, so that whoever sees "solution exact" finds it
         p = Plan(data, task)
         p.save(out / "plan.json")
-        kept.append(f"the first exact plan ({data['first_path_duration']:.2f} s) in {out / 'plan.json'}")
+        kept["plan"] = f"the first exact plan ({data['first_path_duration']:.2f} s) in {out / 'plan.json'}"
+        kept["first"] = dict(data)           # as written (plan_task goes on to replace its values)
         _draw(p, out, gif=False)
+        kept["doing"] = "shortening"
         print(solution)
         print(f"first plan     {len(data['controls'])} controls, {data['first_path_duration']:.2f} s, pusher path "
               f"{data['first_pusher_path_length']:.3f} m, object path {data['first_object_path_length']:.3f} m")
@@ -216,14 +219,12 @@ def _plan_and_write(args, tm, planner, tlim, out):
             p = Plan(data, task)
             p.save(out / "plan.json")
             sh = data["shorten"]
-            kept[:] = [f"the best exact plan so far ({data['path_duration']:.2f} s; the first plan "
-                       f"{data['first_path_duration']:.2f} s; {sh['accepted']} of {sh['candidates']} candidates "
-                       f"accepted) in {out / 'plan.json'}"]
-            if sh["status"] != "interrupted":
-                kept[:] = [f"the shortened plan ({data['path_duration']:.2f} s; the first plan "
-                           f"{data['first_path_duration']:.2f} s) in {out / 'plan.json'}"]
+            kept["first"] = None
+            kept["plan"] = (f"the {'best exact plan so far' if sh['status'] == 'interrupted' else 'shortened plan'} "
+                            f"({data['path_duration']:.2f} s; the first plan {data['first_path_duration']:.2f} s; "
+                            f"{sh['accepted']} of {sh['candidates']} candidates accepted) in {out / 'plan.json'}")
             _draw(p, out, gif=False)
-            raise KeyboardInterrupt(f"shortening: kept {kept[0]}, and its plan.png") from None
+            raise KeyboardInterrupt(f"shortening: kept {kept['plan']} and its plan.png") from None
         p = Plan(data, task)            # a fresh TaskModel for the drawings: the planner's is warm-started state
         sh = data["shorten"]
         if "first_plan" in data:
@@ -232,7 +233,7 @@ def _plan_and_write(args, tm, planner, tlim, out):
                   f"m, object path {data['object_path_length']:.3f} m" + _truncated(sh))
         p.save(out / "plan.json")
         if data["exact"]:
-            kept[:] = [f"the final plan in {out / 'plan.json'}"]
+            kept.update(plan=f"the final plan in {out / 'plan.json'}", doing="writing the figures", first=None)
         wrote = [out / "plan.json"]
         if data["controls"]:
             print(f"path           {len(data['controls'])} controls, {p.path_duration:.2f} s; goal: "
@@ -242,9 +243,14 @@ def _plan_and_write(args, tm, planner, tlim, out):
             print(f"wrote          {w}")
         return 0 if p.exact else 1
     except KeyboardInterrupt as e:
-        if kept and not str(e):
-            raise KeyboardInterrupt(f"kept {kept[0]}") from None
-        raise
+        if kept["plan"] is None or str(e):
+            raise
+        if kept["doing"] == "shortening" and kept["first"] is not None:
+            # Ctrl-C before the shortening could read it: the first plan is the best so far, and says so
+            first = kept["first"]
+            first["shorten"] = dict(first["shorten"], status="interrupted", stopped_by="interrupted")
+            Plan(first, task).save(out / "plan.json")
+        raise KeyboardInterrupt(f"{kept['doing']}: kept {kept['plan']}") from None
 
 
 def _draw(p, out, gif):

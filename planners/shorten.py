@@ -533,8 +533,8 @@ def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patien
                  stopped_by=None, stopped_by_deadline=False, exact_input=s.ok)
     if not s.ok:
         stats.update(controls=np.asarray(controls, float).reshape(-1, 2), steps=np.asarray(steps, int),
-                     time=time.perf_counter() - t0, cpu_time=time.process_time() - c0, sim_steps=tm.nsteps_total - steps0,
-                     stopped_by="not exact")
+                     time=time.perf_counter() - t0, cpu_time=time.process_time() - c0,
+                     sim_steps=tm.nsteps_total - steps0, stopped_by="not exact")
         return stats
     stats["truncated"] = s.truncate_at_goal()
     rng = np.random.default_rng([int(seed), 25])        # 25: a stream apart from other uses of the seed
