@@ -1,4 +1,4 @@
-"""Shorter plans: randomised shortcutting of an exact plan, the simulator as the judge (issue 25).
+"""Shorter plans: randomised shortcutting of an exact plan, the simulator as the judge.
 
 OMPL's control planners stop at the first exact plan, a chain of short random controls (SST, the near-optimal one,
 cannot be built from the 2.0.1 wheel: docs/planning.md). `shorten` rewrites such a plan, keeping it exact:
@@ -38,8 +38,10 @@ cannot be built from the 2.0.1 wheel: docs/planning.md). `shorten` rewrites such
   tolerances is rejected without simulating the rest (a pruning: what is kept is always judged whole). A plan whose
   goal holds before its end is cut there (checked at the start and after each acceptance).
 - Bounded and deterministic: a numpy Generator seeded from the plan's seed draws the candidates; shortening stops
-  after `max_candidates` simulated candidates or `patience` rejected ones in a row, or at `deadline` (a wall-clock
-  time: the rest of a --time budget; under --iterations none, so that the plan is the same on any machine).
+  after `max_candidates` simulated candidates, `patience` rejected ones in a row or `max_sim_steps` simulated steps
+  (`default_rule`: counts, so that a plan made with --iterations is the same on any machine), at `deadline` (a
+  wall-clock time: the rest of a --time budget, or `plan --shorten-time`), or when `stop` says so (Ctrl-C). A
+  larger budget continues the same sequence of candidates: the rule only chooses where it ends.
 
 The result is returned as controls and step counts (runs of equal per-step controls, split into the task's
 min_steps..max_steps), which `replay` re-simulates bit for bit.
@@ -50,14 +52,15 @@ import time
 
 import numpy as np
 
-#: shortening stops after this many simulated candidates (each re-simulates the plan from its change point)
+#: The default stopping rule (`default_rule`; docs/planning.md, "When shortening stops"): shortening stops after
+#: PATIENCE rejected candidates in a row (it has stopped paying), or once its candidates have simulated EFFORT_SHARE
+#: times the steps the planner simulated to find the plan, and at least EFFORT_MIN (a share of the time already
+#: spent, counted in simulated steps: the same on every machine), or after MAX_CANDIDATES simulated candidates (each
+#: re-simulates the plan from its change point)
 MAX_CANDIDATES = 4000
-#: ... or after this many rejected candidates in a row
-PATIENCE = 1000
-#: the default rule's effort bound (`default_rule`): the candidates may simulate EFFORT_SHARE times the steps the
-#: planner simulated to find the plan, and at least EFFORT_MIN steps
-EFFORT_SHARE = 1.0
-EFFORT_MIN = 50000
+PATIENCE = 500
+EFFORT_SHARE = 2.0
+EFFORT_MIN = 100_000
 #: with no bound on the candidates (a time budget only, `plan --shorten-time`): stop after this many draws in a row
 #: that gave nothing to simulate (a plan so short that no stretch can be replaced by a shorter one)
 IDLE_DRAWS = 10000

@@ -83,6 +83,38 @@ def test_replay_pymunk_runs_and_judges_the_goal(small_plan, tmp_path):
     assert holds == (r.returncode == 0) and ("goal_holds       False" in r.stdout) == (not holds), r.stdout
     assert "simulation_ok    True" in r.stdout
     assert (tmp_path / "replay_pymunk.png").stat().st_size > 1000
+    assert (tmp_path / "replay_pymunk.gif").stat().st_size > 1000
+    pen = next(x for x in r.stdout.splitlines() if x.startswith("max_penetration  "))
+    assert float(pen.split()[1]) >= 0.0, pen
+
+
+def test_replay_reports_the_deepest_penetration_and_writes_a_gif(small_plan, tmp_path):
+    """`replay` prints the deepest penetration over the replay (any two bodies, after any simulated step) and writes
+    replay_lcp.gif beside replay_lcp.png; --no-gif skips it. Oracle for the number: the box's deepest corner below
+    the table top (y = 0) at every propagation step's end, computed here from the states' geometry, is a lower bound
+    of it (the reported one also sees the steps in between), and it is far below a millimetre."""
+    _, out = small_plan
+    r = run_cli("replay", out / "plan.json", "--out", tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    line = next(x for x in r.stdout.splitlines() if x.startswith("max_penetration  "))
+    reported = float(line.split()[1])
+    from planners import load_plan
+    plan = load_plan(out / "plan.json")
+    res = plan.replay()
+    assert f"{res['penetration']:.3g}" == line.split()[1] and f"t = {res['penetration_time']:.2f} s" in line, line
+    tm = plan.model
+    deepest = 0.0
+    for x in res["dense"]:
+        px, py, th = tm.object_frame_pose(x)
+        c, s = np.cos(th), np.sin(th)
+        corners_y = [py + s * dx + c * dy for dx in (-0.05, 0.05) for dy in (-0.1, 0.1)]
+        deepest = max(deepest, -min(corners_y))
+    assert 0.0 < deepest <= reported * (1 + 1e-9) + 1e-15 < 1e-3, (deepest, reported)
+    assert (tmp_path / "replay_lcp.gif").stat().st_size > 1000 and (tmp_path / "replay_lcp.png").is_file()
+    assert f"wrote          {tmp_path / 'replay_lcp.gif'}" in r.stdout
+    r2 = run_cli("replay", out / "plan.json", "--out", tmp_path / "nogif", "--no-gif")
+    assert r2.returncode == 0 and not (tmp_path / "nogif" / "replay_lcp.gif").exists(), r2.stdout + r2.stderr
+    assert (tmp_path / "nogif" / "replay_lcp.png").is_file()
 
 
 @pytest.mark.parametrize("field, value, expected", [
