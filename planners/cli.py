@@ -129,6 +129,7 @@ def cmd_plan(args):
 def task_lines(task):
     """The task as planned, in a compact block: its bodies, goal, control, bounds and search settings, every key
     the file gave or `planar_lcp.spec.task.parse_task` derived, and which the file gave."""
+    from planar_lcp.spec.task import TASK_KEYS
     g, ws, pws = task.goal, task.workspace, task.pusher_workspace
 
     def region(r):
@@ -151,9 +152,7 @@ def task_lines(task):
     if "pusher_max_force" in task.given:
         control += f", pusher_max_force {task.document['task']['pusher_max_force']:.4g} N"
     w = task.weights
-    given = [k for k in ("object", "pusher", "goal", "description", "planner", "time", "control_max",
-                         "step_duration", "control_steps", "workspace", "pusher_workspace", "speed_max",
-                         "omega_max", "goal_bias", "pusher_max_force") if k in task.given]
+    given = [k for k in TASK_KEYS if k in task.given]
     return [
         f"  bodies       object {task.object}, pusher {task.pusher}, "
         + (f"{len(task.obstacles)} movable obstacles ({', '.join(task.obstacles)})" if task.obstacles
