@@ -51,7 +51,7 @@ def _sigint_flag():
         yield flag
     finally:
         if main:
-            signal.signal(signal.SIGINT, old)
+            signal.signal(signal.SIGINT, old if old is not None else signal.SIG_DFL)   # None: set outside Python
 
 
 def check_shorten_time(value, name="shorten_time"):

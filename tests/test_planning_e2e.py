@@ -253,6 +253,10 @@ def test_ctrl_c_while_shortening_keeps_the_best_exact_plan_so_far(tmp_path):
     # the message's numbers are the file's
     assert f"({d['path_duration']:.2f} s; the first plan 13.20 s; {d['shorten']['accepted']} of " \
            f"{d['shorten']['candidates']} candidates accepted)" in err, err
+    # and `replay` says which plan it replays
+    r = run_cli("replay", out / "plan.json", "--no-gif", "--out", tmp_path / "replay")
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "shortening     interrupted (Ctrl-C): the best exact plan it had\n" in r.stdout, r.stdout
 
 
 def test_ctrl_c_as_soon_as_the_first_plan_is_announced_keeps_it(tmp_path):

@@ -144,6 +144,8 @@ def test_the_docs_example_task_plans_as_the_docs_say(tmp_path):
     assert "exact after" in r.stdout and f" {n} iterations" in r.stdout, r.stdout
     m = re.search(r"(\d+) controls, ([\d.]+)\s+s of pushing", sec)
     assert f"path           {m.group(1)} controls, {float(m.group(2)):.2f} s" in r.stdout, r.stdout
+    block = re.search(r"```text\n(task .*?)```", sec, re.S).group(1)       # the task as `plan` prints it
+    assert r.stdout.startswith(block), (block, r.stdout)
     r = run_cli(*commands[1].split()[1:], cwd=tmp_path)
     assert r.returncode == 0 and "task file      my_push.toml (unchanged since planning)" in r.stdout, r.stdout
     assert re.search(r"^goal_holds\s+True$", r.stdout, re.M)
