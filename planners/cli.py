@@ -21,8 +21,9 @@ def register(sub):
     p = one_line_errors(sub.add_parser(
         "plan", help="plan pusher motions for a task with OMPL (our simulator as the forward model)",
         description="Plan a task (a shipped task or your own task file) with an OMPL kinodynamic planner. Writes "
-                    "plan.json (self-contained: it holds the task), plan.png and plan.gif into --out. Exit status 0 "
-                    "only for an exact solution."))
+                    "plan.json (self-contained: it holds the task), plan.png and plan.gif into --out: the first "
+                    "exact plan's plan.json and plan.png before it is shortened, so that Ctrl-C while shortening "
+                    "keeps the best exact plan so far (exit status 130). Exit status 0 only for an exact solution."))
     p.add_argument("task", metavar="TASK", help=TASK_HELP)
     p.add_argument("--planner", default=None, metavar="NAME",
                    help=f"one of {', '.join(PLANNERS)} (default: the task's planner, RRT unless its file says "
