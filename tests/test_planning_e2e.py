@@ -240,7 +240,7 @@ def test_ctrl_c_while_shortening_keeps_the_best_exact_plan_so_far(tmp_path):
     assert rc == 130, stdout + err
     assert err.count("\n") == 1 and "Traceback" not in err, err
     assert err.startswith("planar-lcp plan: error: interrupted (Ctrl-C); stopped shortening: kept the best exact "
-                          f"plan so far ("), err
+                          "plan so far ("), err
     assert f"in {out / 'plan.json'} and its plan.png" in err, err
     # announced in this order, before the shortening: the first plan, where it was saved
     i = [stdout.find(s) for s in ("solution       exact", "first plan     30 controls, 13.20 s", "saved          ",
