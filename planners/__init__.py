@@ -17,11 +17,11 @@ gymnasium nothing is registered and the rest works as before.
 
 from planar_lcp.spec.task import DEFAULT_PLANNER, PLANNERS, Goal, Task, TaskError, load_task, shipped_tasks
 
-from .plans import Plan, load_plan, plan
+from .plans import Plan, ShorteningInterrupted, load_plan, plan
 from .tasks import TaskModel
 
-__all__ = ["DEFAULT_PLANNER", "PLANNERS", "Goal", "Plan", "Task", "TaskError", "TaskModel", "load_plan",
-           "load_task", "plan", "shipped_tasks"]
+__all__ = ["DEFAULT_PLANNER", "PLANNERS", "Goal", "Plan", "ShorteningInterrupted", "Task", "TaskError", "TaskModel",
+           "load_plan", "load_task", "plan", "shipped_tasks"]
 
 
 def _register_envs():

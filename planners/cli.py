@@ -4,6 +4,8 @@
 `register()` imports nothing heavy: ompl, matplotlib and pymunk are imported inside the commands.
 """
 
+import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -23,8 +25,9 @@ def register(sub):
     p = one_line_errors(sub.add_parser(
         "plan", help="plan pusher motions for a task with OMPL (our simulator as the forward model)",
         description="Plan a task (a shipped task or your own task file) with an OMPL kinodynamic planner. Writes "
-                    "plan.json (self-contained: it holds the task), plan.png and plan.gif into --out. Exit status 0 "
-                    "only for an exact solution."))
+                    "plan.json (self-contained: it holds the task), plan.png and plan.gif into --out: the first "
+                    "exact plan's plan.json and plan.png before it is shortened, so that Ctrl-C while shortening "
+                    "keeps the best exact plan so far (exit status 130). Exit status 0 only for an exact solution."))
     p.add_argument("task", metavar="TASK", help=TASK_HELP)
     p.add_argument("--planner", default=None, metavar="NAME",
                    help=f"one of {', '.join(PLANNERS)} (default: the task's planner, RRT unless its file says "
@@ -41,16 +44,23 @@ def register(sub):
     p.add_argument("--no-shorten", action="store_true",
                    help="keep the planner's first exact plan as it is; by default it is shortened after the planner "
                         "stops (docs/planning.md, \"Shorter plans\")")
+    p.add_argument("--shorten-time", type=shorten_seconds, default=None, metavar="S",
+                   help="shorten the first exact plan for S seconds of wall time instead of until it stops paying "
+                        "(the default rule, the same on every machine: docs/planning.md, \"When shortening "
+                        "stops\"); 0: no candidate. Ctrl-C while shortening keeps the best plan so far")
     p.set_defaults(func=cmd_plan)
 
     r = one_line_errors(sub.add_parser(
         "replay", help="re-simulate a plan's controls open loop and check the goal",
         description="Re-simulate the controls of PLAN.json open loop (our LCP simulator, or pymunk through "
-                    "planar_lcp.experiments.pymunk_bridge), report the final goal error, write replay.png. Exit "
-                    "status 0 only when the goal holds at the end."))
+                    "planar_lcp.experiments.pymunk_bridge), report the final goal error and the deepest "
+                    "penetration, write replay_SIMULATOR.png and replay_SIMULATOR.gif. Exit status 0 only when the "
+                    "goal holds at the end."))
     r.add_argument("plan", metavar="PLAN.json")
     r.add_argument("--simulator", choices=["lcp", "pymunk"], default="lcp")
-    r.add_argument("--out", default=None, metavar="DIR", help="where to write replay.png (default: the plan's dir)")
+    r.add_argument("--out", default=None, metavar="DIR",
+                   help="where to write the replay's figure and GIF (default: the plan's dir)")
+    r.add_argument("--no-gif", action="store_true", help="skip the replay's GIF")
     r.set_defaults(func=cmd_replay)
 
     b = one_line_errors(sub.add_parser(
@@ -82,19 +92,33 @@ def register(sub):
     b.set_defaults(func=cmd_bench)
 
 
+def shorten_seconds(text):
+    """argparse type of --shorten-time: seconds in [0, MAX_TIME] (the bound of a task's time)."""
+    from planar_lcp.spec.task import MAX_TIME
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number of seconds, got {text!r}") from None
+    if not (math.isfinite(x) and 0 <= x <= MAX_TIME):
+        raise argparse.ArgumentTypeError(f"must be a number of seconds in [0, {MAX_TIME:g}], got {text!r}")
+    return x
+
+
 def _err(cmd, msg, code=2):
     print(f"planar-lcp {cmd}: error: {msg}", file=sys.stderr)
     return code
 
 
 def cmd_plan(args):
-    from .plans import Plan, plan_task
     from .tasks import TaskModel
 
     try:
         if args.time is not None and args.iterations is not None:
             raise TaskError(f"give either --time or --iterations, not both: got --time {args.time:g} and "
                             f"--iterations {args.iterations}")
+        if args.no_shorten and args.shorten_time is not None:
+            raise TaskError(f"--shorten-time sets how long the shortening runs: not with --no-shorten, got "
+                            f"--shorten-time {args.shorten_time:g}")
         tm = TaskModel(args.task)            # the task file is validated before anything is written
         task = tm.task
         planner = check_planner(args.planner or task.planner)
@@ -106,38 +130,174 @@ def cmd_plan(args):
             raise TaskError(f"--out {args.out}: cannot create the directory ({e.strerror or e})") from None
     except TaskError as e:
         return _err("plan", e)
+    return _plan_and_write(args, tm, planner, tlim, out)
+
+
+def task_lines(task):
+    """The task as planned, in a compact block: its bodies, goal, control, bounds and search settings, every key
+    the file gave or `planar_lcp.spec.task.parse_task` derived, and which the file gave."""
+    from planar_lcp.spec.task import TASK_KEYS
+    g, ws, pws = task.goal, task.workspace, task.pusher_workspace
+
+    def region(r):
+        return f"x {r[0][0]:.4g}..{r[0][1]:.4g}, y {r[1][0]:.4g}..{r[1][1]:.4g} m"
+
+    named = [f"{k} {v:.4g} m" for k, v in (("x", g.x), ("y", g.y)) if v is not None]
+    if g.angle is not None:
+        named.append(f"angle {math.degrees(g.angle):.4g} deg")
+    goal = ", ".join(named) + "; "
+    if g.min_cover is not None:
+        goal += f"min_cover {g.min_cover:.4g} of its footprint"
+    else:
+        goal += ", ".join(([f"position_tol {g.position_tol:.4g} m"] if g.x is not None or g.y is not None else [])
+                          + ([f"angle_tol {math.degrees(g.angle_tol):.4g} deg"] if g.angle is not None else []))
+    if g.at_rest:
+        goal += f"; at rest: speed_tol {g.speed_tol:.4g} m/s, omega_tol {g.omega_tol:.4g} rad/s"
+    nsub = int(round(task.step_duration / task.scene.sim.h))
+    control = (f"control_max {task.control_max:.4g} m/s per axis, step_duration {task.step_duration:.4g} s "
+               f"({nsub} steps of h {task.scene.sim.h:.4g} s), control_steps {task.min_steps}..{task.max_steps}")
+    if "pusher_max_force" in task.given:
+        control += f", pusher_max_force {task.document['task']['pusher_max_force']:.4g} N"
+    w = task.weights
+    given = [k for k in TASK_KEYS if k in task.given]
+    return [
+        f"  bodies       object {task.object}, pusher {task.pusher}, "
+        + (f"{len(task.obstacles)} movable obstacles ({', '.join(task.obstacles)})" if task.obstacles
+           else "no movable obstacle"),
+        f"  goal         {goal}",
+        f"  control      {control}",
+        f"  bounds       workspace {region(ws)}; pusher_workspace {region(pws)}; speed_max {task.speed_max:.4g} m/s, "
+        f"omega_max {task.omega_max:.4g} rad/s",
+        f"  search       planner {task.planner}, time {task.time:g} s, goal_bias {task.goal_bias:.4g}; weights "
+        f"position {w[0]:.4g}, angle {w[1]:.4g}, velocity {w[2]:.4g}, pusher {w[3]:.4g}, obstacle "
+        f"{task.obstacle_weight:.4g}; kpiece_cell {task.kpiece_cell:.4g} m",
+        f"  given        {', '.join(given)} (the rest derived)",
+    ]
+
+
+def _plan_and_write(args, tm, planner, tlim, out):
+    """`plan` after its input was checked: plan, write the first exact plan before shortening it, then the final
+    one. Ctrl-C after the first exact plan was written says what plan.json holds (exit status 130)."""
+    from .plans import Plan, ShorteningInterrupted, plan_task
+
+    task = tm.task
     budget = f"{args.iterations} iterations" if args.iterations else f"{tlim:g} s"
     print(f"task           {task.name} ({task.source}): {task.description or 'no description'}")
-    print(f"planner        {planner} (seed {args.seed}, budget {budget})")
-    data = plan_task(task, planner, seed=args.seed, time_limit=None if args.iterations else tlim,
-                     iterations=args.iterations, tm=tm, shorten=not args.no_shorten)
-    p = Plan(data, task)            # a fresh TaskModel for the drawings: the planner's is warm-started state
-    status = "exact" if p.exact else ("approximate" if data["approximate"] else "none")
-    print(f"solution       {status} after {data['solve_time']:.2f} s, {data['iterations']} iterations, "
-          f"{data['sim_steps']} simulated steps ({data['steps_per_second']:.0f} steps/s)")
-    wrote = [out / "plan.json"]
-    p.save(out / "plan.json")
-    sh = data["shorten"]
-    if "first_plan" in data:
-        print(f"first plan     {len(data['first_plan']['controls'])} controls, {data['first_path_duration']:.2f} s, "
-              f"pusher path {data['first_pusher_path_length']:.3f} m, object path "
-              f"{data['first_object_path_length']:.3f} m")
-        print(f"shortened      {sh['accepted']} of {sh['candidates']} candidates accepted in {sh['time']:.2f} s: "
-              f"{data['path_duration']:.2f} s, pusher path {data['pusher_path_length']:.3f} m, object path "
-              f"{data['object_path_length']:.3f} m")
-    if data["controls"]:
-        print(f"path           {len(data['controls'])} controls, {p.path_duration:.2f} s; goal: "
-              + ", ".join(_show(k, v) for k, v in p.goal_report.items()))
-        rep = p.replay()
-        from .plans import animate_plan, plot_plan
-        plot_plan(p.model, rep["dense"], out / "plan.png", title=p.title())
-        wrote.append(out / "plan.png")
-        if not args.no_gif:
-            animate_plan(p.model, rep["dense"], out / "plan.gif")
-            wrote.append(out / "plan.gif")
-    for w in wrote:
-        print(f"wrote          {w}")
-    return 0 if p.exact else 1
+    for line in task_lines(task):
+        print(line)
+    print(f"planner        {planner} (seed {args.seed}, budget {budget})", flush=True)
+    # what plan.json holds once it holds an exact plan, and what the command was doing: Ctrl-C's message
+    kept = dict(plan=None, doing="writing the first plan", first=None)
+
+    def first_plan(data):
+        """The planner's plan: announced, and written at once when the shortening is to follow."""
+        status = "exact" if data["exact"] else ("approximate" if data["approximate"] else "none")
+        solution = (f"solution       {status} after {data['solve_time']:.2f} s, {data['iterations']} iterations, "
+                    f"{data['sim_steps']} simulated steps ({data['steps_per_second']:.0f} steps/s)")
+        if data["shorten"].get("status") != "running":
+            print(solution)
+            return               # nothing follows the search: written below, once
+        # an exact plan to shorten: written first, then announced, so that whoever sees "solution exact" finds it
+        p = Plan(data, task)
+        p.save(out / "plan.json")
+        kept["plan"] = f"the first exact plan ({data['first_path_duration']:.2f} s) in {out / 'plan.json'}"
+        kept["first"] = dict(data)           # as written (plan_task goes on to replace its values)
+        _draw(p, out, gif=False)
+        kept["doing"] = "shortening"
+        print(solution)
+        print(f"first plan     {len(data['controls'])} controls, {data['first_path_duration']:.2f} s, pusher path "
+              f"{data['first_pusher_path_length']:.3f} m, object path {data['first_object_path_length']:.3f} m")
+        print(f"saved          {out / 'plan.json'} and {out / 'plan.png'}: the first exact plan, kept if the "
+              "shortening is interrupted (Ctrl-C)")
+        sh = data["shorten"]
+        how = (f"for {sh['shorten_time']:g} s" if sh["shorten_time"] is not None else
+               f"until {sh['patience']} candidates in a row are rejected, at most {sh['max_candidates']} "
+               f"candidates and {sh['max_sim_steps']} simulated steps")
+        print(f"shortening     {how}; Ctrl-C keeps the best plan so far", flush=True)
+
+    try:
+        try:
+            data = plan_task(task, planner, seed=args.seed, time_limit=None if args.iterations else tlim,
+                             iterations=args.iterations, tm=tm, shorten=not args.no_shorten,
+                             shorten_time=args.shorten_time, on_first=first_plan)
+        except ShorteningInterrupted as e:
+            data = e.data
+            p = Plan(data, task)
+            p.save(out / "plan.json")
+            sh = data["shorten"]
+            kept["first"] = None
+            kept["plan"] = (f"the {'best exact plan so far' if sh['status'] == 'interrupted' else 'shortened plan'} "
+                            f"({data['path_duration']:.2f} s; the first plan {data['first_path_duration']:.2f} s; "
+                            f"{sh['accepted']} of {sh['candidates']} candidates accepted) in {out / 'plan.json'}")
+            _draw(p, out, gif=False)
+            raise KeyboardInterrupt(f"shortening: kept {kept['plan']} and its plan.png") from None
+        p = Plan(data, task)            # a fresh TaskModel for the drawings: the planner's is warm-started state
+        sh = data["shorten"]
+        if "first_plan" in data:
+            print(f"shortened      {sh['accepted']} of {sh['candidates']} candidates accepted in {sh['time']:.2f} s "
+                  f"({_stopped(sh)}): {data['path_duration']:.2f} s, pusher path {data['pusher_path_length']:.3f} "
+                  f"m, object path {data['object_path_length']:.3f} m" + _truncated(sh))
+        p.save(out / "plan.json")
+        if data["exact"]:
+            kept.update(plan=f"the final plan in {out / 'plan.json'}", doing="writing the figures", first=None)
+        wrote = [out / "plan.json"]
+        if data["controls"]:
+            print(f"path           {len(data['controls'])} controls, {p.path_duration:.2f} s; goal: "
+                  + ", ".join(_show(k, v) for k, v in p.goal_report.items()))
+            wrote += _draw(p, out, gif=not args.no_gif)
+        for w in wrote:
+            print(f"wrote          {w}")
+        return 0 if p.exact else 1
+    except KeyboardInterrupt as e:
+        if kept["plan"] is None or str(e):
+            raise
+        if kept["doing"] == "shortening" and kept["first"] is not None:
+            # Ctrl-C before the shortening could read it: the first plan is the best so far, and says so
+            first = kept["first"]
+            first["shorten"] = dict(first["shorten"], status="interrupted", stopped_by="interrupted")
+            Plan(first, task).save(out / "plan.json")
+        raise KeyboardInterrupt(f"{kept['doing']}: kept {kept['plan']}") from None
+
+
+def _draw(p, out, gif):
+    """plan.png (and plan.gif) of the plan `p`, replayed; returns the paths written."""
+    from .plans import animate_plan, plot_plan
+    rep = p.replay()
+    plot_plan(p.model, rep["dense"], out / "plan.png", title=p.title())
+    wrote = [out / "plan.png"]
+    if gif:
+        animate_plan(p.model, rep["dense"], out / "plan.gif")
+        wrote.append(out / "plan.gif")
+    return wrote
+
+
+#: why the shortening stopped (plan.json's shorten.stopped_by), as `plan` and `replay` say it
+STOPPED_BY = {"patience": "stopped by its patience: {patience} rejected in a row",
+              "effort": "stopped by its effort bound: {max_sim_steps} simulated steps",
+              "candidates": "stopped after {max_candidates} candidates",
+              "time_limit": "stopped at the end of the time budget",
+              "shorten_time": "stopped after --shorten-time {shorten_time:g} s",
+              "interrupted": "interrupted by Ctrl-C",
+              "nothing left": "stopped: no shorter stretch left to try"}
+
+
+def _stopped(sh):
+    why = sh.get("stopped_by")
+    if why not in STOPPED_BY:
+        return "stopped" if why is None else f"stopped by {why}"
+    try:
+        return STOPPED_BY[why].format(**sh)
+    except (KeyError, TypeError, ValueError):
+        return STOPPED_BY[why].split(":")[0]
+
+
+def _truncated(sh):
+    """What the shortening's line adds when the planner's plan reached the goal before its end (`truncated`)."""
+    if not sh.get("truncated"):
+        return ""
+    if sh.get("accepted", 0) == 0:
+        return "; only truncated: cut where the goal first holds, no candidate accepted"
+    return "; truncated first, where the goal first holds"
 
 
 def _show(k, v):
@@ -167,6 +327,10 @@ def cmd_replay(args):
             "copy of the task", "missing": "not found: replaying the plan's own copy of the task",
             "none": "given as text or a dict: replaying the plan's own copy"}[plan.task_file]
     print(f"task file      {data['task_source']} ({note})")
+    sh = data.get("shorten")
+    if isinstance(sh, dict) and sh.get("status") in ("running", "interrupted"):
+        print("shortening     " + ("interrupted (Ctrl-C): the best exact plan it had" if sh["status"] == "interrupted"
+                                   else "never finished (the plan file written before it): the planner's plan"))
     print(f"simulator      {args.simulator}", flush=True)
     try:
         res = plan.replay(args.simulator)
@@ -176,10 +340,18 @@ def cmd_replay(args):
     for k, v in rep.items():
         print(f"{k:<16} {v:.6g}" if isinstance(v, float) else _show(f"{k:<16}", v) if isinstance(v, list)
               else f"{k:<16} {v}")
-    name = f"replay_{args.simulator}.png"
-    plot_plan(plan.model, res["dense"], out / name,
+    print(f"{'max_penetration':<16} {res['penetration']:.3g} m (deepest overlap of any two bodies after any step; "
+          f"in the propagation step ending at t = {res['penetration_time']:.2f} s)")
+    name = f"replay_{args.simulator}"
+    plot_plan(plan.model, res["dense"], out / f"{name}.png",
               title=f"replay of {data['task']} in {args.simulator}: goal {'holds' if rep['goal_holds'] else 'missed'}")
-    print(f"wrote          {out / name}")
+    wrote = [out / f"{name}.png"]
+    if not args.no_gif:
+        from .plans import animate_plan
+        animate_plan(plan.model, res["dense"], out / f"{name}.gif")
+        wrote.append(out / f"{name}.gif")
+    for w in wrote:
+        print(f"wrote          {w}")
     return 0 if rep["goal_holds"] else 1
 
 

@@ -6,15 +6,19 @@ for bit on any machine, after the task file was moved or edited (an edited file 
 from its own copy). Only `plan_task` imports ompl (inside the function).
 """
 
+import contextlib
 import json
 import math
+import os
+import signal
+import threading
 import time
 from pathlib import Path
 
 import numpy as np
 
 from planar_lcp.spec.scene import SHIPPED_FOLDERS, SceneError, _is_real, read_document, shipped_dir
-from planar_lcp.spec.task import check_seed, check_time_limit, document_sha256, parse_task
+from planar_lcp.spec.task import MAX_TIME, check_seed, check_time_limit, document_sha256, parse_task
 
 from .shorten import costs
 from .tasks import TaskError, TaskModel, check_planner
@@ -23,14 +27,61 @@ from .tasks import TaskError, TaskModel, check_planner
 PLAN_FORMAT = 2
 
 
-def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=None, shorten=True):
+class ShorteningInterrupted(KeyboardInterrupt):
+    """Ctrl-C while `plan_task` shortened an exact plan. `data` is the plan file's contents with the best exact plan
+    so far (still exact: every plan the shortening holds is one it judged whole), its `shorten` entry saying so
+    (`status` "interrupted"); `plan` (the API) adds `plan`, that plan as a `Plan`."""
+
+    def __init__(self, data):
+        super().__init__("while shortening")
+        self.data = data
+        self.plan = None
+
+
+@contextlib.contextmanager
+def _sigint_flag():
+    """During the block, SIGINT only appends to the yielded list (in the main thread; elsewhere signal handlers
+    cannot be set and the list stays empty): the shortening reads it between candidates and stops with the best
+    plan so far, instead of a KeyboardInterrupt raised wherever Python happens to be (or swallowed inside numba's
+    dispatcher, planar_lcp/interrupt.py)."""
+    flag = []
+    main = threading.current_thread() is threading.main_thread()
+    old = signal.signal(signal.SIGINT, lambda signum, frame: flag.append(signum)) if main else None
+    try:
+        yield flag
+    finally:
+        if main:
+            signal.signal(signal.SIGINT, old if old is not None else signal.SIG_DFL)   # None: set outside Python
+
+
+def check_shorten_time(value, name="shorten_time"):
+    """A shortening time budget: a number of seconds in [0, MAX_TIME] (None: the default rule). Returns it as a
+    float; raises TaskError naming `name`."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or not 0 <= value <= MAX_TIME:
+        raise TaskError(f"{name} must be a number of seconds in [0, {MAX_TIME:g}], got {value!r}")
+    return float(value)
+
+
+def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=None, shorten=True,
+              shorten_time=None, on_first=None):
     """Solve `task` (a Task, a shipped task's name or a task file) with `planner` (default: the task's). Returns
     the plan as a dict (the plan file's contents, `Plan.data`); `tm` may reuse a TaskModel of the task.
 
-    `shorten`: an exact plan is then shortened (planners.shorten: a bounded number of candidates, and under a time
-    limit no later than the budget's end); the planner's own plan's costs are kept as first_path_duration,
-    first_pusher_path_length, first_object_path_length and its controls as first_plan. False: the planner's plan
-    as it is (what `plan` made before issue 25, bit for bit)."""
+    `shorten`: an exact plan is then shortened (planners.shorten); the planner's own plan's costs are kept as
+    first_path_duration, first_pusher_path_length, first_object_path_length and its controls as first_plan.
+    False: the planner's plan as it is, bit for bit. How long: `shorten_time` None, the default rule
+    (`planners.shorten.default_rule`: counts of candidates and simulated steps, the same on every machine, and
+    under a time limit no later than the budget's end); a number of seconds, that long by the wall clock (0: no
+    candidate), whatever the time limit.
+
+    `on_first(data)`: called after the search with the plan file's contents as they are before any shortening
+    (the planner's plan; `shorten.status` "running" when it is about to be shortened), e.g. to write it at once.
+
+    Ctrl-C while shortening (in the main thread) stops it between two candidates and raises ShorteningInterrupted,
+    whose `data` holds the best exact plan so far; Ctrl-C during the search raises KeyboardInterrupt."""
     import gc
 
     from ompl import util as ou
@@ -48,6 +99,7 @@ def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=N
         time_limit = check_time_limit(time_limit)
     if iterations is not None and int(iterations) < 1:
         raise TaskError(f"the iteration budget must be >= 1, got {iterations}")
+    shorten_time = check_shorten_time(shorten_time)
     seed = check_seed(seed)
     gc.disable()   # ompl 2.0.1: cyclic GC reads freed memory (see docs/planning.md)
     # re-seeding a worker that planned before logs "Random number generation already started" but does re-seed
@@ -59,7 +111,7 @@ def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=N
     # a cold numba cache: wait here, where Ctrl-C stops the wait, for the kernels the propagations run
     tm.sim.wait_for_kernel()
     res = prob.solve(time_limit=time_limit, iterations=iterations)
-    # the rest of a time budget bounds the shortening too (an iteration budget: the candidate counts alone)
+    # the rest of a time budget bounds the default shortening too (an iteration budget: the counts alone)
     deadline = None if time_limit is None else time.perf_counter() + max(time_limit - res["solve_time"], 0.0)
     plan = dict(format=PLAN_FORMAT, task=t.name, task_source=t.source, task_sha256=t.sha256,
                 task_document=t.document, planner=planner, seed=seed,
@@ -83,21 +135,45 @@ def plan_task(task, planner=None, seed=1, time_limit=None, iterations=None, tm=N
     plan.update(pusher_path_length=first["pusher_path_length"], object_path_length=first["object_path_length"])
     plan.update({f"first_{k}": v for k, v in first.items()})
     plan["shorten"] = dict(enabled=bool(shorten), candidates=0, accepted=0, time=0.0)
-    if shorten and res["exact"]:
-        from .shorten import MAX_CANDIDATES, PATIENCE
-        from .shorten import shorten as shorten_plan
-        plan["first_plan"] = dict(controls=plan["controls"], steps=plan["steps"])
+    if not (shorten and res["exact"]):
+        if on_first is not None:
+            on_first(plan)
+        return plan
+
+    from .shorten import default_rule
+    from .shorten import shorten as shorten_plan
+    if shorten_time is None:
+        rule = default_rule(res["sim_steps"])
+        limits = dict(rule, shorten_time=None)
+    else:
+        rule = dict(max_candidates=None, patience=None, max_sim_steps=None)
+        limits = dict(rule, shorten_time=shorten_time)
+    plan["first_plan"] = dict(controls=plan["controls"], steps=plan["steps"])
+    plan["shorten"] = dict(enabled=True, status="running", candidates=0, accepted=0, time=0.0, **limits)
+    if on_first is not None:
+        on_first(plan)
+    if shorten_time is not None:
+        deadline = time.perf_counter() + shorten_time
+    with _sigint_flag() as flag:
         r = shorten_plan(tm, plan["start"], controls, steps, seed, deadline=deadline,
-                         replayed=(first_dense, first_ok))
-        bound, dense, _ = tm.execute(plan["start"], r["controls"], r["steps"])    # the replay's states
-        plan.update(controls=r["controls"].tolist(), steps=r["steps"].tolist(),
-                    durations=(r["steps"] * t.step_duration).tolist(), states=bound.tolist(),
-                    goal=tm.goal_report(bound[-1]))
-        plan.update(costs(tm, r["steps"], dense))
-        plan["shorten"] = dict(enabled=True, candidates=r["candidates"], accepted=r["accepted"],
-                               accepted_by_kind=r["accepted_by_kind"], truncated=r["truncated"], time=r["time"],
-                               max_candidates=MAX_CANDIDATES, patience=PATIENCE,
-                               stopped_by_deadline=r["stopped_by_deadline"])
+                         replayed=(first_dense, first_ok), stop=lambda: bool(flag), **rule)
+    bound, dense, _ = tm.execute(plan["start"], r["controls"], r["steps"])    # the replay's states
+    plan.update(controls=r["controls"].tolist(), steps=r["steps"].tolist(),
+                durations=(r["steps"] * t.step_duration).tolist(), states=bound.tolist(),
+                goal=tm.goal_report(bound[-1]))
+    plan.update(costs(tm, r["steps"], dense))
+    stopped_by = r["stopped_by"]
+    if stopped_by == "deadline":
+        stopped_by = "time_limit" if shorten_time is None else "shorten_time"
+    plan["shorten"] = dict(enabled=True, status="interrupted" if stopped_by == "interrupted" else "done",
+                           stopped_by=stopped_by, candidates=r["candidates"], accepted=r["accepted"],
+                           accepted_by_kind=r["accepted_by_kind"], truncated=r["truncated"], time=r["time"],
+                           cpu_time=r["cpu_time"], sim_steps=r["sim_steps"], **limits,
+                           stopped_by_deadline=r["stopped_by_deadline"])
+    if flag:
+        # a Ctrl-C after the last candidate was judged is still the user's interrupt: the plan is whole, and says
+        # why the shortening stopped
+        raise ShorteningInterrupted(plan)
     return plan
 
 
@@ -201,7 +277,7 @@ class Plan:
                 f"{self.path_duration:.2f} s of pushing")
 
 
-def plan(task, planner=None, time=None, iterations=None, seed=1, shorten=True):
+def plan(task, planner=None, time=None, iterations=None, seed=1, shorten=True, shorten_time=None):
     """Plan a task with OMPL, our simulator as the forward model.
 
     Parameters
@@ -220,12 +296,20 @@ def plan(task, planner=None, time=None, iterations=None, seed=1, shorten=True):
     shorten : bool
         Shorten the first exact plan (planners.shorten, docs/planning.md "Shorter plans"); False: the planner's
         first exact plan as it is.
+    shorten_time : float, optional
+        Shorten for this many seconds of wall time instead of the default stopping rule (docs/planning.md "When
+        shortening stops"); 0: no candidate.
 
     Returns
     -------
     Plan
         `.exact` is True when the goal is reached; the planner stops at the first exact solution, which is then
         shortened (`.data["first_path_duration"]` is its duration).
+
+    Raises
+    ------
+    ShorteningInterrupted
+        Ctrl-C while shortening (a KeyboardInterrupt): its `plan` is the best exact plan so far.
     """
     seed = check_seed(seed)                  # before any work: the task model compiles the scene
     if time is not None:
@@ -233,12 +317,22 @@ def plan(task, planner=None, time=None, iterations=None, seed=1, shorten=True):
     tm = TaskModel(task)
     if time is None and iterations is None:
         time = tm.task.time
-    data = plan_task(tm.task, planner, seed=seed, time_limit=time, iterations=iterations, tm=tm, shorten=shorten)
+    try:
+        data = plan_task(tm.task, planner, seed=seed, time_limit=time, iterations=iterations, tm=tm,
+                         shorten=shorten, shorten_time=shorten_time)
+    except ShorteningInterrupted as e:
+        e.plan = Plan(e.data, tm.task, tm=tm)
+        raise
     return Plan(data, tm.task, tm=tm)
 
 
 def save_plan(plan, path):
-    Path(path).write_text(json.dumps(plan, indent=1) + "\n")
+    """Write a plan file. Written whole or not at all: into PATH.part, then renamed over PATH (a Ctrl-C or a crash
+    while writing leaves the file as it was)."""
+    path = Path(path)
+    part = path.with_name(path.name + ".part")
+    part.write_text(json.dumps(plan, indent=1) + "\n")
+    os.replace(part, path)
 
 
 def _task_file_status(source, sha):
@@ -369,14 +463,24 @@ def load_plan(path):
 def replay_lcp(plan, tm=None):
     """Re-simulate the plan's controls open loop with our simulator, exactly as the planner propagated them.
 
-    `plan` is a plan dict (Plan.data). Returns dict(final state, report, dense states, bound states, tm)."""
+    `plan` is a plan dict (Plan.data). Returns dict(final state, report, dense states, bound states, tm,
+    penetration: the deepest penetration of any two bodies at the end of any simulated step, m, penetration_time:
+    the end of the propagation step it happened in, s)."""
     tm = tm if tm is not None else TaskModel(plan["task_document"])
-    bound, dense, ok = tm.execute(plan["start"], plan["controls"], plan["steps"])
+    tm.penetrations = []          # each propagation step's deepest penetration (at the end of any of its steps)
+    try:
+        bound, dense, ok = tm.execute(plan["start"], plan["controls"], plan["steps"])
+        pen = np.asarray(tm.penetrations)
+    finally:
+        tm.penetrations = None
     x = dense[-1]
     rep = tm.goal_report(x)
     rep["simulation_ok"] = bool(ok)
     rep["goal_holds"] = bool(rep["goal_holds"] and ok and tm.admissible(x))
-    return dict(final=x, report=rep, dense=dense, bound=bound, tm=tm)
+    i = int(np.argmax(pen)) if len(pen) else -1
+    return dict(final=x, report=rep, dense=dense, bound=bound, tm=tm,
+                penetration=float(pen[i]) if len(pen) else 0.0,
+                penetration_time=(i + 1) * tm.task.step_duration if len(pen) else 0.0)
 
 
 def _frame_poses(tm, X):
@@ -473,7 +577,8 @@ def replay_pymunk(plan, tm=None):
     start.
 
     The pusher's velocity is set to each control in turn; the space is stepped with the scene's h. Returns the
-    same dict as `replay_lcp` (the goal is judged by the same task test)."""
+    same dict as `replay_lcp` (the goal is judged by the same task test; the penetration is the deepest of any
+    contact point of pymunk's arbiters after any step)."""
     try:
         from planar_lcp.experiments.pymunk_bridge import build_space, read_state
     except ImportError as e:  # the bridge, or pymunk itself
@@ -493,6 +598,13 @@ def replay_pymunk(plan, tm=None):
         x[tm.ip:tm.ip + 2] = qk[hd.kinematic_names.index(tm.task.pusher), 0:2]
         return x
 
+    deepest = [0.0, 0.0]              # the deepest penetration (m) and the end of its propagation step (s)
+
+    def overlap(arb):
+        for p in arb.contact_point_set.points:
+            if -p.distance > deepest[0]:
+                deepest[0], deepest[1] = -p.distance, (len(dense)) * tm.task.step_duration
+
     dense = [flat()]
     for u, k in zip(np.asarray(plan["controls"], float), np.asarray(plan["steps"], int)):
         pusher.velocity = (float(u[0]), float(u[1]))
@@ -500,10 +612,13 @@ def replay_pymunk(plan, tm=None):
         for _ in range(int(k)):
             for _ in range(tm.steps_per_prop):
                 space.step(tm.h)
+                for name in hd.dynamic_names:
+                    hd.bodies[name].each_arbiter(overlap)
             dense.append(flat())
     dense = np.array(dense)
     x = dense[-1]
     rep = tm.goal_report(x)
     rep["simulation_ok"] = bool(np.all(np.isfinite(dense)))
     rep["goal_holds"] = bool(rep["goal_holds"] and tm.admissible(x))
-    return dict(final=x, report=rep, dense=dense, bound=None, tm=tm)
+    return dict(final=x, report=rep, dense=dense, bound=None, tm=tm, penetration=deepest[0],
+                penetration_time=deepest[1])

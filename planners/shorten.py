@@ -1,4 +1,4 @@
-"""Shorter plans: randomised shortcutting of an exact plan, the simulator as the judge (issue 25).
+"""Shorter plans: randomised shortcutting of an exact plan, the simulator as the judge.
 
 OMPL's control planners stop at the first exact plan, a chain of short random controls (SST, the near-optimal one,
 cannot be built from the 2.0.1 wheel: docs/planning.md). `shorten` rewrites such a plan, keeping it exact:
@@ -38,8 +38,10 @@ cannot be built from the 2.0.1 wheel: docs/planning.md). `shorten` rewrites such
   tolerances is rejected without simulating the rest (a pruning: what is kept is always judged whole). A plan whose
   goal holds before its end is cut there (checked at the start and after each acceptance).
 - Bounded and deterministic: a numpy Generator seeded from the plan's seed draws the candidates; shortening stops
-  after `max_candidates` simulated candidates or `patience` rejected ones in a row, or at `deadline` (a wall-clock
-  time: the rest of a --time budget; under --iterations none, so that the plan is the same on any machine).
+  after `max_candidates` simulated candidates, `patience` rejected ones in a row or `max_sim_steps` simulated steps
+  (`default_rule`: counts, so that a plan made with --iterations is the same on any machine), at `deadline` (a
+  wall-clock time: the rest of a --time budget, or `plan --shorten-time`), or when `stop` says so (Ctrl-C). A
+  larger budget continues the same sequence of candidates: the rule only chooses where it ends.
 
 The result is returned as controls and step counts (runs of equal per-step controls, split into the task's
 min_steps..max_steps), which `replay` re-simulates bit for bit.
@@ -50,10 +52,18 @@ import time
 
 import numpy as np
 
-#: shortening stops after this many simulated candidates (each re-simulates the plan from its change point)
+#: The default stopping rule (`default_rule`; docs/planning.md, "When shortening stops"): shortening stops after
+#: PATIENCE rejected candidates in a row (it has stopped paying), or once its candidates have simulated EFFORT_SHARE
+#: times the steps the planner simulated to find the plan, and at least EFFORT_MIN (a share of the time already
+#: spent, counted in simulated steps: the same on every machine), or after MAX_CANDIDATES simulated candidates (each
+#: re-simulates the plan from its change point)
 MAX_CANDIDATES = 4000
-#: ... or after this many rejected candidates in a row
-PATIENCE = 1000
+PATIENCE = 500
+EFFORT_SHARE = 2.0
+EFFORT_MIN = 100_000
+#: with no bound on the candidates (a time budget only, `plan --shorten-time`): stop after this many draws in a row
+#: that gave nothing to simulate (a plan so short that no stretch can be replaced by a shorter one)
+IDLE_DRAWS = 10000
 #: the share of each kind of candidate (straight, faster, retarget, push)
 KINDS = ("straight", "faster", "retarget", "push")
 KIND_P = (0.5, 0.25, 0.1, 0.15)
@@ -73,6 +83,15 @@ PUSH_TURN = 0.5
 PUSH_TURN_OFFSET = 0.7
 #: ... and waits at most this many propagation steps for the object to come to rest
 PUSH_SETTLE = 5
+
+
+def default_rule(planner_sim_steps):
+    """The default stopping rule of `plan`'s shortening, as keyword arguments of `shorten`: at most MAX_CANDIDATES
+    candidates, PATIENCE rejected in a row, and simulated steps at most EFFORT_SHARE times the planner's
+    `planner_sim_steps` (what finding the plan cost), at least EFFORT_MIN. Counts, not seconds: a plan made with an
+    iteration budget and a seed is the same on every machine."""
+    return dict(max_candidates=MAX_CANDIDATES, patience=PATIENCE,
+                max_sim_steps=int(max(EFFORT_MIN, EFFORT_SHARE * int(planner_sim_steps))))
 
 
 def per_step(controls, steps):
@@ -136,12 +155,19 @@ class Shortener:
         self.ok = bool(ok) and all(tm.admissible(x) for x in dense) and self._goal(dense[-1])
         #: a time.perf_counter() value at which a push candidate being built stops (shorten's deadline)
         self.deadline = None
+        #: a function that says the shortening must stop now (Ctrl-C: shorten's `stop`); a push being built stops too
+        self.stop = None
         #: whether "push" candidates apply: a goal with a position (x and y), in the horizontal plane
         g = t.goal
         self.can_push = tm.scene.world.plane == "horizontal" and g.x is not None and g.y is not None
 
     def _goal(self, x):
         return self.tm.goal_distance(x) <= 1.0 and self.tm.admissible(x)
+
+    def expired(self):
+        """Whether the deadline has passed or `stop` says to stop: a push candidate being built is then abandoned."""
+        return ((self.deadline is not None and time.perf_counter() > self.deadline)
+                or (self.stop is not None and bool(self.stop())))
 
     def simulate(self, x, U_new):
         """States from x under the per-step controls U_new (`TaskModel.execute`, stopping at the first failed step
@@ -362,7 +388,7 @@ class Shortener:
 
         def run(controls):
             for u in controls:
-                if len(U) >= budget or (self.deadline is not None and time.perf_counter() > self.deadline):
+                if len(U) >= budget or self.expired():
                     return False
                 y, good = tm.advance(S[-1], u, tm.steps_per_prop)
                 U.append(u)
@@ -461,7 +487,7 @@ class Shortener:
 
 
 def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patience=PATIENCE, deadline=None,
-            replayed=None):
+            replayed=None, max_sim_steps=None, stop=None, trace=None):
     """Shorten an exact plan by randomised shortcutting (module docstring).
 
     Parameters
@@ -474,42 +500,68 @@ def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patien
         The exact plan.
     seed : int
         Seeds the candidates' numpy Generator: the same plan and seed give the same result.
-    max_candidates, patience : int
-        Stop after this many simulated candidates, or this many rejected in a row.
+    max_candidates, patience : int or None
+        Stop after this many simulated candidates, or this many rejected in a row (None: no such bound).
     deadline : float, optional
         A time.perf_counter() value after which no candidate is started (and a push candidate being built stops,
         rejected: building one simulates as many steps as it replaces at most).
     replayed : (dense states, ok), optional
         What `tm.execute(x0, controls, steps)` returns (its dense states and ok), when the caller replayed the plan
         already (`plan` does, for its costs): the plan is then not replayed again.
+    max_sim_steps : int, optional
+        Stop once the candidates have simulated this many steps (of the scene's h, as `TaskModel.nsteps_total`
+        counts them): a bound on the work that is the same on every machine (`effort_bound`).
+    stop : callable, optional
+        Called between candidates (and while a push candidate is built): True stops the shortening at once with the
+        best plan so far, `stopped_by` "interrupted" (`plan` passes its Ctrl-C flag).
+    trace : callable, optional
+        Called as trace(kind, accepted, shortener) after every simulated candidate (examples/shorten_rule.py).
 
     Returns
     -------
     dict
-        controls (m, 2), steps (m,), the counts `candidates`, `accepted` (and by kind), `time` (s),
-        `stopped_by_deadline`, and `exact_input` (False when the given plan did not reach the goal: it is returned
-        unchanged).
+        controls (m, 2), steps (m,): the best plan so far (always exact when the input was); the counts
+        `candidates`, `accepted` (and by kind), `sim_steps` (the steps the shortening simulated), `time` and `cpu_time`
+        (s: wall and the process's CPU time),
+        `truncated` (the plan reached the goal before its end and was cut there, before any candidate),
+        `stopped_by` (why it stopped: "patience", "effort", "candidates", "deadline", "interrupted", or "nothing
+        left": no stretch left to replace, or no candidate to draw), `stopped_by_deadline`, and `exact_input`
+        (False when the given plan did not reach the goal: it is returned unchanged).
     """
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
+    steps0 = tm.nsteps_total
     s = Shortener(tm, x0, controls, steps, replayed)
-    s.deadline = deadline
+    s.deadline, s.stop = deadline, stop
     stats = dict(candidates=0, accepted=0, accepted_by_kind={k: 0 for k in KINDS}, truncated=False,
-                 stopped_by_deadline=False, exact_input=s.ok)
+                 stopped_by=None, stopped_by_deadline=False, exact_input=s.ok)
     if not s.ok:
         stats.update(controls=np.asarray(controls, float).reshape(-1, 2), steps=np.asarray(steps, int),
-                     time=time.perf_counter() - t0)
+                     time=time.perf_counter() - t0, cpu_time=time.process_time() - c0,
+                     sim_steps=tm.nsteps_total - steps0, stopped_by="not exact")
         return stats
     stats["truncated"] = s.truncate_at_goal()
-    rng = np.random.default_rng([int(seed), 25])        # 25: the issue; a stream apart from other uses of the seed
-    rejected = draws = 0
-    while stats["candidates"] < max_candidates and rejected < patience and draws < 20 * max_candidates:
-        if deadline is not None and time.perf_counter() > deadline:
-            stats["stopped_by_deadline"] = True
+    rng = np.random.default_rng([int(seed), 25])        # 25: a stream apart from other uses of the seed
+    rejected = draws = idle = 0
+    while True:
+        # the stopping rule, checked before each draw (the draws themselves do not depend on it: a larger budget
+        # continues the same sequence of candidates)
+        if stop is not None and stop():
+            stats["stopped_by"] = "interrupted"
+        elif max_candidates is not None and stats["candidates"] >= max_candidates:
+            stats["stopped_by"] = "candidates"
+        elif patience is not None and rejected >= patience:
+            stats["stopped_by"] = "patience"
+        elif max_sim_steps is not None and tm.nsteps_total - steps0 >= max_sim_steps:
+            stats["stopped_by"] = "effort"
+        elif deadline is not None and time.perf_counter() > deadline:
+            stats["stopped_by"] = "deadline"
+        elif len(s.U) < 2 or (draws >= 20 * max_candidates if max_candidates is not None else idle >= IDLE_DRAWS):
+            stats["stopped_by"] = "nothing left"
+        if stats["stopped_by"] is not None:
             break
         draws += 1
+        idle += 1
         K = len(s.U)
-        if K < 2:
-            break
         kind = KINDS[rng.choice(4, p=KIND_P)] if s.can_push else KINDS[rng.choice(3, p=KIND_P_NO_PUSH)]
         a, b = sorted(rng.choice(K + 1, size=2, replace=False).tolist())
         if kind == "retarget":
@@ -527,9 +579,12 @@ def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patien
             if built is None:
                 continue                              # not a pushing task: nothing simulated
             stats["candidates"] += 1
+            idle = 0
             new, seg, whole = built
             if not whole:
                 rejected += 1
+                if trace is not None:
+                    trace(kind, False, s)
                 continue
         else:
             if b - a < 2:
@@ -538,12 +593,19 @@ def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patien
             if new is None or len(new) >= b - a:
                 continue                              # no shorter: nothing to simulate
             stats["candidates"] += 1
+            idle = 0
         if s.try_candidate(a, b, new, seg):
             stats["accepted"] += 1
             stats["accepted_by_kind"][kind] += 1
             rejected = 0
+            if trace is not None:
+                trace(kind, True, s)
         else:
             rejected += 1
+            if trace is not None:
+                trace(kind, False, s)
+    stats["stopped_by_deadline"] = stats["stopped_by"] == "deadline"
     c, k = compress(s.U, s.min_steps, s.max_steps)
-    stats.update(controls=c, steps=k, dense=s.X, time=time.perf_counter() - t0)
+    stats.update(controls=c, steps=k, dense=s.X, time=time.perf_counter() - t0, cpu_time=time.process_time() - c0,
+                 sim_steps=tm.nsteps_total - steps0)
     return stats

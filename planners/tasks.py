@@ -51,6 +51,7 @@ class TaskModel:
     """
 
     def __init__(self, task):
+        from planar_lcp.engine.layout import Stat
         from planar_lcp.model import compile_scene
         from planar_lcp.sim import SimOptions, Simulator
 
@@ -81,6 +82,9 @@ class TaskModel:
         self._qk, self._vk = self.qk0.copy(), np.zeros((1, model.nkin, 3))
         self._recordings = {}
         self.nsteps_total = 0          # simulated steps (throughput)
+        #: None, or a list to which each advance() appends its rollout's deepest penetration (m; replay_lcp)
+        self.penetrations = None
+        self._stat_penetration = int(Stat.PENETRATION)
         self._geometry()
         self._check_start_and_goal()
 
@@ -227,6 +231,8 @@ class TaskModel:
         vk[0, self.ipusher, 1] = u[1]
         done = self.sim.rollout_into(rec, q, v, qk, vk, stop_on_failure=True)
         self.nsteps_total += done
+        if self.penetrations is not None:
+            self.penetrations.append(float(rec.stats[:done, self._stat_penetration].max()) if done else 0.0)
         ok = done == nsteps and not rec.status[:done].any()
         y = np.empty(ip + 2)
         if n == 1:

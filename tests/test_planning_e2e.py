@@ -85,6 +85,38 @@ def test_replay_pymunk_runs_and_judges_the_goal(small_plan, tmp_path):
     assert holds == (r.returncode == 0) and ("goal_holds       False" in r.stdout) == (not holds), r.stdout
     assert "simulation_ok    True" in r.stdout
     assert (tmp_path / "replay_pymunk.png").stat().st_size > 1000
+    assert (tmp_path / "replay_pymunk.gif").stat().st_size > 1000
+    pen = next(x for x in r.stdout.splitlines() if x.startswith("max_penetration  "))
+    assert float(pen.split()[1]) >= 0.0, pen
+
+
+def test_replay_reports_the_deepest_penetration_and_writes_a_gif(small_plan, tmp_path):
+    """`replay` prints the deepest penetration over the replay (any two bodies, after any simulated step) and writes
+    replay_lcp.gif beside replay_lcp.png; --no-gif skips it. Oracle for the number: the box's deepest corner below
+    the table top (y = 0) at every propagation step's end, computed here from the states' geometry, is a lower bound
+    of it (the reported one also sees the steps in between), and it is far below a millimetre."""
+    _, out = small_plan
+    r = run_cli("replay", out / "plan.json", "--out", tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    line = next(x for x in r.stdout.splitlines() if x.startswith("max_penetration  "))
+    reported = float(line.split()[1])
+    from planners import load_plan
+    plan = load_plan(out / "plan.json")
+    res = plan.replay()
+    assert f"{res['penetration']:.3g}" == line.split()[1] and f"t = {res['penetration_time']:.2f} s" in line, line
+    tm = plan.model
+    deepest = 0.0
+    for x in res["dense"]:
+        px, py, th = tm.object_frame_pose(x)
+        c, s = np.cos(th), np.sin(th)
+        corners_y = [py + s * dx + c * dy for dx in (-0.05, 0.05) for dy in (-0.1, 0.1)]
+        deepest = max(deepest, -min(corners_y))
+    assert 0.0 < deepest <= reported * (1 + 1e-9) + 1e-15 < 1e-3, (deepest, reported)
+    assert (tmp_path / "replay_lcp.gif").stat().st_size > 1000 and (tmp_path / "replay_lcp.png").is_file()
+    assert f"wrote          {tmp_path / 'replay_lcp.gif'}" in r.stdout
+    r2 = run_cli("replay", out / "plan.json", "--out", tmp_path / "nogif", "--no-gif")
+    assert r2.returncode == 0 and not (tmp_path / "nogif" / "replay_lcp.gif").exists(), r2.stdout + r2.stderr
+    assert (tmp_path / "nogif" / "replay_lcp.png").is_file()
 
 
 @pytest.mark.parametrize("field, value, expected", [
@@ -151,3 +183,93 @@ def test_ctrl_c_stops_replay_cleanly(small_plan, tmp_path):
     rc, err, dt = interrupt_cli(["replay", long_plan, "--out", tmp_path], "simulator", tmp_path)
     assert rc == 130 and err == "planar-lcp replay: error: interrupted (Ctrl-C); stopped\n", err
     assert dt < 2.0, dt
+
+
+def _plan_then_ctrl_c(tmp_path, until, wait, *extra):
+    """`planar-lcp plan push_box` (seed 5: an exact plan of 13.2 s found in 2034 iterations) in a process group of
+    its own, as a terminal runs it; once its stdout has printed a line starting with each of `until` in turn, and
+    `wait` seconds more, Ctrl-C as a terminal sends it: SIGINT to the whole group. Returns (exit status, stdout,
+    stderr, the --out directory)."""
+    import os
+    import signal
+    import subprocess
+
+    from cli_helpers import CLI, cli_env
+    out = tmp_path / "out"
+    args = ["plan", "push_box", "--seed", "5", "--iterations", "15000", "--no-gif", "--out", str(out), *extra]
+    p = subprocess.Popen(CLI + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+                         env=cli_env(PYTHONUNBUFFERED="1"), start_new_session=True)
+    try:
+        seen, todo = [], list(until)
+        for line in p.stdout:
+            seen.append(line)
+            if todo and line.startswith(todo[0]):
+                todo.pop(0)
+                if not todo:
+                    break
+        assert not todo, "".join(seen) + p.stderr.read()
+        time.sleep(wait)
+        assert p.poll() is None, "the command finished before it could be interrupted"
+        os.killpg(p.pid, signal.SIGINT)
+        rest, err = p.communicate(timeout=120)
+        return p.returncode, "".join(seen) + rest, err, out
+    finally:
+        if p.poll() is None:
+            p.kill()
+
+
+def _check_kept_plan(out, status):
+    """plan.json after a Ctrl-C: an exact plan that loads, replays to the goal bit for bit, with the first plan's
+    costs kept and its shortening marked `status`."""
+    from planners import load_plan
+    plan = load_plan(out / "plan.json")
+    d = plan.data
+    assert plan.exact and d["shorten"]["status"] == status, d["shorten"]
+    assert d["first_path_duration"] == pytest.approx(13.2) and d["path_duration"] <= d["first_path_duration"]
+    assert "first_plan" in d and d["first_pusher_path_length"] > 0
+    res = plan.replay()
+    assert res["report"]["goal_holds"], res["report"]
+    np.testing.assert_array_equal(res["bound"], plan.states)
+    assert (out / "plan.png").stat().st_size > 1000
+    assert not (out / "plan.json.part").exists()
+    return d
+
+
+def test_ctrl_c_while_shortening_keeps_the_best_exact_plan_so_far(tmp_path):
+    """The first exact plan is written and announced before the shortening starts; Ctrl-C during the shortening
+    (given a minute: --shorten-time 60) keeps the best exact plan so far in plan.json, marked interrupted, says so
+    in one line and exits 130."""
+    rc, stdout, err, out = _plan_then_ctrl_c(tmp_path, ["solution       exact", "shortening     "], 2.0,
+                                             "--shorten-time", "60")
+    assert rc == 130, stdout + err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith("planar-lcp plan: error: interrupted (Ctrl-C); stopped shortening: kept the best exact "
+                          "plan so far ("), err
+    assert f"in {out / 'plan.json'} and its plan.png" in err, err
+    # announced in this order, before the shortening: the first plan, where it was saved
+    i = [stdout.find(s) for s in ("solution       exact", "first plan     30 controls, 13.20 s", "saved          ",
+                                  "shortening     ")]
+    assert min(i) >= 0 and i == sorted(i), stdout
+    assert "shortened      " not in stdout
+    d = _check_kept_plan(out, "interrupted")
+    assert d["shorten"]["stopped_by"] == "interrupted" and d["shorten"]["candidates"] > 0
+    assert d["shorten"]["shorten_time"] == 60.0 and d["shorten"]["time"] < 50
+    # the message's numbers are the file's
+    assert f"({d['path_duration']:.2f} s; the first plan 13.20 s; {d['shorten']['accepted']} of " \
+           f"{d['shorten']['candidates']} candidates accepted)" in err, err
+    # and `replay` says which plan it replays
+    r = run_cli("replay", out / "plan.json", "--no-gif", "--out", tmp_path / "replay")
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "shortening     interrupted (Ctrl-C): the best exact plan it had\n" in r.stdout, r.stdout
+
+
+def test_ctrl_c_as_soon_as_the_first_plan_is_announced_keeps_it(tmp_path):
+    """Ctrl-C at once after "solution exact" (the shortening may not have started): plan.json holds an exact plan,
+    the one line says which, exit status 130."""
+    rc, stdout, err, out = _plan_then_ctrl_c(tmp_path, ["solution       exact"], 0.0, "--shorten-time", "60")
+    assert rc == 130, stdout + err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith("planar-lcp plan: error: interrupted (Ctrl-C); stopped shortening: kept the "), err
+    assert f"{out / 'plan.json'}" in err, err
+    d = _check_kept_plan(out, "interrupted")
+    assert d["shorten"]["stopped_by"] == "interrupted"

@@ -339,11 +339,14 @@ def plan_file(tip_plan):
 
 
 def check_replay(r, out, simulator):
-    """`replay` exits 0 exactly when it reports that the goal holds, and draws the replay."""
+    """`replay` exits 0 exactly when it reports that the goal holds, reports the deepest penetration, and draws and
+    animates the replay."""
     m = re.search(r"^goal_holds\s+(True|False)$", r.stdout, re.M)
     assert m, f"no goal_holds line:\n{r.stdout}\n{r.stderr[-3000:]}"
     assert re.search(rf"^simulator\s+{simulator}$", r.stdout, re.M), r.stdout
+    assert re.search(r"^max_penetration\s+\S+ m ", r.stdout, re.M), r.stdout
     check_png(out / f"replay_{simulator}.png")
+    check_gif(out / f"replay_{simulator}.gif")
     return m.group(1) == "True"
 
 

@@ -105,9 +105,61 @@ def test_the_budget_bounds_the_shortening(tip):
     from planners.shorten import shorten
     tm, plan = tip
     r = shorten(tm, plan["start"], plan["controls"], plan["steps"], seed=7, deadline=0.0)   # long past
-    assert r["candidates"] == 0 and r["stopped_by_deadline"]
+    assert r["candidates"] == 0 and r["stopped_by_deadline"] and r["stopped_by"] == "deadline"
     r = shorten(tm, plan["start"], plan["controls"], plan["steps"], seed=7, max_candidates=5)
-    assert r["candidates"] == 5 and not r["stopped_by_deadline"]
+    assert r["candidates"] == 5 and not r["stopped_by_deadline"] and r["stopped_by"] == "candidates"
+
+
+def test_the_default_rule_stops_by_its_patience_well_before_its_budget(tip):
+    """`plan`'s default rule on the docs' tip_box plan: it stops because `patience` candidates in a row were
+    rejected (counted: the trace's last `patience` candidates, none accepted, after an accepted one), well inside
+    its bounds on candidates and simulated steps; the same seed with the rule of before (4000 candidates, 1000 in
+    a row) draws the same candidates and goes on after them."""
+    from planners.shorten import default_rule, shorten
+    tm, plan = tip
+    rule = default_rule(plan["sim_steps"])
+    seen, before = [], []
+    r = shorten(tm, plan["start"], plan["controls"], plan["steps"], seed=7,
+                trace=lambda kind, accepted, s: seen.append((kind, accepted, len(s.U))), **rule)
+    assert r["stopped_by"] == "patience", r["stopped_by"]
+    P = rule["patience"]
+    assert len(seen) == r["candidates"] and not any(a for _, a, _ in seen[-P:]) and seen[-P - 1][1]
+    assert r["candidates"] < rule["max_candidates"] / 2 and r["sim_steps"] < rule["max_sim_steps"] / 2, r
+    old = shorten(tm, plan["start"], plan["controls"], plan["steps"], seed=7, max_candidates=4000, patience=1000,
+                  trace=lambda kind, accepted, s: before.append((kind, accepted, len(s.U))))
+    assert before[:len(seen)] == seen and old["candidates"] > r["candidates"]
+    assert old["steps"].sum() <= r["steps"].sum()
+
+
+def test_the_default_rule_bounds_the_simulated_steps_by_the_planner_s():
+    """The effort bound: EFFORT_SHARE of the steps the planner simulated to find the plan, at least EFFORT_MIN."""
+    from planners.shorten import EFFORT_MIN, EFFORT_SHARE, MAX_CANDIDATES, PATIENCE, default_rule
+    assert default_rule(0) == dict(max_candidates=MAX_CANDIDATES, patience=PATIENCE, max_sim_steps=EFFORT_MIN)
+    big = int(10 * EFFORT_MIN / EFFORT_SHARE)
+    assert default_rule(big)["max_sim_steps"] == int(EFFORT_SHARE * big) > EFFORT_MIN
+
+
+def test_the_effort_bound_stops_the_shortening_after_that_many_simulated_steps(tip):
+    from planners.shorten import shorten
+    tm, plan = tip
+    r = shorten(tm, plan["start"], plan["controls"], plan["steps"], seed=7, max_sim_steps=3000, patience=None)
+    assert r["stopped_by"] == "effort" and r["sim_steps"] >= 3000 and r["candidates"] > 0
+    # it stops at the first check past the bound: the last candidate simulated at most the plan's steps (and the
+    # rest of it) once more
+    assert r["sim_steps"] < 3000 + 3 * np.sum(plan["steps"]) * tm.steps_per_prop, r["sim_steps"]
+
+
+def test_stop_ends_the_shortening_at_once_with_an_exact_plan(tip):
+    """What Ctrl-C does (plan_task's flag): `stop` is read before each candidate; the plan returned is the best so
+    far, still exact."""
+    from planners.shorten import shorten
+    tm, plan = tip
+    calls = []
+    r = shorten(tm, plan["start"], plan["controls"], plan["steps"], seed=7,
+                stop=lambda: calls.append(1) or len(calls) > 40)
+    assert r["stopped_by"] == "interrupted" and 0 < r["candidates"] <= 40
+    _, dense, ok = tm.execute(plan["start"], r["controls"], r["steps"])
+    assert ok and tm.goal_distance(dense[-1]) <= 1.0 and r["steps"].sum() <= np.sum(plan["steps"])
 
 
 def test_path_lengths_are_the_polylines_through_the_propagation_steps(tip):
@@ -164,6 +216,60 @@ def test_plan_shortens_by_default_and_records_first_and_final_costs(tip_plans, t
     from planners import load_plan
     res = load_plan(d / "plan.json").replay()
     np.testing.assert_array_equal(res["bound"], np.asarray(plan["states"]))
+
+
+def test_the_default_plan_stops_shortening_by_its_patience(tip_plans):
+    """The shortening of `plan` under the default rule ends by its patience, far inside its candidate and
+    simulated-step bounds, and the "shortened" line says so."""
+    r, plan, _ = tip_plans["shortened"]
+    sh = plan["shorten"]
+    assert sh["status"] == "done" and sh["stopped_by"] == "patience", sh
+    assert sh["candidates"] < sh["max_candidates"] / 2 and sh["sim_steps"] < sh["max_sim_steps"], sh
+    assert f"(stopped by its patience: {sh['patience']} rejected in a row)" in r.stdout, r.stdout
+    assert sh["shorten_time"] is None and sh["cpu_time"] > 0
+
+
+@pytest.mark.parametrize("value, expected", [
+    ("-1", "must be a number of seconds in [0, 86400], got '-1'"),
+    ("nan", "must be a number of seconds in [0, 86400], got 'nan'"),
+    ("inf", "must be a number of seconds in [0, 86400], got 'inf'"),
+    ("1e6", "must be a number of seconds in [0, 86400], got '1e6'"),
+    ("soon", "must be a number of seconds, got 'soon'"),
+])
+def test_shorten_time_is_checked_before_any_work(tmp_path, value, expected):
+    out = tmp_path / "out"
+    r = run_cli("plan", "tip_box", "--iterations", "400", "--shorten-time", value, "--out", out, timeout=120)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert r.stderr == f"planar-lcp plan: error: argument --shorten-time: {expected}\n", r.stderr
+    assert r.stdout == "" and not out.exists()
+
+
+def test_shorten_time_is_refused_with_no_shorten(tmp_path):
+    out = tmp_path / "out"
+    r = run_cli("plan", "tip_box", "--iterations", "400", "--shorten-time", "5", "--no-shorten", "--out", out,
+                timeout=120)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert r.stderr == ("planar-lcp plan: error: --shorten-time sets how long the shortening runs: not with "
+                        "--no-shorten, got --shorten-time 5\n"), r.stderr
+    assert r.stdout == "" and not out.exists()
+
+
+def test_the_shortened_line_says_when_the_plan_was_only_truncated(tmp_path):
+    """--shorten-time 0: no candidate, but a plan whose goal holds before its end is still cut there; the
+    "shortened" line says it was only truncated (tip_box seed 1: the goal holds 2 s before the plan ends)."""
+    pytest.importorskip("ompl")
+    out = tmp_path / "out"
+    r = run_cli("plan", "tip_box", "--planner", "RRT", "--iterations", "400", "--seed", "1", "--no-gif",
+                "--shorten-time", "0", "--out", out)
+    assert r.returncode == 0, r.stdout + r.stderr
+    plan = json.loads((out / "plan.json").read_text())
+    sh = plan["shorten"]
+    assert sh["truncated"] and sh["candidates"] == 0 and sh["stopped_by"] == "shorten_time", sh
+    assert plan["path_duration"] < plan["first_path_duration"] and plan["goal"]["goal_holds"]
+    line = next(x for x in r.stdout.splitlines() if x.startswith("shortened      "))
+    assert line.startswith("shortened      0 of 0 candidates accepted in ") and line.endswith(
+        "; only truncated: cut where the goal first holds, no candidate accepted"), line
+    assert "(stopped after --shorten-time 0 s)" in line, line
 
 
 def test_plan_bench_reports_first_and_final_costs(tmp_path):

@@ -144,6 +144,8 @@ def test_the_docs_example_task_plans_as_the_docs_say(tmp_path):
     assert "exact after" in r.stdout and f" {n} iterations" in r.stdout, r.stdout
     m = re.search(r"(\d+) controls, ([\d.]+)\s+s of pushing", sec)
     assert f"path           {m.group(1)} controls, {float(m.group(2)):.2f} s" in r.stdout, r.stdout
+    block = re.search(r"```text\n(task .*?)```", sec, re.S).group(1)       # the task as `plan` prints it
+    assert r.stdout.startswith(block), (block, r.stdout)
     r = run_cli(*commands[1].split()[1:], cwd=tmp_path)
     assert r.returncode == 0 and "task file      my_push.toml (unchanged since planning)" in r.stdout, r.stdout
     assert re.search(r"^goal_holds\s+True$", r.stdout, re.M)
@@ -154,3 +156,24 @@ def test_the_docs_example_task_plans_as_the_docs_say(tmp_path):
     expected = [line.split("# ")[1].strip() for line in code.splitlines() if line.startswith("print(")]
     assert r.stdout.split("\n")[:2] == expected, (r.stdout, expected)
     assert (tmp_path / "my_plan.png").stat().st_size > 1000
+
+
+def test_plan_prints_the_task_with_its_derived_keys(own_plan):
+    """`plan` prints the task it planned: every [task] key with the value the file gave or the one derived (the
+    minimal file gives object, pusher and goal only: here the values tests/test_tasks.py derives by hand, L the
+    box's circumradius), and which keys the file gave."""
+    from planar_lcp.spec.task import TASK_KEYS
+    _, _, r = own_plan
+    assert r.returncode == 0, r.stdout + r.stderr
+    block = r.stdout[:r.stdout.index("\nplanner        ")]
+    L = np.hypot(0.05, 0.05)
+    for text in ("  bodies       object box, pusher pusher, no movable obstacle",
+                 "  goal         x 0.1 m, y 0 m; position_tol 0.01 m",
+                 f"  control      control_max {2 * L:.4g} m/s per axis, step_duration 0.1 s (40 steps of h 0.0025 s), "
+                 "control_steps 1..10",
+                 f"speed_max {16 * L:.4g} m/s, omega_max 16 rad/s",
+                 "  search       planner RRT, time 60 s, goal_bias 0.1; weights position 1, ",
+                 "  given        object, pusher, goal (the rest derived)"):
+        assert text in block, (text, block)
+    for key in set(TASK_KEYS) - {"object", "pusher", "goal", "description", "pusher_max_force"}:
+        assert f" {key} " in block, key
