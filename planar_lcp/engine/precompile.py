@@ -33,8 +33,8 @@ from planar_lcp.engine.interpreted import compiled
 from planar_lcp.engine.islands import contact_island, find_islands
 from planar_lcp.engine.layout import (MODEL_STRUCT, OPTIONS_LAYOUT, WORK_LAYOUT, WORK_STRUCT, StepOptions, StepWork,
                                       numba_type)
-from planar_lcp.engine.solvers.lemke import (LEMKE_CHAIN, lemke_from_basis, lemke_in_work, record_failed_island,
-                                             solve_island_lemke)
+from planar_lcp.engine.solvers.lemke import (LEMKE_CHAIN, block_lemke_equilibrated, block_lemke_in_work,
+                                             lemke_from_basis, lemke_in_work, record_failed_island, solve_island_lemke)
 from planar_lcp.engine.solvers.pgs import solve_island_pgs
 from planar_lcp.engine.step import project_positions
 
@@ -124,6 +124,17 @@ def _drive_lemke_reversed(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
 
 
 @_driver
+def _drive_block(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
+    """Block Lemke's kernels (large islands), typed as `solve_island_lemke` calls them; before the sparse solver,
+    which the step reaches first (see _drive_lemke_reversed)."""
+    n = nci + nsi
+    A = w.lcp_matrix[:n * n].reshape((n, n))
+    b = w.lcp_vector[:n]
+    block_lemke_equilibrated(m, w, opt, vk, nci, nsi, h, velocity_form, A, b, n)
+    return block_lemke_in_work(w, A, b, n, opt)
+
+
+@_driver
 def _drive_lemke_kernel(w, opt, isl, n, velocity_form):
     """`lemke_kernel` and its callees, typed as `lemke_chain` calls them (n int64; piv_tol and equilibrate as
     LEMKE_CHAIN's items): the largest of Lemke's kernels, compiled first (see _drive_lemke_reversed)."""
@@ -143,7 +154,7 @@ def _drive_projection(m, w, opt, qk_out, stats):
     return project_positions(m, w, opt, qk_out, stats)
 
 
-_DRIVERS = {"lemke": _drive_lemke, "pgs": _drive_pgs, "projection": _drive_projection,
+_DRIVERS = {"lemke": _drive_lemke, "pgs": _drive_pgs, "projection": _drive_projection, "block": _drive_block,
             "lemke_reversed": _drive_lemke_reversed, "lemke_kernel": _drive_lemke_kernel}
 
 
@@ -200,13 +211,13 @@ def compile_kinds(kinds):
 _helper = None
 
 
-#: The kinds (keys of _DRIVERS and _CALLS) the helper compiles for `rollout_lemke`, in order. Its step reaches the
-#: assembly, the warm start, lemke_kernel, then PGS's kernels (after its contacts): the helper compiles lemke_kernel
-#: (the largest), `planar_lcp.lemke`'s kernel on it (a run on a cold cache may want it early: the demo does), PGS's
-#: kernels, then the others from the last, so that the two processes meet instead of compiling the same kernels at
-#: the same time; then the solver's driver (the large-island solvers, which the step reaches last) and the velocity
-#: form's projection.
-HELPER_KINDS = ("lemke_kernel", "lcp", "pgs", "lemke_reversed", "lemke", "projection")
+#: The kinds (keys of _DRIVERS and _CALLS) the helper compiles for `rollout_lemke`, in order: the reverse of the order
+#: in which the compiling process's typing of the step reaches them (its contacts, then the island solver: the sparse
+#: solver, the assembly and the warm start, block Lemke, lemke_kernel, PGS, the velocity form's projection), so that
+#: the two meet in the middle instead of compiling the same kernels side by side; `planar_lcp.lemke`'s kernel right
+#: after lemke_kernel, on which it builds (a first run may want it early: the demo does); the solver's own driver
+#: last, by when it finds its callees cached.
+HELPER_KINDS = ("block", "lemke_kernel", "lcp", "pgs", "lemke_reversed", "lemke", "projection")
 
 
 def _cpus():
