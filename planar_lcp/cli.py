@@ -510,8 +510,8 @@ def build_parser():
                    help="write t and each dynamic body's pose and velocity per step (.csv or .txt)")
     s.add_argument("--contacts-csv", metavar="FILE",
                    help="write a row per contact per step: t, step, contact, pair (bodies A|B), normal and friction "
-                        "impulse, gap, mode, slip velocity, point and normal (.csv or .txt; docs/scene-format.md, Output files of "
-                        "simulate)")
+                        "impulse, gap, mode, slip velocity, point and normal (.csv or .txt; docs/scene-format.md, "
+                        "Output files of simulate)")
     s.add_argument("--plot", metavar="FILE.png", help="write a strobe of the motion and time series (PNG)")
     s.add_argument("--animate", metavar="FILE.gif", help="write an animation (GIF)")
     s.epilog = ("Output files are checked before the run (extension, an existing writable directory). A run whose "
