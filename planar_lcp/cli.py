@@ -221,7 +221,8 @@ def one_line_errors(parser):
 
 
 #: Output files of `simulate`: the extensions each writer produces (matplotlib's savefig(format="png"), PillowWriter).
-OUTPUT_SUFFIXES = {"--csv": (".csv", ".txt"), "--plot": (".png",), "--animate": (".gif",)}
+OUTPUT_SUFFIXES = {"--csv": (".csv", ".txt"), "--contacts-csv": (".csv", ".txt"), "--plot": (".png",),
+                   "--animate": (".gif",)}
 
 
 def check_output_file(path, option, suffixes):
@@ -363,7 +364,8 @@ def _simulate(args):
     from planar_lcp.spec.scene import SceneError, load_scene, restitution_setting, sim_settings, support_model_setting
     from planar_lcp.sim import SimulationError, simulate
 
-    for path, option in ((args.csv, "--csv"), (args.plot, "--plot"), (args.animate, "--animate")):
+    for path, option in ((args.csv, "--csv"), (args.contacts_csv, "--contacts-csv"), (args.plot, "--plot"),
+                         (args.animate, "--animate")):
         if path is not None:
             check_output_file(path, option, OUTPUT_SUFFIXES[option])
     if args.plot or args.animate:
@@ -431,6 +433,9 @@ def _simulate(args):
         if args.csv:
             traj.to_csv(args.csv)
             wrote.append(args.csv)
+        if args.contacts_csv:
+            traj.contacts_to_csv(args.contacts_csv)
+            wrote.append(args.contacts_csv)
         if args.plot or args.animate:
             from planar_lcp.viz import animate_trajectory, plot_trajectory
             if args.plot:
@@ -553,6 +558,10 @@ def build_parser():
                         "count the failures")
     s.add_argument("--csv", metavar="FILE",
                    help="write t and each dynamic body's pose and velocity per step (.csv or .txt)")
+    s.add_argument("--contacts-csv", metavar="FILE",
+                   help="write a row per contact per step: t, step, contact, pair (bodies A|B), normal and friction "
+                        "impulse, gap, mode, slip velocity, point and normal (.csv or .txt; docs/scene-format.md, "
+                        "Output files of simulate)")
     s.add_argument("--plot", metavar="FILE.png", help="write a strobe of the motion and time series (PNG)")
     s.add_argument("--animate", metavar="FILE.gif", help="write an animation (GIF)")
     s.epilog = ("Output files are checked before the run (extension, an existing writable directory). A run whose "

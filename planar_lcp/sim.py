@@ -5,6 +5,7 @@
   `rollout` equals a Python loop of `step` bit for bit (tested).
 """
 
+import dataclasses
 import functools
 import os
 import threading
@@ -23,8 +24,8 @@ from planar_lcp.engine.solvers.lemke import STATUS_NAMES
 from planar_lcp.engine.step import STEP_LCP_FAILED, STEP_NEEDS_SPACE, STEP_NONFINITE, STEP_OK
 from planar_lcp.model import Model, compile_scene
 from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
-from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, restitution_setting, scene_path,
-                                   sim_settings, support_model_setting)
+from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, parse_scene, restitution_setting,
+                                   scene_path, sim_settings, support_model_setting)
 from planar_lcp.background import start_background
 from planar_lcp.frames import frame_state
 from planar_lcp.infeasibility import diagnose_step
@@ -50,9 +51,12 @@ class NoRigidSolution(SimulationError):
 
 @dataclass(frozen=True)
 class SimOptions:
-    """Numerical settings of a step (the scene's [sim] gives h, solver, formulation and the iteration counts)."""
+    """Numerical settings of a step (the scene's [sim] gives h, solver, formulation and the iteration counts).
 
-    h: float
+    h (s): None (the default) takes the scene's [sim] h: `Simulator(model, options)` and `simulate` resolve it from the
+    model's scene (`for_model`), so `Simulator(model, SimOptions(warm_start=True))` steps at the scene's h."""
+
+    h: float | None = None
     solver: str = "lemke"
     formulation: str = "position"
     fixed_point_iterations: int = 10
@@ -75,7 +79,20 @@ class SimOptions:
     # 0: never. Smaller islands take the dense path as before, so the goldens and the committed plans are unchanged.
     sparse_min_unknowns: int = SPARSE_MIN_UNKNOWNS
 
+    def for_model(self, model):
+        """These options with h taken from the model's scene ([sim] h) if h is None; ValueError if there is none."""
+        if self.h is not None:
+            return self
+        sim = getattr(getattr(model, "scene", None), "sim", None)
+        if sim is None:
+            raise ValueError("SimOptions: h is None and the model has no scene whose [sim] h it could take; give "
+                             "SimOptions(h=...) in seconds")
+        return dataclasses.replace(self, h=float(sim.h))
+
     def kernel_options(self):
+        if self.h is None:
+            raise ValueError("SimOptions: h is None; give SimOptions(h=...) in seconds, or pass the options to "
+                             "Simulator(model, options), which takes the model's scene's [sim] h")
         if self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, got {self.solver!r}")
         if self.formulation not in FORMULATIONS:
@@ -140,6 +157,7 @@ class Simulator:
     """
 
     def __init__(self, model: Model, options: SimOptions, python_while_cold=False):
+        options = options.for_model(model)        # h=None: the scene's [sim] h
         self.model = model
         self.options = options
         self.kopt = options.kernel_options()
@@ -554,7 +572,8 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
              friction_directions=None, pgs_iterations=None, support_model=None, limit_surface_twists=None,
              limit_surface_resolution=None, restitution=None, on_failure="raise", record_contacts=True,
              seed_friction_arm=False, option_names=None, progress=None, **options) -> Trajectory:
-    """Simulate a scene (a Scene, a shipped scene name, or a .toml path). Keywords override the scene's [sim], and
+    """Simulate a scene (a Scene, a scene dict as a TOML file's document, e.g. `planar_lcp.spec.piles`'s, a shipped
+    scene name, or a .toml path). Keywords override the scene's [sim], and
     support_model ("limit_surface" or "points") its world.support_model: the horizontal plane's table friction
     (docs/method.md, "Table friction"; limit_surface_twists and limit_surface_resolution are that model's knobs), and
     restitution (in [0, 1]) its world.restitution: the coefficient of every contact pair without a
@@ -574,8 +593,13 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     """
     if on_failure not in ("raise", "record"):
         raise ValueError(f"on_failure must be 'raise' or 'record', got {on_failure!r}")
-    if not isinstance(scene, Scene):
+    if isinstance(scene, dict):
+        scene = parse_scene(scene)                       # SceneError (a ValueError) naming the field
+    elif isinstance(scene, (str, os.PathLike)):
         scene = _load_scene_once(scene)
+    elif not isinstance(scene, Scene):
+        raise TypeError(f"simulate: scene must be a Scene, a scene dict, a shipped scene's name or a .toml path, got "
+                        f"{type(scene).__name__}")
     names = {**_KEYWORD_NAMES, **(option_names or {})}
     key = (id(scene), t_end, h, solver, formulation, fixed_point_iterations, friction_directions, pgs_iterations,
            support_model, limit_surface_twists, limit_surface_resolution, restitution, bool(record_contacts),

@@ -85,6 +85,35 @@ class Trajectory:
                     row += [repr(float(x)) for x in self.q[i, b]] + [repr(float(x)) for x in self.v[i, b]]
                 wr.writerow(row)
 
+    #: contacts_to_csv's columns (docs/scene-format.md, "Output files")
+    CONTACT_COLUMNS = ("t", "step", "contact", "pair", "cn", "ft", "gap", "mode", "vt", "point.x", "point.y",
+                       "normal.x", "normal.y")
+    #: contacts["mode"] code -> the word contacts_to_csv writes
+    MODE_NAMES = ("separated", "sticking", "sliding")
+
+    def contacts_to_csv(self, path):
+        """A row per contact per step, in `contacts`' order (the contacts of step k as the step's LCP had them):
+        t (s, the end of the step: the time of the state the impulses produce, row k + 1 of `to_csv`), step (k),
+        contact (its row in the step), pair (the shape pair's bodies "A|B"), cn and ft (the normal impulse on A,
+        N s, and the tangential one along t = (-n_y, n_x)), gap (phi, m, at the pose the LCP was solved at), mode
+        (separated, sticking or sliding), vt (the tangential velocity of A relative to B, m/s), point.x, point.y
+        (m) and normal.x, normal.y (the unit normal from B to A). A run without contact modes (a pymunk run) leaves
+        mode and vt empty."""
+        c = self.contacts
+        pairs = ["|".join(p) for p in c["shape_pairs"]]
+        has_mode = "mode" in c and "vt" in c
+        with open(path, "w", newline="") as f:
+            wr = csv.writer(f)
+            wr.writerow(self.CONTACT_COLUMNS)
+            for k in range(len(c["count"])):
+                t = repr(float(self.t[k + 1]))
+                for i in range(int(c["count"][k])):
+                    mode = (self.MODE_NAMES[int(c["mode"][k, i])], repr(float(c["vt"][k, i]))) if has_mode else ("", "")
+                    wr.writerow([t, k, i, pairs[int(c["pair"][k, i])], repr(float(c["cn"][k, i])),
+                                 repr(float(c["ft"][k, i])), repr(float(c["phi"][k, i])), *mode,
+                                 *(repr(float(x)) for x in c["point"][k, i]),
+                                 *(repr(float(x)) for x in c["normal"][k, i])])
+
 
 def _kinetic(mass, inertia, v_com):
     return (0.5 * mass * (v_com[..., 0] ** 2 + v_com[..., 1] ** 2) + 0.5 * inertia * v_com[..., 2] ** 2).sum(axis=-1)

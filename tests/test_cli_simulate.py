@@ -184,6 +184,70 @@ def test_simulate_two_bodies_csv_columns_in_scene_order(tmp_path, capsys):
         assert re.search(rf"^\s+{n}\s+x = ", out, re.M)
 
 
+def read_contacts(path):
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    return rows[0], rows[1:]
+
+
+def test_simulate_contacts_csv_equals_the_trajectory_and_carries_the_stacks_weight(tmp_path, capsys):
+    """--contacts-csv: a row per contact per step, every number the Trajectory's (contacts_to_csv); and the impulses
+    against an oracle: three 1 kg boxes stacked on a table at rest, the normal impulses of each interface add up per
+    step to the weight above it times h (3, 2, 1 m g h), without friction, every contact sticking."""
+    f, g = tmp_path / "stack.csv", tmp_path / "stack_contacts.csv"
+    rc, out, err = run(["simulate", "box_stack", "--t-end", "0.1", "--csv", f, "--contacts-csv", g], capsys)
+    assert rc == 0, err
+    assert re.findall(r"^wrote\s+(.*)$", out, re.M) == [str(f), str(g)]
+    traj = simulate("box_stack", t_end=0.1)
+    c = traj.contacts
+    header, rows = read_contacts(g)
+    assert header == ["t", "step", "contact", "pair", "cn", "ft", "gap", "mode", "vt", "point.x", "point.y",
+                      "normal.x", "normal.y"]
+    assert len(rows) == int(c["count"].sum()) == 6 * 20
+    h, weight = 0.005, 9.81 * 0.005
+    sums = {}
+    for r in rows:
+        k, i = int(r[1]), int(r[2])
+        assert float(r[0]) == traj.t[k + 1] == (k + 1) * h
+        assert r[3] == "|".join(c["shape_pairs"][c["pair"][k, i]])
+        numbers = [float(x) for x in r[4:7] + r[8:]]
+        assert numbers == [c["cn"][k, i], c["ft"][k, i], c["phi"][k, i], c["vt"][k, i], *c["point"][k, i],
+                           *c["normal"][k, i]]
+        assert r[7] == ("separated", "sticking", "sliding")[c["mode"][k, i]] == "sticking"
+        sums[k, r[3]] = sums.get((k, r[3]), 0.0) + float(r[4])
+        assert float(r[5]) == 0.0
+    for k in range(20):
+        assert {p: round(sums[k, p] / weight, 9) for p in ("box1|table", "box1|box2", "box2|box3")} == \
+            {"box1|table": 3.0, "box1|box2": 2.0, "box2|box3": 1.0}
+
+
+def test_contacts_csv_friction_of_a_sliding_block_is_mu_times_its_normal_impulse(tmp_path):
+    """The friction column against Coulomb's law: the block sliding down the 30 degree incline (mu = 0.3) takes
+    m g cos 30 h of normal impulse per step and mu times that of friction, up the slope, each contact sliding from
+    the first step."""
+    g = tmp_path / "incline.csv"
+    simulate("block_on_incline", t_end=0.2).contacts_to_csv(g)
+    header, rows = read_contacts(g)
+    per_step = {}
+    for r in rows:
+        # t = (-n_y, n_x) points down the slope: the block slides along +t, friction pushes it along -t
+        assert r[3] == "box|incline" and r[7] == "sliding" and float(r[8]) > 0.0
+        cn, ft = per_step.get(int(r[1]), (0.0, 0.0))
+        per_step[int(r[1])] = (cn + float(r[4]), ft + float(r[5]))
+    assert len(per_step) == 40
+    for cn, ft in per_step.values():
+        assert cn == pytest.approx(9.81 * 0.005 * math.cos(math.radians(30.0)), rel=1e-9)
+        assert ft == pytest.approx(-0.3 * cn, rel=1e-9)
+
+
+def test_contacts_csv_with_a_bad_file_name_exit_2(tmp_path, capsys):
+    rc, out, err = run(["simulate", "falling_rod", "--contacts-csv", tmp_path / "c.png"], capsys)
+    assert rc == 2
+    line = _one_line(err)
+    assert "--contacts-csv" in line and ".csv or .txt" in line and "'.png'" in line
+    assert not (tmp_path / "c.png").exists() and out == ""
+
+
 # --- simulate: overrides ----------------------------------------------------------------------------------------
 
 

@@ -167,6 +167,25 @@ def test_the_python_examples_in_the_docs_run(page, index, code, tmp_path):
     assert r.returncode == 0, f"{page.name} example {index}:\n{code}\n{r.stderr[-3000:]}"
 
 
+#: every `SimOptions(...)` the pages show in a code span (the README's `SimOptions(warm_start=True)` among them)
+SIMOPTIONS_SPANS = sorted({m for p in PAGES for m in re.findall(r"`(SimOptions\([^`]*\))`", p.read_text())})
+
+
+def test_the_simoptions_the_docs_show_run_a_simulator():
+    """Each as written, without h (the scene's [sim] h): `Simulator(model, options)` steps a shipped scene."""
+    import numpy as np
+
+    import planar_lcp
+    from planar_lcp.model import compile_scene
+    assert "SimOptions(warm_start=True)" in SIMOPTIONS_SPANS
+    model = compile_scene(planar_lcp.load_scene("box_push"))
+    for span in SIMOPTIONS_SPANS:
+        sim = planar_lcp.Simulator(model, eval(span, {"SimOptions": planar_lcp.SimOptions}))
+        assert sim.h == model.scene.sim.h, span
+        run = sim.rollout(*sim.initial_state()[:3], model.vk0[None], 5)
+        assert np.all(run["status"] == 0) and np.all(np.isfinite(run["q"])), span
+
+
 def test_ci_runs_the_readmes_two_commands_in_order():
     """Issue N: .ci/run runs exactly the README's two commands, in order (the demo before the tests), as a user does."""
     first_block = re.search(r"```\n(.*?)```", (ROOT / "README.md").read_text(), re.S).group(1)

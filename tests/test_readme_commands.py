@@ -236,6 +236,20 @@ def test_simulate_with_csv_plot_and_animation(tmp_path):
 
 
 @covers("simulate")
+def test_simulate_with_contacts_csv(tmp_path):
+    """--contacts-csv as a user types it: a row per contact per step, the pair named, the stack's weight carried."""
+    f = tmp_path / "stack_contacts.csv"
+    r = run_cli("simulate", "box_stack", "--t-end", "0.1", "--contacts-csv", f, cwd=tmp_path)
+    ok(r)
+    header, rows = check_csv(f, first="t", numeric=["t", "step", "contact", "cn", "ft", "gap", "vt", "point.x",
+                                                    "point.y", "normal.x", "normal.y"], min_rows=120)
+    assert header[3:5] == ["pair", "cn"] and {row[3] for row in rows} == {"box1|table", "box1|box2", "box2|box3"}
+    on_table = sum(float(row[4]) for row in rows if row[1] == "0" and row[3] == "box1|table")
+    assert on_table == pytest.approx(3 * 9.81 * 0.005, rel=1e-9)
+    assert wrote_lines(r.stdout) == [str(f)]
+
+
+@covers("simulate")
 def test_simulate_with_the_solver_and_formulation_options(tmp_path):
     f = tmp_path / "push.csv"
     r = run_cli("simulate", "box_push", "--h", "0.01", "--t-end", "0.3", "--solver", "lemke", "--formulation",

@@ -338,3 +338,38 @@ def test_the_kernels_energy_is_numpys_sum_for_any_number_of_bodies():
             rows(m, q, v, got)
             as_python = np.array([python_version(state_energy)(m, q[t], v[t], np.empty(nb)) for t in range(len(q))])
             assert got.tobytes() == want.tobytes() and as_python.tobytes() == want.tobytes(), (nb, g)
+
+
+def test_simulate_takes_a_scene_dict_as_it_takes_the_scene():
+    """simulate() takes the dict `planar_lcp.spec.piles` returns (a TOML document as a dict), and runs it as the
+    Scene parse_scene makes of it; a bad dict is refused naming the field, another type naming what it takes."""
+    from planar_lcp.spec import piles
+    from planar_lcp.spec.scene import SceneError, parse_scene
+    d = piles.tower(3)
+    a, b = simulate(d, t_end=0.1), simulate(parse_scene(d), t_end=0.1)
+    assert a.scene == b.scene and a.body_names == b.body_names
+    assert np.array_equal(a.q, b.q) and np.array_equal(a.v, b.v) and a.stats["lcp_size"].sum() > 0
+    bad = dict(d, sim={"h": -1.0})
+    with pytest.raises(SceneError, match=r"sim\.h"):
+        simulate(bad)
+    with pytest.raises(TypeError, match="a Scene, a scene dict, a shipped scene's name or a .toml path, got int"):
+        simulate(3)
+
+
+def test_simoptions_without_h_take_the_scenes_h():
+    """SimOptions(warm_start=True) as the README shows it: h None, taken from the model's scene by Simulator; the
+    run is the one with the scene's h given explicitly, bit for bit. Without a model to take it from, the options
+    refuse to make the kernels' options, saying what to give."""
+    sc = load_scene("box_push")
+    model = compile_scene(sc)
+    sim = Simulator(model, SimOptions(warm_start=True))
+    assert sim.h == sim.options.h == sc.sim.h == 0.01
+    given = Simulator(model, SimOptions(h=sc.sim.h, warm_start=True))
+    assert sim.options == given.options
+    runs = [s.rollout(*s.initial_state()[:3], model.vk0[None], 50) for s in (sim, given)]
+    assert np.array_equal(runs[0]["q"], runs[1]["q"]) and np.array_equal(runs[0]["v"], runs[1]["v"])
+    assert Simulator(model, SimOptions(h=0.005)).h == 0.005
+    with pytest.raises(ValueError, match=r"h is None; give SimOptions\(h=\.\.\.\) in seconds"):
+        SimOptions().kernel_options()
+    with pytest.raises(ValueError, match="no scene"):
+        SimOptions().for_model(object())
