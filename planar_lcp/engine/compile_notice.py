@@ -9,9 +9,9 @@ import sys
 
 from numba.core import event
 
-#: measured: the first `planar-lcp simulate falling_rod` on an empty numba cache, 2 cores: 20 to 27 s wall clock
-#: (docs/performance.md, "Issue M")
-COLD_START_SECONDS = 25
+#: measured: the background compilation of the default set (planar_lcp/background.py) on an empty numba cache, 2 cores:
+#: 47 to 50 s wall clock (docs/performance.md, "Compile time")
+COLD_START_SECONDS = 50
 
 NOTICE = (f"compiling the simulation kernels once (about {COLD_START_SECONDS} s on 2 cores); "
           "later runs start at once")

@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 
+from planar_lcp.engine.compile_notice import COLD_START_SECONDS
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES, lemke_kernel, make_lemke_work
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, default_max_pivots, lemke
 from planar_lcp.experiments.lcp_corpus import load_corpus
@@ -1005,7 +1006,8 @@ def run_bench(which, json_path=None, kinds=None, sizes=None, steps=None, rounds=
         print(format_pile_table(rows))
         report["pile"] = dict(rows=rows, clock="thread_time")
     if which in ("step", "all"):
-        say("step")("the first simulate() on an empty numba cache, in a child process (about 25 s)")
+        say("step")("the first simulate() on an empty numba cache, in a child process, and its background "
+                    f"compilation (about {COLD_START_SECONDS} s)")
         compile_times = measure_step_compile_time()
         rows = bench_step(rounds=rounds or ROUNDS, progress=say("step"))
         print(format_step_table(rows, compile_times))
