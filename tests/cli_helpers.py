@@ -93,3 +93,34 @@ def ctrl_c_cli(args, ready, cwd, timeout=300, env=None):
             os.killpg(p.pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
+
+
+# A process that records numba's compile events (the functions it compiled, not those it loaded from the cache), runs
+# a body of code, and prints them as JSON on its last line.
+_COMPILE_LISTENER = """
+import json
+from numba.core import event
+compiled = []
+class L(event.Listener):
+    def on_start(self, ev):
+        d = ev.data.get("dispatcher")
+        compiled.append(d.py_func.__module__ + "." + d.py_func.__qualname__ if d is not None else "?")
+    def on_end(self, ev):
+        pass
+event.register("numba:compile", L())
+"""
+
+
+def python_compiling(body, cache, timeout=1800, **env):
+    """Run the Python code `body` in a fresh process on the numba cache `cache`, with numba's compile events recorded;
+    `body` ends by printing `json.dumps(compiled)`. Returns (its stdout lines but the last, the last as JSON: the
+    functions it compiled)."""
+    import json
+    full = cli_env(NUMBA_CACHE_DIR=str(cache), **env)
+    full.pop("NUMBA_DISABLE_JIT", None)
+    out = subprocess.run([sys.executable, "-c", _COMPILE_LISTENER + body], capture_output=True, text=True, env=full,
+                         timeout=timeout, cwd=ROOT)
+    assert out.returncode == 0, out.stderr[-3000:]
+    lines = out.stdout.strip().splitlines()
+    return lines[:-1], json.loads(lines[-1])
+

@@ -2,37 +2,19 @@
 first run on an empty cache compiles what every later run with the defaults reaches, and `planar-lcp warmup` what
 any run reaches. Measured with numba's compile events, in subprocesses with caches of their own."""
 
-import json
 import os
-import subprocess
-import sys
 import textwrap
 import time
 from pathlib import Path
 
 import pytest
 
-from cli_helpers import run_cli
+from cli_helpers import python_compiling, run_cli
 from planar_lcp import background
 
 pytestmark = pytest.mark.needs_jit
 
 ROOT = Path(__file__).resolve().parents[1]
-
-# A process that records numba's compile events (the functions it compiled, not those it loaded from the cache), runs
-# `body`, and prints them as JSON on its last line.
-_LISTENER = textwrap.dedent("""
-    import json
-    from numba.core import event
-    compiled = []
-    class L(event.Listener):
-        def on_start(self, ev):
-            d = ev.data.get("dispatcher")
-            compiled.append(d.py_func.__module__ + "." + d.py_func.__qualname__ if d is not None else "?")
-        def on_end(self, ev):
-            pass
-    event.register("numba:compile", L())
-""")
 
 # Every kind of scene a user can write, with the defaults and with options: both planes, every shipped scene and task,
 # the piles (large islands), force-limited and turning kinematic bodies, the velocity and fixed-point forms, the warm
@@ -94,18 +76,6 @@ SIX_BODIES = {
 }
 
 
-def _python(body, cache, timeout=1800, **env):
-    """Run `body` after the compile listener in a fresh process on the numba cache `cache`; returns (its stdout lines
-    but the last, the functions it compiled)."""
-    full = dict(os.environ, NUMBA_CACHE_DIR=str(cache), MPLBACKEND="Agg", **env)
-    full.pop("NUMBA_DISABLE_JIT", None)
-    out = subprocess.run([sys.executable, "-c", _LISTENER + body], capture_output=True, text=True, env=full,
-                         timeout=timeout, cwd=ROOT)
-    assert out.returncode == 0, out.stderr[-3000:]
-    lines = out.stdout.strip().splitlines()
-    return lines[:-1], json.loads(lines[-1])
-
-
 def _every_scene(nrandom, ntasks):
     return (f"from pathlib import Path\nNRANDOM, NTASKS = {nrandom}, {ntasks}\n"
             f"TASKS_DIR = Path({str(ROOT / 'tasks')!r})\nSIX_BODIES = {SIX_BODIES!r}\n" + _EVERY_SCENE
@@ -139,7 +109,7 @@ def test_no_kernel_type_depends_on_the_scene(tmp_path):
     planar_lcp was compiled (or loaded) for one signature: none depends on the number of bodies, shapes, contacts or
     kinematic bodies, the plane, or the options. The struct constructor is the one function with two (the model's
     and the work buffers' structs, the same for every scene)."""
-    lines, counts = _python(_every_scene(10, 4).replace("print(json.dumps(compiled))\n", "") + _signatures(),
+    lines, counts = python_compiling(_every_scene(10, 4).replace("print(json.dumps(compiled))\n", "") + _signatures(),
                             os.environ.get("NUMBA_CACHE_DIR") or tmp_path / "cache", PLANAR_LCP_PRECOMPILE="0")
     assert int(lines[-1]) == _runs(10, 4)                           # none was skipped
     assert counts["planar_lcp.engine.rollout.rollout_lemke"] == 1
@@ -157,35 +127,9 @@ def test_after_the_first_run_nothing_compiles(tmp_path):
                    timeout=1800)
     assert demo.returncode == 0, demo.stderr
     assert background.Background(None, background.lock_file(str(cache)), 0.0).wait(timeout=900)
-    lines, compiled = _python(_every_scene(50, 12), cache)
+    lines, compiled = python_compiling(_every_scene(50, 12), cache)
     assert compiled == [], sorted(set(compiled))
     assert int(lines[-1]) == _runs(50, 12)                          # none was skipped
-
-
-@pytest.mark.slow
-def test_warmup_compiles_every_solver(tmp_path):
-    """`planar-lcp warmup` on an empty cache, one line per stage; then runs of every solver (lemke, pgs, osqp) and
-    formulation and `planar_lcp.lemke` compile nothing, and a second warmup has nothing to do."""
-    cache = tmp_path / "cache"
-    env = {"NUMBA_CACHE_DIR": str(cache)}
-    first = run_cli("warmup", cwd=tmp_path, env=env, timeout=1800)
-    assert first.returncode == 0, first.stderr
-    stages = [line for line in first.stdout.splitlines() if line.lstrip().startswith("[")]
-    assert len(stages) == len(background.compilation_stages("all")) and stages[-1].lstrip().startswith(
-        f"[{len(stages)}/{len(stages)}]")
-    _, compiled = _python(textwrap.dedent("""
-        import numpy as np
-        from planar_lcp import lemke, simulate
-        for solver in ("lemke", "pgs", "osqp"):
-            for formulation in ("position", "fixed_point", "velocity"):
-                for name in ("falling_rod", "box_push", "four_disks"):
-                    simulate(name, t_end=0.05, solver=solver, formulation=formulation, on_failure="record")
-        lemke(np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0]))
-        print(json.dumps(compiled))
-    """), cache)
-    assert compiled == [], sorted(set(compiled))
-    second = run_cli("warmup", cwd=tmp_path, env=env, timeout=600)
-    assert second.returncode == 0 and second.stderr == "", second.stderr
 
 
 @pytest.mark.slow

@@ -13,10 +13,12 @@ import json
 import math
 import os
 import re
+import textwrap
 from pathlib import Path
 
 import pytest
-from cli_helpers import ROOT, cli_env, run_cli
+from cli_helpers import ROOT, cli_env, python_compiling, run_cli
+from planar_lcp.background import compilation_stages
 from planar_lcp.engine.compile_notice import BACKGROUND_NOTICE, NOTICE
 
 README = ROOT / "README.md"
@@ -496,3 +498,31 @@ def test_bench_pile_json(tmp_path):
         assert 0 < row["ours_us_min"] <= row["ours_us"] <= row["ours_us_max"] and row["box2d_us"] > 0
         assert row["solved_sparse"] == 10 and row["sparse_fallbacks"] == 0    # 128 unknowns: the sparse solver's
         assert row["ours_top_drift"] < 1e-6
+
+
+@covers("warmup")
+def test_warmup(tmp_path):
+    """`planar-lcp warmup` on an empty cache, one line per stage; then runs of every solver (lemke, pgs, osqp) and
+    formulation and `planar_lcp.lemke` compile nothing, and neither does a second warmup."""
+    cache = tmp_path / "cache"
+    env = {"NUMBA_CACHE_DIR": str(cache)}
+    first = run_cli("warmup", cwd=tmp_path, env=env, timeout=1800)
+    assert first.returncode == 0, first.stderr
+    stages = [line for line in first.stdout.splitlines() if line.lstrip().startswith("[")]
+    assert len(stages) == len(compilation_stages("all")) and stages[-1].lstrip().startswith(
+        f"[{len(stages)}/{len(stages)}]")
+    _, compiled = python_compiling(textwrap.dedent("""
+        import numpy as np
+        from planar_lcp import lemke, simulate
+        for solver in ("lemke", "pgs", "osqp"):
+            for formulation in ("position", "fixed_point", "velocity"):
+                for name in ("falling_rod", "box_push", "four_disks"):
+                    simulate(name, t_end=0.05, solver=solver, formulation=formulation, on_failure="record")
+        lemke(np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0]))
+        print(json.dumps(compiled))
+    """), cache)
+    assert compiled == [], sorted(set(compiled))
+    # a second warmup: every stage loads what the first compiled
+    lines, compiled = python_compiling("from planar_lcp.cli import main\nassert main(['warmup']) == 0\n"
+                                       "print(json.dumps(compiled))", cache)
+    assert compiled == [] and lines[-1].startswith("planar-lcp warmup: done in"), (compiled, lines)
