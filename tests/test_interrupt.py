@@ -46,9 +46,14 @@ def sigint_during_the_next_struct_typing():
 def test_numba_swallows_a_sigint_raised_while_it_types_a_struct_argument():
     """The cause, with Python's own handler: the signal is delivered and the run still completes. (Should numba stop
     clearing the error, this fails: the remembering handler is then no longer needed.)"""
-    with sigint_during_the_next_struct_typing() as fired:
-        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-        traj = planar_lcp.simulate("falling_rod", t_end=0.05)
+    # Python's own handler, whatever this process inherited (a shell starts a background job with SIGINT ignored,
+    # and Python then installs none)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with sigint_during_the_next_struct_typing() as fired:
+            traj = planar_lcp.simulate("falling_rod", t_end=0.05)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert fired and len(traj.t) == 21
 
 
