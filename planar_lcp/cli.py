@@ -22,9 +22,10 @@ class MissingPackage(Exception):
 
     def __init__(self, package):
         self.package = package
-        super().__init__(f"{package} is not installed; it comes with the extra '{OPTIONAL_PACKAGES[package]}': "
-                         f"pip install -e \".[{OPTIONAL_PACKAGES[package]}]\" in the repository (\".[dev]\" installs "
-                         "every extra)")
+        extra = OPTIONAL_PACKAGES[package]
+        super().__init__(f"{package} is not installed; it comes with the extra '{extra}': pip install "
+                         f"\"planar-lcp[{extra}]\" (in a checkout: pip install -e \".[{extra}]\"; the extra 'dev' "
+                         "installs every extra)")
 
 
 def require(*packages):

@@ -37,7 +37,8 @@ def test_a_missing_optional_package_is_one_line_naming_its_extra(tmp_path, missi
     assert r.stdout == ""                       # checked before any work
     prog = f"planar-lcp {argv[0]}"
     assert r.stderr == (f"{prog}: error: {package} is not installed; it comes with the extra '{extra}': "
-                        f"pip install -e \".[{extra}]\" in the repository (\".[dev]\" installs every extra)\n")
+                        f"pip install \"planar-lcp[{extra}]\" (in a checkout: pip install -e \".[{extra}]\"; the "
+                        "extra 'dev' installs every extra)\n")
     assert list(tmp_path.iterdir()) == []      # nothing written
 
 
@@ -47,8 +48,8 @@ def test_an_optional_import_deep_in_a_command_is_reported_the_same_way(tmp_path)
     assert r.returncode == 2, r.stderr
     assert "Traceback" not in r.stderr
     assert r.stderr.splitlines() == ["planar-lcp study: error: tqdm is not installed; it comes with the extra "
-                                     "'studies': pip install -e \".[studies]\" in the repository (\".[dev]\" installs "
-                                     "every extra)"]
+                                     "'studies': pip install \"planar-lcp[studies]\" (in a checkout: pip install -e "
+                                     "\".[studies]\"; the extra 'dev' installs every extra)"]
 
 
 def test_every_optional_package_is_in_the_extra_the_cli_names_and_not_in_the_core():
