@@ -133,7 +133,9 @@ def start_background(kernel=None):
             started_at = os.path.getmtime(lock)
         except OSError:
             started_at = time.time()
-        return Background(None, lock, started_at)
+        _background = Background(None, lock, started_at)
+        announce_background()
+        return _background
     try:
         os.makedirs(cache_dir, exist_ok=True)
         env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)

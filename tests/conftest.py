@@ -31,6 +31,21 @@ def tip_plan(tmp_path_factory):
     return run_cli(*TIP_PLAN_ARGS, "--out", out), out
 
 
+@pytest.fixture(scope="session")
+def cold_demo(tmp_path_factory):
+    """`planar-lcp demo` run once for the session on an EMPTY numba cache, as on a user's fresh machine, and the
+    background compilation it started waited for: (the finished process, its --out directory, the cache). Tests
+    that need what a user's first command leaves share it; one that writes to the cache copies it first."""
+    pytest.importorskip("ompl")
+    from planar_lcp import background
+    base = tmp_path_factory.mktemp("cold_demo")
+    out, cache = base / "demo", base / "numba_cache"
+    cache.mkdir()
+    r = run_cli("demo", "--out", out, cwd=base, timeout=1800, env=dict(NUMBA_CACHE_DIR=str(cache)))
+    assert background.Background(None, background.lock_file(str(cache)), 0.0).wait(timeout=900)
+    return r, out, cache
+
+
 def pytest_collection_modifyitems(config, items):
     # `slow` tests (deselected by default, pyproject.toml) are long with the JIT too: skip both kinds without it
     if JIT_DISABLED:

@@ -1,9 +1,7 @@
 """A cold cache's first run as Python (planar_lcp/engine/interpreted.py, planar_lcp/background.py): the
-same results as the compiled kernels bit for bit, the switch to them mid-run, the wait for them on a long run, and the
-cold command line in a subprocess with its own empty cache."""
+same results as the compiled kernels bit for bit, the switch to them mid-run, the wait for them on a long run (the
+cold command line in a subprocess with its own empty cache: tests/test_compile_once.py)."""
 
-import os
-import re
 from collections import OrderedDict
 from pathlib import Path
 
@@ -12,10 +10,7 @@ import pytest
 from numba.core.dispatcher import Dispatcher
 
 import planar_lcp.sim as sim_module
-from cli_helpers import run_cli
 from planar_lcp import simulate
-from planar_lcp import background
-from planar_lcp.engine.compile_notice import BACKGROUND_NOTICE, NOTICE
 from planar_lcp.engine.interpreted import python_version
 from planar_lcp.engine.rollout import rollout_lemke
 from planar_lcp.model import compile_scene
@@ -159,27 +154,3 @@ def test_a_warm_cache_runs_compiled(monkeypatch):
     sim = sim_module.Simulator(compile_scene(load_scene("box_tip")), sim_module.SimOptions(h=0.005),
                                python_while_cold=True)
     assert sim._background is None and not started
-
-
-def _cli_output(r):
-    """The command's stdout without its wall-time line."""
-    return re.sub(r"wall time .*\n", "", r.stdout)
-
-
-@pytest.mark.slow
-def test_a_cold_cache_answers_at_once_and_leaves_the_kernels_compiled(tmp_path):
-    """`planar-lcp simulate falling_rod` on an empty cache, in a subprocess: the background notice, the answer of a
-    warm run (the same text); the background process compiles into that cache and exits, and the next run then
-    loads every kernel (nothing said, nothing compiled) and prints the same."""
-    cache = tmp_path / "cache"
-    env = {"NUMBA_CACHE_DIR": str(cache)}
-    first = run_cli("simulate", "falling_rod", cwd=tmp_path, env=env)
-    assert first.returncode == 0, first.stderr
-    assert first.stderr == f"planar-lcp simulate: {BACKGROUND_NOTICE}\n"
-    lock = Path(background.lock_file(str(cache)))
-    assert background.Background(None, str(lock), 0.0).wait(timeout=600)
-    assert not lock.exists() and not list(cache.glob("planar_lcp_run_*"))
-    second = run_cli("simulate", "falling_rod", cwd=tmp_path, env=env)
-    assert second.returncode == 0 and second.stderr == "", second.stderr
-    assert _cli_output(first) == _cli_output(second)
-    assert NOTICE not in second.stderr and os.listdir(cache)

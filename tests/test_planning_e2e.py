@@ -21,25 +21,6 @@ from planar_lcp.engine.compile_notice import BACKGROUND_NOTICE, NOTICE  # noqa: 
 pytestmark = pytest.mark.needs_jit     # cold compiles and timing
 
 
-def run_cold(tmp_path, *args):
-    """run_cli with its own empty numba cache, tmp_path / "numba_cache"."""
-    (tmp_path / "numba_cache").mkdir()
-    return run_cli(*args, timeout=900, env=dict(NUMBA_CACHE_DIR=str(tmp_path / "numba_cache")))
-
-
-@pytest.mark.slow   # a cold compile of every kernel the planner uses: 40 s to 2 min on 2 cores
-def test_first_plan_on_a_cold_cache(tmp_path):
-    out = tmp_path / "out"
-    r = run_cold(tmp_path, "plan", "push_box", "--seed", 5, "--iterations", 15000, "--out", out, "--no-gif")
-    assert r.returncode == 0, r.stdout + r.stderr
-    plan = json.loads((out / "plan.json").read_text())
-    assert plan["exact"] and plan["goal"]["goal_holds"] and len(plan["controls"]) > 0
-    assert any((tmp_path / "numba_cache").iterdir()), "the run did not use its own cache: it was not cold"
-    assert "Traceback" not in r.stderr and "leaked" not in r.stderr, r.stderr
-    # the one line that says why the first run waits: the kernels compile once, in a background process
-    assert r.stderr == f"planar-lcp plan: {BACKGROUND_NOTICE}\n", r.stderr
-
-
 def test_demo_fails_loudly_when_its_plan_fails(tmp_path, monkeypatch, capsys):
     import planar_lcp.cli as cli
     monkeypatch.setattr(cli, "DEMO_PLAN", dict(cli.DEMO_PLAN, iterations=1))   # too small to reach the goal

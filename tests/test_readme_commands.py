@@ -162,16 +162,14 @@ def test_every_readme_command_has_a_test():
 
 
 @covers("demo")
-def test_demo(tmp_path):
-    """On an EMPTY numba cache, as on a user's fresh machine: every kernel compiles inside the demo, the planning part
-    too (the crash of issue 10 happened only then)."""
-    out, cache = tmp_path / "demo", tmp_path / "numba_cache"
-    cache.mkdir()
-    r = run_cli("demo", "--out", out, cwd=tmp_path, timeout=900, env=dict(NUMBA_CACHE_DIR=str(cache)))
+def test_demo(cold_demo):
+    """On an EMPTY numba cache, as on a user's fresh machine (conftest.cold_demo): every kernel compiles during the
+    demo, the planning part too."""
+    r, out, cache = cold_demo
     ok(r)
     assert any(cache.iterdir()), "the demo did not use its own cache: it was not cold"
     assert "leaked" not in r.stderr, r.stderr
-    # issue M: the one line that says what a cold cache does: part 1 runs as Python while the kernels compile in the
+    # the one line that says what a cold cache does: part 1 runs as Python while the kernels compile in the
     # background (engine/interpreted.py), the same answer (checked below)
     assert r.stderr.count(f"planar-lcp demo: {BACKGROUND_NOTICE}\n") == 1 and NOTICE not in r.stderr, r.stderr
     assert "(as Python while the kernels compile in the background)" in r.stdout
@@ -501,10 +499,13 @@ def test_bench_pile_json(tmp_path):
 
 
 @covers("warmup")
-def test_warmup(tmp_path):
-    """`planar-lcp warmup` on an empty cache, one line per stage; then runs of every solver (lemke, pgs, osqp) and
-    formulation and `planar_lcp.lemke` compile nothing, and neither does a second warmup."""
+def test_warmup(tmp_path, cold_demo):
+    """`planar-lcp warmup` on what the demo left (a copy of conftest.cold_demo's cache), one line per stage; then runs
+    of every solver (lemke, pgs, osqp) and formulation and `planar_lcp.lemke` compile nothing, and neither does a
+    second warmup."""
+    import shutil
     cache = tmp_path / "cache"
+    shutil.copytree(cold_demo[2], cache)
     env = {"NUMBA_CACHE_DIR": str(cache)}
     first = run_cli("warmup", cwd=tmp_path, env=env, timeout=1800)
     assert first.returncode == 0, first.stderr
