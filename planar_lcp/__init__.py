@@ -6,12 +6,13 @@
 """
 
 from planar_lcp.lcp import LCPResult, lemke
+from planar_lcp.spec.path import kinematic_velocities
 from planar_lcp.spec.scene import Scene, SceneError, list_scenes, load_scene
 from planar_lcp.sim import SimOptions, SimulationError, Simulator, simulate
 from planar_lcp.trajectory import Trajectory
 
 __all__ = ["LCPResult", "Scene", "SceneError", "SimOptions", "SimulationError", "Simulator", "Trajectory",
-           "lemke", "list_scenes", "load_scene", "simulate"]
+           "kinematic_velocities", "lemke", "list_scenes", "load_scene", "simulate"]
 
 
 def _version():

@@ -23,6 +23,7 @@ from planar_lcp.engine.rollout import RUN_ROWS, Recording, make_recording, rollo
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES
 from planar_lcp.engine.step import STEP_LCP_FAILED, STEP_NEEDS_SPACE, STEP_NONFINITE, STEP_OK
 from planar_lcp.model import Model, compile_scene
+from planar_lcp.spec.path import kinematic_velocities
 from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
 from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, parse_scene, restitution_setting,
                                    scene_path, sim_settings, support_model_setting)
@@ -628,9 +629,9 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     h = opts.h
     simr = _take_simulator(model, opts)
     simr.progress = progress
-    vk0 = model.vk0
+    vk_seq = kinematic_velocities(model.scene, model.kin_names, h, nsteps)
     # the rollout copies the initial state into its recording and never writes its inputs
-    out = simr.rollout(model.q0, model.v0, model.qk0, vk0[None], nsteps, stop_on_failure=(on_failure == "raise"),
+    out = simr.rollout(model.q0, model.v0, model.qk0, vk_seq, nsteps, stop_on_failure=(on_failure == "raise"),
                        record_contacts=record_contacts, trajectory_rows=True)
     done = out["steps_done"]
     status = out["status"][:done]
@@ -642,7 +643,8 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
         for i in (np.flatnonzero(status != STEP_OK) if done and status.any() else ()):
             diagnosis = None
             if out["status"][i] == STEP_LCP_FAILED:
-                diagnosis = diagnoses[i] = diagnose_step(simr, out["q"][i], out["v"][i], out["qk"][i], vk0)
+                diagnosis = diagnoses[i] = diagnose_step(simr, out["q"][i], out["v"][i], out["qk"][i],
+                                                             vk_seq[min(i, len(vk_seq) - 1)])
                 (infeasible if diagnosis.infeasible else unclassified)[i] = 1
             failures.append((int(i), float((i + 1) * h), _cause(out["status"][i], out["stats"][i],
                                                                 on_failure == "raise", diagnosis)))

@@ -24,7 +24,8 @@ Mapping (docs/pymunk-comparison.md says more):
   pair, so pymunk's elasticity is the scene's per pair, not a product. Chipmunk applies it as a target normal
   velocity -e v_n with v_n the contact's normal velocity at the start of the step (before gravity), solved by its
   iterations together with the position bias; our model is Newton's law in the step's LCP (docs/method.md).
-- Kinematic bodies -> KINEMATIC pymunk bodies with the scene's constant velocity. A force-limited one (`max_force`,
+- Kinematic bodies -> KINEMATIC pymunk bodies with the scene's constant velocity, or a `path`'s velocity of each
+  step (`set_kinematic_velocity`, the sequence our engine takes). A force-limited one (`max_force`,
   `max_torque`) -> pymunk's own velocity servo (its tank.py): a KINEMATIC control body moving at the prescribed
   velocity, and the body itself DYNAMIC, without gravity, held to it by a PivotJoint at its origin with max_bias = 0
   and max_force = max_force (and a GearJoint with max_torque, else an unlimited one). pymunk needs a mass where our
@@ -52,6 +53,7 @@ import numpy as np
 
 from planar_lcp.frames import com_velocity, frame_to_com
 from planar_lcp.spec.massprops import body_mass_properties, support_points
+from planar_lcp.spec.path import kinematic_velocities
 from planar_lcp.spec.scene import Scene, load_scene
 from planar_lcp.trajectory import Trajectory, mechanical_energy
 
@@ -350,6 +352,16 @@ def read_state(handles):
     return q, v, qk, vc
 
 
+def set_kinematic_velocity(handles, name, vk):
+    """Give kinematic body `name` the origin velocity vk = (vx, vy, omega) for the next step: the body itself, or a
+    force-limited one's control body (the servo's reference). pymunk moves a KINEMATIC body by h times it at the
+    start of `space.step(h)`, as our engine's qk + h vk does."""
+    joints = handles.servo_joints.get(name)
+    body = joints[0].a if joints is not None else handles.bodies[name]
+    body.velocity = (float(vk[0]), float(vk[1]))
+    body.angular_velocity = float(vk[2])
+
+
 @dataclass(frozen=True)
 class PymunkOptions:
     """The settings of a pymunk run, as `Trajectory.options` (a SimOptions for our runs): h (s), Chipmunk's
@@ -429,7 +441,12 @@ def simulate_pymunk(scene, *, t_end=None, h=None, **settings) -> Trajectory:
     con = dict(count=np.zeros(n, np.int64), pair=np.zeros((n, C), np.int64), phi=np.zeros((n, C)),
                normal=np.zeros((n, C, 2)), point=np.zeros((n, C, 2)), cn=np.zeros((n, C)), ft=np.zeros((n, C)))
     q[0], v[0], qk[0], vc[0] = read_state(hd)
+    # the kinematic bodies' velocities step by step, as our engine takes them (a `path` body's change per step)
+    vk_seq = kinematic_velocities(scene, hd.kinematic_names, h, n)
+    moving = [name for name in hd.kinematic_names if scene.body(name).path is not None] if len(vk_seq) > 1 else []
     for i in range(n):
+        for name in moving:
+            set_kinematic_velocity(hd, name, vk_seq[i, hd.kinematic_names.index(name)])
         space.step(h)
         q[i + 1], v[i + 1], qk[i + 1], vc[i + 1] = read_state(hd)
         _record_contacts(hd, pair_index, i, con)

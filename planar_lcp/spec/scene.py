@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from planar_lcp.frames import rotation
+from planar_lcp.spec.path import check_path_rows, read_path_csv
 
 SHAPE_TYPES = ("disk", "capsule", "box", "polygon", "segment", "halfplane")
 BODY_TYPES = ("dynamic", "static", "kinematic")
@@ -142,6 +143,9 @@ class BodySpec:
     support_points: tuple | None = None
     max_force: float | None = None       # N: kinematic only; a force-limited velocity servo (docs/method.md)
     max_torque: float | None = None      # N m: kinematic only; its torque limit (None: the rotation is prescribed)
+    #: kinematic only: rows (t, x, y, angle) the body-frame origin follows (spec/path.py); `position` and `angle`
+    #: are then the path's pose at t = 0 and `velocity`, `angular_velocity` zero (the velocities are per step)
+    path: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -417,7 +421,7 @@ _SIM_KEYS = ("h", "t_end", "solver", "formulation", "fixed_point_iterations", "f
 #: [sim] keys that shape the horizontal plane's table friction only
 _TABLE_KEYS = ("friction_directions", "limit_surface_twists", "limit_surface_resolution")
 _BODY_KEYS = ("name", "type", "shapes", "mass", "inertia", "position", "angle", "angle_deg", "velocity",
-              "angular_velocity", "support_friction", "support_points", "max_force", "max_torque")
+              "angular_velocity", "support_friction", "support_points", "max_force", "max_torque", "path")
 _PAIR_KEYS = {"friction_pairs": ("a", "b", "mu"), "restitution_pairs": ("a", "b", "e")}
 _PLACEMENT_KEYS = ("offset", "angle", "angle_deg")
 # Per shape type: (required keys, optional keys with their defaults). Placement keys are added for all but halfplane.
@@ -864,8 +868,14 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
         max_torque = v.within(f"{path}.max_torque", v.positive(f"{path}.max_torque", t["max_torque"]), None,
                               MAX_SERVO_TORQUE, "N m")
 
-    position = v.place(f"{path}.position", t["position"]) if "position" in t else (0.0, 0.0)
-    angle = v.angle(path, t)
+    rows = _parse_path(v, path, t, btype) if "path" in t else None
+    if rows is not None:
+        # the path is the motion: its pose at t = 0 is the start, the velocities are per step (spec/path.py)
+        # (at rest at the first row's pose until its time)
+        position, angle = (rows[0][1], rows[0][2]), rows[0][3]
+    else:
+        position = v.place(f"{path}.position", t["position"]) if "position" in t else (0.0, 0.0)
+        angle = v.angle(path, t)
     velocity = v.vec2(f"{path}.velocity", t["velocity"]) if "velocity" in t else (0.0, 0.0)
     if max(abs(velocity[0]), abs(velocity[1])) > MAX_SPEED:
         v.fail(f"{path}.velocity must be within +-{MAX_SPEED:g} m/s in each component (a physical bound), got "
@@ -882,7 +892,38 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
 
     return BodySpec(name=name, type=btype, shapes=shapes, mass=mass, inertia=inertia, position=position,
                     angle=angle, velocity=velocity, angular_velocity=omega, support_friction=support_friction,
-                    support_points=support_points, max_force=max_force, max_torque=max_torque)
+                    support_points=support_points, max_force=max_force, max_torque=max_torque, path=rows)
+
+
+def _parse_path(v: _Validator, path: str, t: dict, btype: str) -> tuple:
+    """A kinematic body's `path` (spec/path.py): rows [t, x, y, angle], or a CSV file name (relative to the scene
+    file's folder) of a recording with columns t, NAME.x, NAME.y, NAME.theta, or t, x, y, theta. As a tuple of row
+    tuples (a Scene is hashable); the pose at t = 0 becomes the body's position and angle."""
+    where = f"{path}.path"
+    if btype != "kinematic":
+        v.fail(f"{where} is only allowed on a kinematic body (prescribed motion), got a {btype} body")
+    for key in ("position", "angle", "angle_deg", "velocity", "angular_velocity"):
+        if key in t:
+            v.fail(f"{path}.{key} is not allowed with {where} (the path gives the pose and the velocities), got "
+                   f"{key} = {t[key]!r}")
+    raw = t["path"]
+    if isinstance(raw, str):
+        if not raw:
+            v.fail(f"{where} must be an array of [t, x, y, angle] rows or a CSV file name, got ''")
+        file = Path(raw)
+        if not file.is_absolute() and not v.source.startswith("<"):
+            file = Path(v.source).parent / file
+        try:
+            raw = read_path_csv(file, t.get("name", ""))
+        except ValueError as e:
+            v.fail(f"{where}: {e}")
+        where = f"{where} ({file})"
+    try:
+        rows = check_path_rows(raw, MAX_LENGTH, MAX_SPEED, MAX_ANGULAR_SPEED)
+    except ValueError as e:
+        sep = "" if str(e).startswith("[") else " "
+        v.fail(f"{where}{sep}{e}")
+    return tuple(tuple(float(x) for x in r) for r in rows)
 
 
 def _parse_shape(v: _Validator, path: str, raw, btype: str, plane: str) -> ShapeSpec:

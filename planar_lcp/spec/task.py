@@ -272,6 +272,11 @@ def parse_task(document: dict, source: str = "<dict>", name: str | None = None, 
     for b in scene.bodies:
         # the planning state holds the pusher's position only: another kinematic body must stand still, or
         # propagation would depend on time and not on the state alone
+        if b.path is not None:
+            role = "task.pusher (the planner drives it)" if b.name == pusher else "a kinematic body in a task"
+            v.fail(f"bodies[{scene.bodies.index(b)}] ({b.name!r}) has a path, which {role} must not have: the "
+                   f"planning state holds no time, so a moving body would make propagation depend on it; got a path "
+                   f"of {len(b.path)} rows")
         if b.type == "kinematic" and b.name != pusher and (b.velocity != (0.0, 0.0) or b.angular_velocity != 0.0):
             v.fail(f"bodies[{scene.bodies.index(b)}] ({b.name!r}) is a kinematic body other than task.pusher: it "
                    f"must not move in a task (velocity [0, 0], angular_velocity 0), got velocity "
