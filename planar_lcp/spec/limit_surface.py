@@ -25,7 +25,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from planar_lcp.spec.massprops import body_area_properties
+from planar_lcp.spec.massprops import body_area_properties, support_share
 
 def _gauss01(n):
     x, w = np.polynomial.legendre.leggauss(n)
@@ -147,22 +147,32 @@ SupportPressure = namedtuple("SupportPressure", ["edges", "edge_scale", "nodes",
 
 def support_pressure(body, n):
     """A dynamic body's support pressure as a `SupportPressure`: uniform over the body's shapes (overlaps counted
-    twice, as in `massprops`), or equal shares at `body.support_points` when the scene gives them (then nodes only).
+    twice, as in `massprops`), or equal shares at `body.support_points` when the scene gives them (then nodes only),
+    or `support_share` of the load at them and the rest uniform.
     nodes: its curved pieces' (or the support points); far: its polygon pieces'; disk_nodes: one (Q, 3) array per
     disk; size: the largest distance of the support from the COM, m."""
     area, com, _ = body_area_properties(body)
-    if body.support_points is not None:
+    share = support_share(body)
+    if share == 1.0:
         pts = np.array(body.support_points, dtype=np.float64).reshape(-1, 2) - com
         nodes = np.column_stack([pts, np.full(len(pts), 1.0 / len(pts))])
         return SupportPressure(np.zeros((0, 4)), 0.0, nodes, np.zeros((0, 3)), np.zeros((0, 3)), [],
                                float(np.max(np.hypot(pts[:, 0], pts[:, 1]))))
     parts = [shape_pressure(s, n) for s in body.shapes]
+    # the uniform part carries 1 - share of the load: L(t) is linear in the pressure, so its nodes' weights and the
+    # closed forms' scale shrink by that factor and the support points join the nodes with the rest
+    # (w / area * 1.0: the pressure without support points, bit for bit)
+    rest = 1.0 - share
 
     def weighted(pts, w):
         keep = w > 0.0                       # a radius-0 segment has no area
-        return np.ascontiguousarray(np.column_stack([pts[keep] - com, w[keep] / area]))
+        return np.ascontiguousarray(np.column_stack([pts[keep] - com, w[keep] / area * rest]))
     edges = np.concatenate([p["edges"] for p in parts]) - np.tile(com, 2)
     nodes = weighted(np.concatenate([p["nodes"] for p in parts]), np.concatenate([p["weights"] for p in parts]))
+    if share > 0.0:
+        pts = np.array(body.support_points, dtype=np.float64).reshape(-1, 2) - com
+        nodes = np.ascontiguousarray(np.concatenate([nodes, np.column_stack([pts, np.full(len(pts),
+                                                                                           share / len(pts))])]))
     far = weighted(np.concatenate([p["far"] for p in parts]), np.concatenate([p["far_w"] for p in parts]))
     disks = np.concatenate([p["disks"] for p in parts])
     disks[:, :2] -= com
@@ -170,7 +180,7 @@ def support_pressure(body, n):
     reach = np.concatenate([np.hypot(edges[:, 0], edges[:, 1]), np.hypot(nodes[:, 0], nodes[:, 1]),
                             np.hypot(disks[:, 0], disks[:, 1]) + disks[:, 2]])
     size = float(reach.max()) if len(reach) else 0.0
-    return SupportPressure(np.ascontiguousarray(edges), 1.0 / area, nodes, far, np.ascontiguousarray(disks),
+    return SupportPressure(np.ascontiguousarray(edges), 1.0 / area * rest, nodes, far, np.ascontiguousarray(disks),
                            disk_nodes, size)
 
 
@@ -213,10 +223,12 @@ def gyration_radius(body):
     """sqrt(integral p |r - com|^2 dA / integral p dA), m: the radius that makes a twist's spin commensurate with its
     slide (the support pressure's, like `support_pressure`)."""
     area, com, polar = body_area_properties(body)
-    if body.support_points is not None:
+    share = support_share(body)
+    second = (1.0 - share) * polar / area if share < 1.0 else 0.0
+    if share > 0.0:
         pts = np.array(body.support_points, dtype=np.float64).reshape(-1, 2) - com
-        return float(np.sqrt(np.mean(np.sum(pts * pts, axis=1))))
-    return float(np.sqrt(polar / area))
+        second += share * float(np.mean(np.sum(pts * pts, axis=1)))
+    return float(np.sqrt(second))
 
 
 def twist_directions(count, rho):

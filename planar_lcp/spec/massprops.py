@@ -213,8 +213,9 @@ def _shape_support(shape):
 def default_support_points(body: BodySpec):
     """Points where the table carries a body in the horizontal plane, with their share of the load.
 
-    `body.support_points` if given (equal weights). Otherwise per shape a few points whose weights are
-    proportional to area and whose zeroth, first and second moments match the body's area distribution:
+    `body.support_points` if given (equal weights; `support_share` of the load, the rest as without them). Otherwise
+    per shape a few points whose weights are proportional to area and whose zeroth, first and second moments match
+    the body's area distribution:
     sum w = 1, sum w p = com, sum w |p - com|^2 = polar / area (see `body_area_properties`). A box (radius 0)
     gives its 2x2 Gauss points, a disk 4 points on the ring of radius R/sqrt(2), a polygon the edge midpoints of
     its fan triangles; rounded shapes a grid on their outer box, moved and scaled about their centroid so the
@@ -225,7 +226,8 @@ def default_support_points(body: BodySpec):
     points : (P, 2) float64, m, body frame
     weights : (P,) float64, summing to 1
     """
-    if body.support_points is not None:
+    share = support_share(body)
+    if share == 1.0:
         pts = np.array(body.support_points, dtype=np.float64).reshape(-1, 2)
         return pts, np.full(len(pts), 1.0 / len(pts))
     parts = [sup for sup in map(_shape_support, body.shapes) if sup is not None]
@@ -234,7 +236,18 @@ def default_support_points(body: BodySpec):
         raise ValueError(f"body {body.name!r} has no shape with area")
     pts = np.concatenate([p for _, p, _ in parts])
     w = np.concatenate([a / total * ws for a, _, ws in parts])
-    return pts, w
+    if share == 0.0:
+        return pts, w
+    given = np.array(body.support_points, dtype=np.float64).reshape(-1, 2)
+    return np.concatenate([pts, given]), np.concatenate([(1.0 - share) * w, np.full(len(given), share / len(given))])
+
+
+def support_share(body: BodySpec) -> float:
+    """The share of the table load at `body.support_points` (`support_share`, default 1 with support points), 0
+    without them: the rest is spread over the shapes."""
+    if body.support_points is None:
+        return 0.0
+    return 1.0 if body.support_share is None else float(body.support_share)
 
 
 def support_points(body: BodySpec, world):

@@ -141,6 +141,9 @@ class BodySpec:
     angular_velocity: float = 0.0
     support_friction: float | None = None
     support_points: tuple | None = None
+    #: the share of the table load at `support_points` (equal shares among them), in (0, 1]; the rest is spread over
+    #: the shapes as without support_points. None: 1 (all of it at the points)
+    support_share: float | None = None
     max_force: float | None = None       # N: kinematic only; a force-limited velocity servo (docs/method.md)
     max_torque: float | None = None      # N m: kinematic only; its torque limit (None: the rotation is prescribed)
     #: kinematic only: rows (t, x, y, angle) the body-frame origin follows (spec/path.py); `position` and `angle`
@@ -421,7 +424,8 @@ _SIM_KEYS = ("h", "t_end", "solver", "formulation", "fixed_point_iterations", "f
 #: [sim] keys that shape the horizontal plane's table friction only
 _TABLE_KEYS = ("friction_directions", "limit_surface_twists", "limit_surface_resolution")
 _BODY_KEYS = ("name", "type", "shapes", "mass", "inertia", "position", "angle", "angle_deg", "velocity",
-              "angular_velocity", "support_friction", "support_points", "max_force", "max_torque", "path")
+              "angular_velocity", "support_friction", "support_points", "support_share", "max_force", "max_torque",
+              "path")
 _PAIR_KEYS = {"friction_pairs": ("a", "b", "mu"), "restitution_pairs": ("a", "b", "e")}
 _PLACEMENT_KEYS = ("offset", "angle", "angle_deg")
 # Per shape type: (required keys, optional keys with their defaults). Placement keys are added for all but halfplane.
@@ -831,14 +835,14 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
         v.fail(f"{path}.shapes must be a non-empty array of tables, got {shapes_raw!r}")
     shapes = tuple(_parse_shape(v, f"{path}.shapes[{j}]", s, btype, plane) for j, s in enumerate(shapes_raw))
 
-    mass = inertia = support_friction = support_points = None
+    mass = inertia = support_friction = support_points = support_share = None
     if btype == "dynamic":
         mass = v.positive(f"{path}.mass", v.require(path, t, "mass", " for a dynamic body"))
         v.within(f"{path}.mass", mass, MIN_MASS, MAX_MASS, "kg")
         if "inertia" in t:
             inertia = v.within(f"{path}.inertia", v.positive(f"{path}.inertia", t["inertia"]), MIN_INERTIA,
                                MAX_INERTIA, "kg m^2")
-        for key in ("support_friction", "support_points"):
+        for key in ("support_friction", "support_points", "support_share"):
             if key in t and plane != "horizontal":
                 v.fail(f"{path}.{key} is only allowed in the horizontal plane, got world.plane = {plane!r}")
         if "support_friction" in t:
@@ -846,11 +850,19 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
         if "support_points" in t:
             support_points = v.points(f"{path}.support_points", t["support_points"], 1)
             _check_support_points(v, f"{path}.support_points", support_points, shapes)
+        if "support_share" in t:
+            if support_points is None:
+                v.fail(f"{path}.support_share needs support_points on the same body (the points that carry the "
+                       f"share), got support_share = {t['support_share']!r} alone")
+            support_share = v.number(f"{path}.support_share", t["support_share"])
+            if not 0.0 < support_share <= 1.0:
+                v.fail(f"{path}.support_share must be in (0, 1] (the load's share at the support points), got "
+                       f"{_fmt_num(support_share)}")
         if not any(s.type != "segment" or s.radius > 0.0 for s in shapes):
             v.fail(f"{path}.shapes must include a shape with area for a dynamic body (a disk, capsule, box, polygon "
                    "or a segment with radius > 0), got only segments with radius 0")
     else:
-        for key in ("mass", "inertia", "support_friction", "support_points"):
+        for key in ("mass", "inertia", "support_friction", "support_points", "support_share"):
             if key in t:
                 v.fail(f"{path}.{key} is not allowed on a {btype} body, got {t[key]!r}")
     max_force = max_torque = None
@@ -892,7 +904,8 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
 
     return BodySpec(name=name, type=btype, shapes=shapes, mass=mass, inertia=inertia, position=position,
                     angle=angle, velocity=velocity, angular_velocity=omega, support_friction=support_friction,
-                    support_points=support_points, max_force=max_force, max_torque=max_torque, path=rows)
+                    support_points=support_points, support_share=support_share, max_force=max_force,
+                    max_torque=max_torque, path=rows)
 
 
 def _parse_path(v: _Validator, path: str, t: dict, btype: str) -> tuple:
