@@ -5,6 +5,7 @@
     traj.to_csv("rod.csv")
 """
 
+from planar_lcp.fitting import fit
 from planar_lcp.lcp import LCPResult, lemke
 from planar_lcp.spec.path import kinematic_velocities
 from planar_lcp.spec.scene import Scene, SceneError, list_scenes, load_scene
@@ -12,7 +13,7 @@ from planar_lcp.sim import SimOptions, SimulationError, Simulator, simulate
 from planar_lcp.trajectory import Trajectory
 
 __all__ = ["LCPResult", "Scene", "SceneError", "SimOptions", "SimulationError", "Simulator", "Trajectory",
-           "kinematic_velocities", "lemke", "list_scenes", "load_scene", "simulate"]
+           "fit", "kinematic_velocities", "lemke", "list_scenes", "load_scene", "simulate"]
 
 
 def _version():

@@ -10,7 +10,7 @@ from collections import namedtuple
 import numpy as np
 import pytest
 
-from planar_lcp.fit import fit, predict_run, run_scene, set_param
+from planar_lcp.fitting import fit, predict_run, run_scene, set_param
 from planar_lcp.sim import simulate
 
 TRUE = {"bodies.box.support_friction": 0.35, "friction_pairs.box.pusher": 0.3}
