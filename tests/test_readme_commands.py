@@ -189,10 +189,13 @@ def test_demo(cold_demo):
 
 @pytest.mark.slow
 def test_the_readme_commands_in_order_in_a_fresh_checkout(tmp_path):
-    """Issue N: the README's two commands in order, as a user runs them in a fresh clone: the demo from the
-    checkout's root (its files go to ./planar_lcp_demo/, as the README says), then the tests, twice. The whole suite
-    is CI's (.ci/run runs the same commands in this order); here the tests that read the checkout (tests/test_docs.py:
-    its layout test failed on the demo's folder) run in a copy of the repository's files made a git checkout."""
+    """The README's two commands in order, as a user runs them in a fresh clone: the demo from the checkout's root
+    (its files go to ./planar_lcp_demo/, as the README says), then the tests, twice. The whole suite is CI's
+    (.ci/run runs the same commands in this order, and says so: PLANAR_LCP_README_RUN_HERE); here the tests that read
+    the checkout (tests/test_docs.py: its layout test failed on the demo's folder) run in a copy of the repository's
+    files made a git checkout."""
+    if os.environ.get("PLANAR_LCP_README_RUN_HERE"):
+        pytest.skip(".ci/run ran the README's commands in this checkout itself: the demo, then these tests")
     import shutil
     import subprocess
     import sys
