@@ -13,8 +13,8 @@ One push (`read_push`): three streams, each with its own UNIX timestamps, about 
 - ``ft_wrench`` (t, fx, fy, torque): the force at the pusher, N (sensor offset not removed: up to 5 N).
 
 Times here are s from the push's first object sample (t = 0); the yaw is unwrapped. A few samples of a stream come
-out of time order (0 to 4 per file, by up to 2 ms: the stamps are arrival times): each stream is sorted by time and
-a repeated time keeps its first sample.
+out of time order (the stamps are arrival times; examples/pushdata_summary.py counts them): each stream is sorted by
+time and a repeated time keeps its first sample.
 
 The object's outline file is not in its pose frame for every object; `object_model` registers it from where the
 pusher was when contact began (`contact_onset`: the force's rise, never the object's response when the force says
@@ -608,7 +608,8 @@ def summary(root=None) -> list:
     v (mm/s, the name's), v_measured (mm/s, `tip_speed`), duration (s), displacement (mm: the object's origin from
     the first to the last sample), rotation (deg, likewise), onset_cue and onset (s), residual (mm: its registration
     residual, None without an onset), gap (mm: the pusher's gap to the registered outline at t = 0, negative an
-    overlap), shift (mm: `reconcile_start`'s), gap_after (mm)."""
+    overlap), shift (mm: `reconcile_start`'s), gap_after (mm), reordered (samples of the three streams out of time
+    order or repeating a time)."""
     out = []
     for f in push_files(root):
         push = read_push(f, root)
@@ -625,6 +626,6 @@ def summary(root=None) -> list:
             "onset_cue": onset.cue if onset else None, "onset": onset.t if onset else None,
             "residual": None if res is None else 1000.0 * res,
             "gap": 1000.0 * start.gap, "shift": 1000.0 * float(np.hypot(*start.shift)),
-            "gap_after": 1000.0 * start.gap_after,
+            "gap_after": 1000.0 * start.gap_after, "reordered": sum(push.reordered.values()),
         })
     return out
