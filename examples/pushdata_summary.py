@@ -59,12 +59,14 @@ def main(argv):
         onset = f"{r['onset']:.3f}" if r["onset"] is not None else "-"
         res = f"{r['residual']:.2f}" if r["residual"] is not None else "-"
         print(f"{name:58} {r['v']:4.0f} {r['v_measured']:6.1f} {r['duration']:5.2f} {r['displacement']:7.1f} "
-              f"{r['rotation']:7.1f} {onset:>6} {res:>6} {r['gap']:6.2f} {r['shift']:5.2f} {round(r['gap_after'], 2) + 0.0:5.2f}")
+              f"{r['rotation']:7.1f} {onset:>6} {res:>6} {r['gap']:6.2f} {r['shift']:5.2f} "
+              f"{round(r['gap_after'], 2) + 0.0:5.2f}")
     shifts = [r["shift"] for r in rows if r["shift"] > 0.0]
     clear = [r for r in rows if r["gap_after"] > 1.0]
     print()
     print(f"{len(rows)} pushes; overlap at t = 0 reconciled in {len(shifts)} (shift median {np.median(shifts):.2f} mm, "
-          f"max {max(shifts):.2f} mm); gap after reconciliation {round(min(r['gap_after'] for r in rows), 2) + 0.0:.2f} to "
+          f"max {max(shifts):.2f} mm); gap after reconciliation "
+          f"{round(min(r['gap_after'] for r in rows), 2) + 0.0:.2f} to "
           f"{max(r['gap_after'] for r in rows):.2f} mm, above 1 mm in {len(clear)}: "
           + (", ".join(r["file"] for r in clear) or "none"))
     moved = [r["reordered"] for r in rows]

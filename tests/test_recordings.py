@@ -141,7 +141,8 @@ def test_files_that_cannot_be_read(tmp_path):
     with pytest.raises(RecordingError, match="is a directory, not a recording"):
         read_recording(tmp_path)
     (tmp_path / "latin1.csv").write_bytes(HEADER.encode() + b"\n0,0,0,0\n1,0,\xe9,0\n")
-    with pytest.raises(RecordingError, match=r"latin1.csv: must be UTF-8 text, got byte 0xe9 at byte offset 36 \(invalid continuation byte\)$"):
+    with pytest.raises(RecordingError, match=r"latin1.csv: must be UTF-8 text, got byte 0xe9 at byte offset 36 "
+                                             r"\(invalid continuation byte\)$"):
         read_recording(tmp_path / "latin1.csv")
 
 

@@ -97,7 +97,8 @@ def find_data_root() -> Path | None:
     if env:
         root = Path(env)
         if not (root / "objects").is_dir():
-            raise PushDataError(f"${DATA_ENV}: must be the MIT push data folder (with objects/ and SURFACE/SPLIT/*.h5), "
+            raise PushDataError(f"${DATA_ENV}: must be the MIT push data folder (with objects/ and "
+                                f"SURFACE/SPLIT/*.h5), "
                                 f"got {env!r}")
         return root
     checkout = Path(__file__).resolve().parents[3]
@@ -200,7 +201,8 @@ class Push:
         return float(self.object[-1, 0])
 
     def tip_at(self, t) -> np.ndarray:
-        """The pusher's centre (..., 2) at times t (s): linear between samples, the first before them, the last after."""
+        """The pusher's centre (..., 2) at times t (s): linear between samples, the first before them, the last
+        after."""
         t = np.asarray(t, dtype=np.float64)
         return np.stack([np.interp(t, self.tip[:, 0], self.tip[:, k]) for k in (1, 2)], axis=-1)
 
@@ -356,10 +358,11 @@ def contact_onset(push: Push) -> Onset | None:
     """When contact began: the first time the force at the pusher rises out of its noise and stays out.
 
     The force's deviation |f - f0| from its median f0 over the baseline (the samples before the tip leaves its rest
-    pose: the sensor's offset, up to 5 N here, is not the contact's) crosses the baseline's median + ONSET_K x MAD and
-    stays above for ONSET_HOLD s, before the tip has travelled ONSET_MAX_TRAVEL. Where the force stream carries no signal (`force_has_signal`: rect1's files), the
-    object's motion is the cue instead, by the same rule on its displacement (the origin's, plus the turn times the
-    outline's radius): it lags the touch by the force build-up, so it is used only there. None when neither rises.
+    pose: the sensor's offset is not the contact's) crosses the baseline's median + ONSET_K x MAD and stays above for
+    ONSET_HOLD s, before the tip has travelled ONSET_MAX_TRAVEL. Where the force stream carries no signal
+    (`force_has_signal`: rect1's files), the object's motion is the cue instead, by the same rule on its displacement
+    (the origin's, plus the turn times the outline's radius): it lags the touch by the force build-up, so it is used
+    only there. None when neither rises.
     """
     t_rest = tip_departure(push)
     travel = np.hypot(*(push.tip[:, 1:3] - push.tip[0, 1:3]).T)
