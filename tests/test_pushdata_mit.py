@@ -430,6 +430,9 @@ def test_butter_is_thirteen_convex_pieces_of_its_outline(files):
     area = signed_area(model.outline)
     assert abs(sum(signed_area(q) for q in model.pieces) - area) <= 1e-9 * area
     assert all(is_convex_ccw(q) for q in model.pieces)
+    shapely = pytest.importorskip("shapely")
+    union = shapely.union_all([shapely.Polygon(q) for q in model.pieces])
+    assert union.symmetric_difference(shapely.Polygon(model.outline)).area <= 1e-9 * area
 
 
 @needs_data
