@@ -13,7 +13,7 @@ from planar_lcp.interrupt import catch_sigint, clear, interrupted, raise_if_inte
 
 #: Optional packages -> the extra of pyproject.toml ([project.optional-dependencies]) that installs each.
 OPTIONAL_PACKAGES = {"matplotlib": "plot", "shapely": "plot", "osqp": "osqp", "scipy": "osqp", "pymunk": "compare",
-                     "ompl": "plan", "distributed": "plan", "tqdm": "studies", "quantecon": "bench"}
+                     "ompl": "plan", "distributed": "plan", "tqdm": "studies", "quantecon": "bench", "h5py": "pushdata"}
 
 
 class MissingPackage(Exception):

@@ -1,0 +1,6 @@
+"""Readers of recorded pushing data sets, into this package's scenes and recordings (planar_lcp.recordings).
+
+`mit`: the MIT pushing data set (Yu et al., IROS 2016), its h5 files and object outlines (docs/real_pushes.md);
+`outline`: the planar geometry it needs (convex pieces of a non-convex outline, signed distance, registration).
+Adapters at the edge: nothing in the simulator imports them.
+"""
