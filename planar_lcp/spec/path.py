@@ -12,20 +12,15 @@ Pure numpy: the scene validator (spec/scene.py) turns the ValueErrors raised her
 
 from __future__ import annotations
 
-import csv
 import math
-from pathlib import Path
 
 import numpy as np
 
-__all__ = ["MAX_PATH_ROWS", "PATH_COLUMNS", "check_path_rows", "kinematic_velocities", "path_pose", "path_velocities",
+__all__ = ["MAX_PATH_ROWS", "check_path_rows", "kinematic_velocities", "path_pose", "path_velocities",
            "read_path_csv"]
 
 #: rows of one path: a recording of 1000 s at 1 kHz
 MAX_PATH_ROWS = 1_000_000
-#: a path CSV's columns for a body NAME: t, then NAME.x, NAME.y, NAME.theta (a recording, docs/scene-format.md,
-#: "Recordings"), or t, x, y, theta for a file of one body
-PATH_COLUMNS = ("t", "x", "y", "theta")
 
 
 def check_path_rows(rows, max_length: float, max_speed: float, max_angular_speed: float) -> np.ndarray:
@@ -87,47 +82,16 @@ def check_path_rows(rows, max_length: float, max_speed: float, max_angular_speed
 
 
 def read_path_csv(file, body: str) -> np.ndarray:
-    """The rows [t, x, y, theta] of `body` in a CSV file: a recording's columns t, BODY.x, BODY.y, BODY.theta, else
-    a file of one body's columns t, x, y, theta; further columns are ignored. ValueError naming the file, the row
-    and the column (unchecked values: `check_path_rows` checks them)."""
-    file = Path(file)
-    if file.is_dir():
-        raise ValueError(f"{file}: is a directory, not a CSV file")
-    try:
-        with open(file, newline="", encoding="utf-8") as fh:
-            reader = csv.reader(fh)
-            header = next(reader, None)
-            if header is None:
-                raise ValueError(f"{file}: empty file, expected a header row with t, {body}.x, {body}.y, {body}.theta")
-            header = [h.strip() for h in header]
-            named = ("t", f"{body}.x", f"{body}.y", f"{body}.theta")
-            cols = named if all(c in header for c in named) else PATH_COLUMNS
-            missing = [c for c in cols if c not in header]
-            if missing:
-                raise ValueError(f"{file}: header must have the columns t, {body}.x, {body}.y, {body}.theta (or t, x, "
-                                 f"y, theta), got {', '.join(header)}")
-            idx = [header.index(c) for c in cols]
-            rows = []
-            for line, rec in enumerate(reader, start=2):
-                if not rec or all(not x.strip() for x in rec):
-                    continue
-                try:
-                    rows.append([float(rec[j]) for j in idx])
-                except (ValueError, IndexError):
-                    shown = [rec[j] if j < len(rec) else "" for j in idx]
-                    raise ValueError(f"{file}: line {line}: columns {', '.join(cols)} must be numbers, got "
-                                     f"{shown}") from None
-                if len(rows) > MAX_PATH_ROWS:
-                    raise ValueError(f"{file}: must have at most {MAX_PATH_ROWS} rows")
-    except FileNotFoundError:
-        raise ValueError(f"{file}: no such file") from None
-    except UnicodeDecodeError as e:
-        raise ValueError(f"{file}: not UTF-8 text ({e.reason} at byte {e.start})") from None
-    except OSError as e:
-        raise ValueError(f"{file}: cannot read the file: {e.strerror or e}") from None
-    if not rows:
-        raise ValueError(f"{file}: no data rows after the header")
-    return np.array(rows, dtype=np.float64)
+    """The rows [t, x, y, theta] of `body` in a recording (CSV, `planar_lcp.recordings`: columns t, BODY.x, BODY.y,
+    BODY.theta; other bodies' columns are ignored). ValueError in one line naming the file (and the line and column
+    for a broken rule of the format)."""
+    from planar_lcp.recordings import read_recording
+
+    run = read_recording(file)
+    if body not in run.names:
+        raise ValueError(f"{file}: header must have the columns t, {body}.x, {body}.y, {body}.theta (a recording of "
+                         f"the body's poses), got the bodies {', '.join(run.names)}")
+    return run.path_rows(body)
 
 
 def path_pose(rows: np.ndarray, t) -> np.ndarray:

@@ -910,8 +910,8 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
 
 def _parse_path(v: _Validator, path: str, t: dict, btype: str) -> tuple:
     """A kinematic body's `path` (spec/path.py): rows [t, x, y, angle], or a CSV file name (relative to the scene
-    file's folder) of a recording with columns t, NAME.x, NAME.y, NAME.theta, or t, x, y, theta. As a tuple of row
-    tuples (a Scene is hashable); the pose at t = 0 becomes the body's position and angle."""
+    file's folder) of a recording (planar_lcp.recordings) with the body's columns NAME.x, NAME.y, NAME.theta. As a
+    tuple of row tuples (a Scene is hashable); the pose at t = 0 becomes the body's position and angle."""
     where = f"{path}.path"
     if btype != "kinematic":
         v.fail(f"{where} is only allowed on a kinematic body (prescribed motion), got a {btype} body")
