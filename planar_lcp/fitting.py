@@ -164,8 +164,11 @@ def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=
 
     Parameters
     ----------
-    scene : dict, or a sequence of dicts (one per recording)
-        The scene document(s) (a TOML file's document, e.g. `planar_lcp.spec.scene.read_document(path)[0]`).
+    scene : dict, a sequence of dicts (one per recording), or a function
+        The scene document(s) (a TOML file's document, e.g. `planar_lcp.spec.scene.read_document(path)[0]`) whose
+        named places the parameters are written to; or a function (i, {name: value}) -> the scene document of
+        recording i at those values (then `x0` is required and `setters` unused), for parameters that change more
+        than one key (e.g. `planar_lcp.experiments.pushdata.mit.push_scene`'s support ring).
     recordings : sequence of RecordedRun
         Times and poses of bodies the scene names: kinematic ones are inputs, dynamic ones observations.
     params : sequence of str
@@ -187,36 +190,44 @@ def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=
     from scipy.optimize import least_squares
 
     recordings = list(recordings)
-    docs = list(scene) if isinstance(scene, (list, tuple)) else [scene] * len(recordings)
-    if len(docs) != len(recordings):
-        raise ValueError(f"fit: {len(docs)} scenes for {len(recordings)} recordings; give one scene or one per "
-                         f"recording")
     if not recordings:
         raise ValueError("fit: no recordings")
     params = tuple(params)
     if not params:
         raise ValueError("fit: no parameters to fit")
+    build = scene if callable(scene) else None
+    if build is None:
+        docs = list(scene) if isinstance(scene, (list, tuple)) else [scene] * len(recordings)
+        if len(docs) != len(recordings):
+            raise ValueError(f"fit: {len(docs)} scenes for {len(recordings)} recordings; give one scene or one per "
+                             f"recording")
+    elif x0 is None:
+        raise ValueError("fit: a scene given as a function needs x0, the parameters' starting values")
     if x0 is None:
         x0 = [_read_param(docs[0], p) for p in params]
     x0 = np.asarray(x0, dtype=np.float64)
     lo, hi = (np.zeros(len(params)), np.full(len(params), np.inf)) if bounds is None else map(
         np.asarray, zip(*bounds))
+    if build is not None:
+        docs = [build(i, dict(zip(params, map(float, x0)))) for i in range(len(recordings))]
     if length_scale is None:
         length_scale = _mean_gyration(docs, recordings)
     every = max(1, int(every))
     mapper = map_runs or (lambda fn, args: [fn(*a) for a in args])
     evaluations = [0]
 
-    def with_values(doc, x):
-        d = copy.deepcopy(doc)
+    def with_values(i, x):
+        if build is not None:
+            return build(i, dict(zip(params, map(float, x))))
+        d = copy.deepcopy(docs[i])
         for name, value in zip(params, x):
             set_param(d, name, value, setters)
         return d
 
     def residuals_at(xs):
         """The residual vectors at several parameter points, every run of every point in one batch."""
-        jobs = [(with_values(doc, x), rec, every, length_scale, sim_options) for x in xs
-                for doc, rec in zip(docs, recordings)]
+        jobs = [(with_values(i, x), rec, every, length_scale, sim_options) for x in xs
+                for i, rec in enumerate(recordings)]
         parts = mapper(_residuals, jobs)
         evaluations[0] += len(xs)
         if progress is not None:
@@ -263,7 +274,7 @@ def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=
         start += size
     k = len(recordings)
     cov = JtJ_inv @ meat @ JtJ_inv * (k / max(1, k - 1))
-    per_run = [_run_errors(with_values(doc, res.x), rec, sim_options) for doc, rec in zip(docs, recordings)]
+    per_run = [_run_errors(with_values(i, res.x), rec, sim_options) for i, rec in enumerate(recordings)]
     names = list(params)
     return FitResult(params=params, values=dict(zip(names, map(float, res.x))),
                      stderr=dict(zip(names, map(float, np.sqrt(np.diag(cov_iid))))),

@@ -52,8 +52,15 @@ MASSES = {"rect1": 0.8374, "rect2": 1.045, "rect3": 1.2508, "tri1": 0.8028, "tri
 #: scene body names: every push's scene and recording use these, whatever the object
 OBJECT, PUSHER = "object", "pusher"
 #: push_scene's parameters: the table's Coulomb coefficient under the object (ABS: no value is published with the
-#: data; a guess to be fitted), the pusher-object coefficient (likewise), the time step, s
-DEFAULT_PARAMS = {"support_friction": 0.25, "pusher_friction": 0.25, "h": 0.004}
+#: data; a guess to be fitted), the pusher-object coefficient (likewise), the time step, s; the support pressure:
+#: `ring_share` of the load on a ring of RING_POINTS points (0: uniform over the outline), the outline shrunk by
+#: `ring_scale` about the centre of mass (`support_ring`); `inertia_scale` multiplies
+#: the object's mass and inertia while the table's load stays m g (1: the dynamics; small: the quasi-static limit,
+#: inertia negligible beside friction)
+DEFAULT_PARAMS = {"support_friction": 0.25, "pusher_friction": 0.25, "h": 0.004, "ring_share": 0.0,
+                  "ring_scale": 0.9, "inertia_scale": 1.0}
+#: the support ring's points (equal shares)
+RING_POINTS = 16
 #: the largest overlap of the pusher and the registered outline at t = 0 that `reconcile_start` removes, m; a deeper
 #: one is a registration failure, refused
 MAX_START_OVERLAP = 0.003
@@ -535,8 +542,9 @@ def push_scene(push: Push, params: dict | None = None, with_path: bool = True,
                model: ObjectModel | None = None) -> dict:
     """The scene of one push, as the dict `planar_lcp.spec.scene.parse_scene` takes.
 
-    Horizontal plane, support_gravity 9.81; the body OBJECT (dynamic: the registered outline's convex pieces, its
-    mass, uniform over the outline; at its first recorded pose, at rest) and the body PUSHER (kinematic disk of
+    Horizontal plane, support_gravity GRAVITY / inertia_scale; the body OBJECT (dynamic: the registered outline's
+    convex pieces, its mass times inertia_scale, the support pressure uniform over the outline or ring_share of it
+    on `support_ring`; at its first recorded pose, at rest) and the body PUSHER (kinematic disk of
     PUSHER_RADIUS following the recorded tip, `tip_path` after `reconcile_start`); world.friction the
     pusher-object coefficient; sim.h and sim.t_end the recording's duration.
 
@@ -564,19 +572,41 @@ def push_scene(push: Push, params: dict | None = None, with_path: bool = True,
     else:
         pusher["position"] = rows[0, 1:3].tolist()
     n = push.name
+    obj = {"name": OBJECT, "type": "dynamic", "mass": model.mass * float(p["inertia_scale"]), "position": [x, y],
+           "angle": th, "support_friction": float(p["support_friction"]),
+           "shapes": [{"type": "polygon", "vertices": piece.tolist()} for piece in model.pieces]}
+    if p["ring_share"] > 0.0:
+        obj["support_points"] = support_ring(model, float(p["ring_scale"])).tolist()
+        obj["support_share"] = float(p["ring_share"])
     return {
         "name": f"mit_{n.shape}",
         "description": (f"MIT push {Path(push.path).name}: {n.shape} on {n.surface}, v = {n.v:g} mm/s, side {n.i}, "
                         f"s = {n.s:g}, t = {n.t:g} rad (Yu et al. 2016)"),
-        "world": {"plane": "horizontal", "support_gravity": 9.81, "friction": float(p["pusher_friction"])},
+        # the table's load m g whatever inertia_scale does to the mass
+        "world": {"plane": "horizontal", "support_gravity": GRAVITY / float(p["inertia_scale"]),
+                  "friction": float(p["pusher_friction"])},
         "sim": {"h": float(p["h"]), "t_end": push.duration},
-        "bodies": [
-            {"name": OBJECT, "type": "dynamic", "mass": model.mass, "position": [x, y], "angle": th,
-             "support_friction": float(p["support_friction"]),
-             "shapes": [{"type": "polygon", "vertices": piece.tolist()} for piece in model.pieces]},
-            pusher,
-        ],
+        "bodies": [obj, pusher],
     }
+
+
+#: m/s^2
+GRAVITY = 9.81
+
+
+def support_ring(model: ObjectModel, scale: float) -> np.ndarray:
+    """(RING_POINTS, 2) points, pose frame, m: the outline shrunk about its centroid (the centre of mass) by `scale`
+    (1: on the outline), sampled evenly by arc length: a ring that follows the object's shape, inside it for an
+    outline star-shaped about its centroid (every object of the data set)."""
+    from planar_lcp.experiments.pushdata.outline import centroid
+
+    poly = model.outline
+    closed = np.vstack([poly, poly[:1]])
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(closed, axis=0).T))])
+    at = arc[-1] * np.arange(RING_POINTS) / RING_POINTS
+    rim = np.column_stack([np.interp(at, arc, closed[:, 0]), np.interp(at, arc, closed[:, 1])])
+    c = centroid(poly)
+    return c + scale * (rim - c)
 
 
 def push_recording(push: Push, model: ObjectModel | None = None) -> RecordedRun:
