@@ -7,10 +7,10 @@ them and `planar-lcp pushdata fit` recovers TRUE.
 How the files are made so that the reader's registration of the outline does not depend on the simulated poses:
 the force stream rises (2 N over a 0.01 N noise) when the tip is 2 mm from the circle, about 1 mm of travel before
 it touches; the three pushes press it at points 120 degrees apart, so the registration (a shift: a circle has no
-angle) stays near the identity and the contacts it uses are read while the object is still at rest. Each file is first written with
-the object at rest (the registration reads only that part), then with the poses simulated on the registered
-outline; `make_root` checks that the registration is the same after, and that the files' poses are reproduced to
-1e-12 m.
+angle) stays near the identity and the contacts it uses are read while the object is still at rest. Each file is
+first written with the object at rest (the registration reads only that part), then with the poses simulated on the
+registered outline; `make_root` checks that the registration is the same after, and that the files' poses are
+reproduced to 1e-12 m.
 """
 
 import math

@@ -304,9 +304,9 @@ def _predict(args):
 
 def plot_push(path, push, model, recording, pred, result):
     """A push's figure (PNG): the recorded (solid) and predicted (dashed) paths of the object's centre (its
-    outline's centroid) and the pusher's path, the outline (and a tick along the body's x axis from the centre) at OUTLINE_INSTANTS
-    instants recorded (solid) and predicted (dashed), with the pusher there, mm, equal aspect; the title gives the
-    file's parameters and the final errors."""
+    outline's centroid) and the pusher's path, the outline (and a tick along the body's x axis from the centre) at
+    OUTLINE_INSTANTS instants recorded (solid) and predicted (dashed), with the pusher there, mm, equal aspect; the
+    title gives the file's parameters and the final errors."""
     import numpy as np
 
     from planar_lcp.experiments.pushdata.mit import OBJECT, PUSHER, PUSHER_RADIUS
