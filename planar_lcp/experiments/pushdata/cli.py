@@ -213,12 +213,12 @@ def _summary_lines(results):
         objects[r["object"]] = objects.get(r["object"], 0) + 1
     what = ", ".join(f"{k} {v}" for k, v in sorted(objects.items()))
     if len(results) < 2 or not all(math.isfinite(c) for c in s["nmse_components"]):
-        nmse = "n/a (the recorded displacements must vary: 2 pushes at least)"
+        nmse = "n/a: the recorded final displacements must vary (2 pushes at least)"
     else:
         dx, dy, dth = s["nmse_components"]
-        nmse = f"{s['nmse']:.3f} (dx {dx:.3f}, dy {dy:.3f}, dtheta {dth:.3f})"
+        nmse = f"{s['nmse']:.3f} (dx {dx:.3f}, dy {dy:.3f}, dtheta {dth:.3f}) of the final displacements"
     return s, [f"pushes         {len(results)} ({what})",
-               f"NMSE           {nmse} of the final displacements",
+               f"NMSE           {nmse}",
                f"median error   {1000 * s['median_position_error']:.2f} mm, "
                f"{math.degrees(s['median_angle_error']):.2f} deg at the end of the push"]
 
