@@ -311,7 +311,8 @@ def _bad_inputs(root, files, tmp):
     bad_json.write_text("{")
     unknown = tmp / "unknown.json"
     unknown.write_text(json.dumps({"format": FORMAT, "version": 1, "parameters": {"mu": 1}}))
-    known = "support_friction, pusher_friction, h"
+    known = ", ".join(mit.DEFAULT_PARAMS)
+    fitted = ", ".join(k for k in mit.DEFAULT_PARAMS if k != "h")
     return [
         (["predict", str(tmp / "no.h5"), "--csv", csv_out], f"{tmp / 'no.h5'}: no such file"),
         (["predict", str(empty), "--csv", csv_out], f"{empty}: must be a push file (*.h5), got a directory"),
@@ -344,10 +345,9 @@ def _bad_inputs(root, files, tmp):
         (["fit", str(root), "--out", str(tmp / "m.json"), "--jobs", "two"],
          "argument --jobs: must be an integer, got 'two'"),
         (["fit", str(root), "--out", str(tmp / "m.json"), "--params", "support_friction,mu"],
-         "--params: unknown parameter 'mu' (known: support_friction, pusher_friction)"),
+         f"--params: unknown parameter 'mu' (known: {fitted})"),
         (["fit", str(root), "--out", str(tmp / "m.json"), "--params", "h"],
-         "--params: h is the simulation's time step, not a parameter to fit (fitted: support_friction, "
-         "pusher_friction)"),
+         f"--params: h is the simulation's time step, not a parameter to fit (fitted: {fitted})"),
         (["fit", str(root), "--out", str(tmp / "m.json"), "--params", "pusher_friction,pusher_friction"],
          "--params must be distinct, got 'pusher_friction,pusher_friction'"),
         (["fit", str(root), "--out", str(tmp / "m.json"), "--params", "support_friction,"],

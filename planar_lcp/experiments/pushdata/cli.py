@@ -489,7 +489,7 @@ class _FitProgress:
 
     def evaluation(self, n):
         if self.bar.bar is not None:
-            self.bar.bar.set_postfix_str(f"{n} evaluations of {self.n_runs} pushes")
+            self.bar.bar.set_postfix_str(f"{n} evaluation{'s' if n != 1 else ''} of {self.n_runs} pushes")
 
     def close(self):
         self.bar.close()
@@ -664,6 +664,9 @@ def _report_fit(args, names, start, pushes, result, fit_names, bounds, fitted, p
     for name in failed:
         print(f"failed         {name}: its simulation at the fitted values failed")
     print(f"wrote          {args.out}")
+    if failed:
+        return _error(f"{PROG} fit", f"{len(failed)} of {len(pushes)} pushes failed to simulate at the fitted values "
+                                     f"({', '.join(failed)}); their errors are not in {args.out}", 1)
     return 0
 
 
