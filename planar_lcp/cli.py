@@ -456,7 +456,7 @@ def _simulate(args):
 #: Modules that add subcommands: each has `register(subparsers)`, which adds its parsers with set_defaults(func=...)
 #: and must import heavy or optional libraries (matplotlib, pymunk, ompl) only inside the command's function.
 COMMAND_MODULES = ["planar_lcp.experiments.compare_cli", "planar_lcp.experiments.studies",
-                   "planar_lcp.experiments.tradeoff"]
+                   "planar_lcp.experiments.tradeoff", "planar_lcp.experiments.pushdata.cli"]
 #: Other installed packages add subcommands the same way through this entry-point group (`register(subparsers)`):
 #: planners (plan, replay, plan-bench) does, in pyproject.toml. planar_lcp itself never names them.
 COMMAND_ENTRY_POINTS = "planar_lcp.commands"

@@ -415,6 +415,52 @@ def test_plan_bench(tmp_path):
     check_dir(out, ["tip_box.log", "tip_box.db", "summary.md", "summary.json", "boxplots.png", "records.jsonl"])
 
 
+@pytest.fixture(scope="module")
+def push_root(tmp_path_factory):
+    """A small data root in the MIT pushing data set's layout made by our simulator (tests/pushdata_synthetic.py):
+    the pushdata commands run without the data."""
+    pytest.importorskip("h5py")
+    from pushdata_synthetic import make_root
+    root = tmp_path_factory.mktemp("mit_push")
+    return root, make_root(root)
+
+
+@covers("pushdata predict")
+def test_pushdata_predict(push_root, tmp_path):
+    from pushdata_synthetic import TRUE
+    root, files = push_root
+    model = tmp_path / "model.json"
+    model.write_text(json.dumps({"format": "planar_lcp.push_model", "version": 1, "parameters": TRUE}))
+    out, plots = tmp_path / "pred.csv", tmp_path / "plots"
+    r = run_cli("pushdata", "predict", *files, "--model", model, "--csv", out, "--plots", plots, cwd=tmp_path,
+                env={"PLANAR_LCP_MIT_PUSH": str(root)})
+    ok(r)
+    header, rows = check_csv(out, first="file", numeric=["t", "x", "y", "theta"], min_rows=100)
+    assert header == ["file", "t", "x", "y", "theta"] and {row[0] for row in rows} == {f.name for f in files}
+    check_dir(plots, [f"{f.stem}.png" for f in files])
+    assert sorted(wrote_lines(r.stdout)) == sorted([str(out)] + [str(plots / f"{f.stem}.png") for f in files])
+    assert "median error   0.00 mm, 0.00 deg at the end of the push" in r.stdout
+
+
+@covers("pushdata fit")
+def test_pushdata_fit(push_root, tmp_path):
+    from pushdata_synthetic import TRUE
+    root, files = push_root
+    out = tmp_path / "model.json"
+    r = run_cli("pushdata", "fit", root, "--out", out, "--params", "support_friction,pusher_friction", "--every",
+                "2", "--jobs", "2", "--exclude-shape", "ellip1", cwd=tmp_path, env={"PLANAR_LCP_MIT_PUSH": str(root)})
+    assert r.returncode == 2 and r.stderr == "planar-lcp pushdata fit: error: --exclude-shape leaves no push to fit " \
+                                             "(objects: ellip1)\n", r.stderr
+    r = run_cli("pushdata", "fit", root, "--out", out, "--params", "support_friction,pusher_friction", "--every",
+                "2", "--jobs", "2", cwd=tmp_path, env={"PLANAR_LCP_MIT_PUSH": str(root)})
+    ok(r)
+    d = check_json(out, ["format", "version", "parameters", "stderr", "stderr_by_run", "fitted_on", "objects",
+                         "cost", "per_push", "settings", "command"])
+    for name in ("support_friction", "pusher_friction"):
+        assert abs(d["parameters"][name] - TRUE[name]) < 1e-6
+    assert d["fitted_on"] == [f.name for f in files] and wrote_lines(r.stdout) == [str(out)]
+
+
 @covers("tradeoff")
 def test_tradeoff_quick(tmp_path):
     out = tmp_path / "to"
