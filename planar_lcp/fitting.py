@@ -2,7 +2,7 @@
 
     result = planar_lcp.fit(scene_doc, recordings, params=["bodies.box.support_friction", "world.friction"])
 
-Each recording (`planar_lcp.recordings.RecordedRun`: times and the poses of bodies the scene names) is simulated
+Each recording (`planar_lcp.spec.recordings.RecordedRun`: times and the poses of bodies the scene names) is simulated
 with the scene: its kinematic bodies follow their recorded poses (`path`), its dynamic bodies start at rest at their
 first recorded poses, and the run lasts the recording. The residuals are, at every recorded sample (or every
 `every`-th) and for every observed (dynamic) body, the predicted minus the recorded x, y and length_scale times the

@@ -18,7 +18,7 @@ def test_import_does_not_pull_in_optional_libraries():
 
 # the public API as planar_lcp's docstring and the README's "Python" section document it
 PUBLIC_API = {"LCPResult", "Scene", "SceneError", "SimOptions", "SimulationError", "Simulator", "Trajectory", "lemke",
-              "list_scenes", "load_scene", "simulate"}
+              "list_scenes", "load_scene", "simulate", "fit", "kinematic_velocities"}
 
 
 def test_all_is_exactly_the_public_api():

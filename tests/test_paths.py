@@ -90,7 +90,7 @@ def test_pymunk_moves_the_body_along_the_same_path():
 
 
 def test_a_csv_path_relative_to_the_scene_file(tmp_path):
-    """A recording's file (planar_lcp.recordings) with the pusher's and another body's columns."""
+    """A recording's file (planar_lcp.spec.recordings) with the pusher's and another body's columns."""
     rows = np.asarray(WIGGLE["path"])
     (tmp_path / "sub").mkdir()
     (tmp_path / "sub" / "tip.csv").write_text("t,pusher.x,pusher.y,pusher.theta,box.x,box.y,box.theta\n" + "".join(

@@ -17,7 +17,7 @@ from planar_lcp.experiments.pushdata import mit
 from planar_lcp.experiments.pushdata.outline import (Registration, centroid, clean, convex_pieces, is_convex_ccw,
                                                      register_outline, rotational_symmetry, signed_area,
                                                      signed_distance)
-from planar_lcp.recordings import read_recording
+from planar_lcp.spec.recordings import read_recording
 from planar_lcp.spec.massprops import body_mass_properties
 from planar_lcp.spec.scene import SceneError, parse_scene
 

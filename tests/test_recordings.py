@@ -1,4 +1,4 @@
-"""Recordings (planar_lcp.recordings): the CSV format of a recorded run read back bit for bit, the columns of
+"""Recordings (planar_lcp.spec.recordings): the CSV format of a recorded run read back bit for bit, the columns of
 `simulate --csv` accepted, every rule of the format refused with one line naming the file, the line or column, the
 expected and the actual; the scene decides which bodies are inputs and which are observed."""
 
@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from planar_lcp.recordings import RecordedRun, RecordingError, read_recording
+from planar_lcp.spec.recordings import RecordedRun, RecordingError, read_recording
 from planar_lcp.spec.scene import parse_scene
 
 

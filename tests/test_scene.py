@@ -440,7 +440,7 @@ S00, S10, S20 = B0 + ("shapes", 0), B1 + ("shapes", 0), B2 + ("shapes", 0)
 SQUARE_CW = [[0, 0], [0, 1], [1, 1], [1, 0]]
 PENTAGRAM = [[math.cos(2 * math.pi * i / 5), math.sin(2 * math.pi * i / 5)] for i in (0, 2, 4, 1, 3)]
 BODY_KEYS = ("name, type, shapes, mass, inertia, position, angle, angle_deg, velocity, angular_velocity, "
-             "support_friction, support_points, max_force, max_torque")
+             "support_friction, support_points, support_share, max_force, max_torque, path")
 
 # (id, base, mutations, message after "x.toml: ")
 CASES = [
@@ -697,6 +697,12 @@ def test_docs_examples_are_valid():
     import tomllib
     doc = (Path(__file__).resolve().parents[1] / "docs" / "scene-format.md").read_text()
     blocks = re.findall(r"```toml\n(.*?)```", doc, flags=re.S)
+    # "Recorded paths": a kinematic body on its path, in a table scene
+    path_block = next(b for b in blocks if "path = [[" in b)
+    blocks.remove(path_block)
+    body = tomllib.loads(path_block)["bodies"][0]
+    pusher = parse_scene({"name": "doc", "world": {"plane": "horizontal"}, "bodies": [body]}, "doc").body("pusher")
+    assert pusher.path[0] == (0.0, -0.12, 0.02, 0.0) and len(pusher.path) == 3 and pusher.position == (-0.12, 0.02)
     assert len(blocks) == 3
     first = parse_scene(tomllib.loads(blocks[0]), "doc")
     shipped = load_scene("box_tip")

@@ -82,10 +82,10 @@ def check_path_rows(rows, max_length: float, max_speed: float, max_angular_speed
 
 
 def read_path_csv(file, body: str) -> np.ndarray:
-    """The rows [t, x, y, theta] of `body` in a recording (CSV, `planar_lcp.recordings`: columns t, BODY.x, BODY.y,
+    """The rows [t, x, y, theta] of `body` in a recording (CSV, `planar_lcp.spec.recordings`: columns t, BODY.x, BODY.y,
     BODY.theta; other bodies' columns are ignored). ValueError in one line naming the file (and the line and column
     for a broken rule of the format)."""
-    from planar_lcp.recordings import read_recording
+    from planar_lcp.spec.recordings import read_recording
 
     run = read_recording(file)
     if body not in run.names:

@@ -910,7 +910,7 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
 
 def _parse_path(v: _Validator, path: str, t: dict, btype: str) -> tuple:
     """A kinematic body's `path` (spec/path.py): rows [t, x, y, angle], or a CSV file name (relative to the scene
-    file's folder) of a recording (planar_lcp.recordings) with the body's columns NAME.x, NAME.y, NAME.theta. As a
+    file's folder) of a recording (planar_lcp.spec.recordings) with the body's columns NAME.x, NAME.y, NAME.theta. As a
     tuple of row tuples (a Scene is hashable); the pose at t = 0 becomes the body's position and angle."""
     where = f"{path}.path"
     if btype != "kinematic":

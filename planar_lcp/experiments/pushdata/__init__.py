@@ -1,4 +1,4 @@
-"""Readers of recorded pushing data sets, into this package's scenes and recordings (planar_lcp.recordings).
+"""Readers of recorded pushing data sets, into this package's scenes and recordings (planar_lcp.spec.recordings).
 
 `mit`: the MIT pushing data set (Yu et al., IROS 2016), its h5 files and object outlines (docs/real_pushes.md);
 `outline`: the planar geometry it needs (convex pieces of a non-convex outline, signed distance, registration);

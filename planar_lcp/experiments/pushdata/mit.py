@@ -37,7 +37,7 @@ import numpy as np
 
 from planar_lcp.experiments.pushdata.outline import (Registration, clean, convex_pieces, register_outline,
                                                      signed_distance)
-from planar_lcp.recordings import RecordedRun
+from planar_lcp.spec.recordings import RecordedRun
 
 #: the environment variable naming the data root
 DATA_ENV = "PLANAR_LCP_MIT_PUSH"
@@ -610,7 +610,7 @@ def support_ring(model: ObjectModel, scale: float) -> np.ndarray:
 
 
 def push_recording(push: Push, model: ObjectModel | None = None) -> RecordedRun:
-    """The push as a recording (planar_lcp.recordings) on the object's sample times: OBJECT (observed: its recorded
+    """The push as a recording (planar_lcp.spec.recordings) on the object's sample times: OBJECT (observed: its recorded
     pose) and PUSHER (the input: the tip after `reconcile_start`, interpolated linearly onto those times, angle 0)."""
     model = model or object_model(push.shape, push.root)
     rows = tip_path(push, reconcile_start(push, model))
