@@ -544,6 +544,7 @@ def _cmd_fit(args):
 def _fit(args):
     from planar_lcp.cli import InputError, check_output_file, require
     from planar_lcp.experiments.pushdata import mit
+    from planar_lcp.experiments.pushdata.model_file import ModelFileError, read_model
 
     require("h5py", "scipy")
     if args.scheduler is not None and args.jobs_given:
@@ -566,8 +567,13 @@ def _fit(args):
     files = [f for f in files if mit.parse_push_name(f).shape not in set(args.exclude_shape or ())]
     if not files:
         raise InputError(f"--exclude-shape leaves no push to fit (objects: {', '.join(shapes)})")
+    start, where = dict(mit.DEFAULT_PARAMS), "mit.DEFAULT_PARAMS"
+    if args.start is not None:
+        try:
+            start, where = read_model(args.start).parameters, args.start
+        except ModelFileError as e:
+            raise InputError(f"--start {e}") from None
     pushes, models = _load(files)
-    start = dict(mit.DEFAULT_PARAMS)
     _scenes(pushes, models, start)               # every push makes a scene: checked before the work
     docs, fit_names, setters, x0, bounds = fit_setup(pushes, models, names, start)
     recs = [mit.push_recording(p, m) for p, m in zip(pushes, models)]
@@ -576,7 +582,7 @@ def _fit(args):
     for p in pushes:
         counts[p.shape] = counts.get(p.shape, 0) + 1
     objects = ", ".join(f"{k} {v}" for k, v in sorted(counts.items()))
-    print(f"fitting        {', '.join(names)} from {_params_text({n: start[n] for n in names})} (mit.DEFAULT_PARAMS)",
+    print(f"fitting        {', '.join(names)} from {_params_text({n: start[n] for n in names})} ({where})",
           flush=True)
     print(f"pushes         {len(pushes)} of {len(counts)} object(s): {objects}", flush=True)
     for line in _registrations(pushes, models):
@@ -718,6 +724,9 @@ def register(subparsers):
     ft.add_argument("--out", required=True, metavar="MODEL.json", help="the model file to write")
     ft.add_argument("--params", default=",".join(DEFAULT_FIT_PARAMS), metavar="NAME,NAME",
                     help=f"the parameters to fit, separated by commas (default {','.join(DEFAULT_FIT_PARAMS)})")
+    ft.add_argument("--start", metavar="MODEL.json", help="start from this model file's parameters (the local "
+                    "minimum least squares finds depends on the start; default mit.DEFAULT_PARAMS); the parameters "
+                    "not fitted keep their values from it too")
     ft.add_argument("--every", type=finite_number(int, 1, False), default=1, metavar="K",
                     help="keep every K-th recorded sample of each push (and its last) in the residuals (default 1)")
     ft.add_argument("--jobs", type=finite_number(int, 1, False), default=1, action=_Jobs, metavar="N",
