@@ -178,8 +178,9 @@ def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=
     every : int
         Keep every `every`-th sample of each recording in the residuals (and its last).
     length_scale : float
-        m per rad in the residuals (default: the mean gyration radius of the observed bodies' shapes, so that an
-        angle error weighs as the displacement of the body's typical point).
+        m per rad in the residuals (default: the mean gyration radius of the shapes of the FIRST recording's observed
+        bodies, so that an angle error weighs as the displacement of a typical point; give it for recordings of
+        objects of different sizes). `FitResult.settings` records the one used.
     map_runs : callable(fn, list of args) -> list
         How the recordings' runs are evaluated (default: in this process, in order); e.g. a Dask client's map.
     progress : callable(evaluations_done) or None
