@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from cli_helpers import ROOT, ctrl_c_cli, run_cli
+from mit_data import DATA, needs_data
 from planar_lcp.experiments.pushdata import mit, score
 from planar_lcp.experiments.pushdata.model_file import FORMAT, ModelFileError, read_model, write_model
 
@@ -425,21 +426,6 @@ def test_ctrl_c_stops_a_fit_on_a_local_cluster_and_its_workers(synthetic, tmp_pa
 
 # ---------------------------------------------------------------------------------------------------------------
 # The data
-
-
-def _data_root():
-    found = mit.find_data_root()
-    if found is not None:
-        return found
-    for up in (ROOT / "..", ROOT / ".." / ".."):
-        if (up / "shared" / "data" / "mit-push" / "objects").is_dir():
-            return (up / "shared" / "data" / "mit-push").resolve()
-    return None
-
-
-DATA = _data_root()
-needs_data = pytest.mark.skipif(DATA is None, reason="the MIT push data (../shared/data/mit-push) is absent: set "
-                                                     "PLANAR_LCP_MIT_PUSH to its folder")
 
 
 @needs_data

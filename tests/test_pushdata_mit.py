@@ -3,7 +3,6 @@ distance, rotational symmetry and registration checked on synthetic outlines to 
 ../shared, never copied here; every data test skips cleanly when it is absent): the streams, the contact onsets, each
 object's registration, the start overlaps reconciled, the scene and recording of every push."""
 
-import dataclasses
 import math
 import os
 import subprocess
@@ -13,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mit_data import DATA, needs_data
 from planar_lcp.experiments.pushdata import mit
 from planar_lcp.experiments.pushdata.outline import (Registration, centroid, clean, convex_pieces, is_convex_ccw,
                                                      register_outline, rotational_symmetry, signed_area,
@@ -22,23 +22,6 @@ from planar_lcp.spec.massprops import body_mass_properties
 from planar_lcp.spec.scene import SceneError, parse_scene
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def _data_root():
-    """The data: $PLANAR_LCP_MIT_PUSH, else ../shared/data/mit-push beside this checkout (or one folder further up,
-    for a checkout in a folder of worktrees)."""
-    found = mit.find_data_root()
-    if found is not None:
-        return found
-    for up in (ROOT / "..", ROOT / ".." / ".."):
-        if (up / "shared" / "data" / "mit-push" / "objects").is_dir():
-            return (up / "shared" / "data" / "mit-push").resolve()
-    return None
-
-
-DATA = _data_root()
-needs_data = pytest.mark.skipif(DATA is None, reason="the MIT push data (../shared/data/mit-push) is absent: set "
-                                                     "PLANAR_LCP_MIT_PUSH to its folder")
 
 
 def _rot(th):
