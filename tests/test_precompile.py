@@ -12,23 +12,12 @@ import textwrap
 import numpy as np
 import pytest
 
+from cli_helpers import _COMPILE_LISTENER
 from planar_lcp.engine import precompile
 
-# Runs a snippet in a fresh process on the numba cache `cache`; prints a JSON list of the functions numba compiled.
-_PROBE = textwrap.dedent("""
-    import json, sys
-    from numba.core import event
-    compiled = []
-    class L(event.Listener):
-        def on_start(self, ev):
-            d = ev.data.get("dispatcher")
-            compiled.append(d.py_func.__module__ + "." + d.py_func.__qualname__ if d is not None else "?")
-        def on_end(self, ev):
-            pass
-    event.register("numba:compile", L())
-    {body}
-    print(json.dumps(compiled))
-""")
+# Runs a snippet in a fresh process on the numba cache `cache`; prints a JSON list of the functions numba compiled
+# (cli_helpers' compile listener, the one python_compiling runs).
+_PROBE = _COMPILE_LISTENER + "import sys\n{body}\nprint(json.dumps(compiled))\n"
 
 
 def _run(body, cache, **env):
