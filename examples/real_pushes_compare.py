@@ -31,21 +31,15 @@ from pathlib import Path
 import numpy as np
 
 
-def final_displacement(poses):
-    """(dx, dy, dtheta) from the first to the last pose, dx, dy in the initial pose's frame."""
-    d = poses[-1] - poses[0]
-    c, s = np.cos(poses[0, 2]), np.sin(poses[0, 2])
-    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]])
-
-
 def scores(rec, pred, along):
-    rec, pred = np.asarray(rec), np.asarray(pred)
-    nmse = float(np.mean(((pred - rec) ** 2).sum(0) / ((rec - rec.mean(0)) ** 2).sum(0)))
-    pos = np.hypot(*(pred - rec)[:, :2].T) * 1e3
-    ang = np.degrees(np.abs(pred - rec)[:, 2])
-    return {"nmse": nmse, "median_position_mm": float(np.median(pos)), "median_angle_deg": float(np.median(ang)),
-            "max_position_mm": float(pos.max()), "median_rms_along_mm": float(np.median(along)) * 1e3,
-            "pushes": len(rec)}
+    """The table's scores of N pushes from their recorded and predicted final displacements (N, 3) and each push's
+    rms position error along it (m): planar_lcp.experiments.pushdata.score."""
+    from planar_lcp.experiments.pushdata import score
+
+    pos, ang = score.final_errors(pred, rec)
+    return {"nmse": score.nmse(pred, rec), "median_position_mm": float(np.median(pos)) * 1e3,
+            "median_angle_deg": float(np.degrees(np.median(ang))), "max_position_mm": float(pos.max()) * 1e3,
+            "median_rms_along_mm": float(np.median(along)) * 1e3, "pushes": len(rec)}
 
 
 def predict(push, params, simulator="planar_lcp", support_model=None):
@@ -89,7 +83,7 @@ def fit_on(pushes, every, kind="fitted"):
 
 
 def evaluate(pushes, fitted, models, ring=None):
-    from planar_lcp.experiments.pushdata import mit
+    from planar_lcp.experiments.pushdata import mit, score
 
     out = {}
     for name in models:
@@ -101,8 +95,8 @@ def evaluate(pushes, fitted, models, ring=None):
         rec_d, pred_d, along, cpu, curves = [], [], [], [], []
         for p in pushes:
             rec, pred, c = predict(p, params, **kw)
-            rec_d.append(final_displacement(rec))
-            pred_d.append(final_displacement(pred))
+            rec_d.append(score.final_displacement(rec))
+            pred_d.append(score.final_displacement(pred))
             err = np.hypot(*(pred - rec)[:, :2].T)
             along.append(float(np.sqrt(np.mean(err ** 2))))
             curves.append(err)
