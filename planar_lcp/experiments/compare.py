@@ -56,13 +56,17 @@ def _time_ours(model, options, nsteps, repeats=3):
     """Microseconds per step of Simulator.rollout over nsteps steps, best of `repeats`, after a warm-up."""
     from planar_lcp.sim import Simulator
 
+    from planar_lcp.spec.path import kinematic_velocities
+
     simr = Simulator(model, options)
-    q0, v0, qk0, vk0 = simr.initial_state()
-    simr.rollout(q0, v0, qk0, vk0[None], nsteps, stop_on_failure=False)  # warm-up: JIT compile / cache load
+    q0, v0, qk0, _ = simr.initial_state()
+    # the run's own kinematic velocities (a `path` body's change step by step), as simulate() takes them
+    vk_seq = kinematic_velocities(model.scene, model.kin_names, simr.h, nsteps)
+    simr.rollout(q0, v0, qk0, vk_seq, nsteps, stop_on_failure=False)  # warm-up: JIT compile / cache load
     best = np.inf
     for _ in range(max(1, int(repeats))):
         t0 = time.perf_counter()
-        simr.rollout(q0, v0, qk0, vk0[None], nsteps, stop_on_failure=False)
+        simr.rollout(q0, v0, qk0, vk_seq, nsteps, stop_on_failure=False)
         best = min(best, time.perf_counter() - t0)
     return 1e6 * best / max(1, nsteps)
 
