@@ -6,6 +6,7 @@ The OMPL state is the full physics state, so propagation is a pure function of (
                        + R^3 (object vx, vy, omega)
                        [+ SE2 + R^3 for each obstacle, in Task.obstacles order (push_clutter)]
                        + R^2 (pusher x, y)
+                       [+ R^1 (time t) when a kinematic body follows a `path`: Task.moving]
 
 with the task's distance weights `Task.weights = (w_pos, w_ang, w_vel, w_pus)` (derived from the object's size by
 `planar_lcp.spec.task.derived_weights`, the reasons in docs/planning.md), so that OMPL's distance between two states is
@@ -13,7 +14,7 @@ with the task's distance weights `Task.weights = (w_pos, w_ang, w_vel, w_pus)` (
     w_pos |dxy| + w_ang |dtheta| + w_vel |(dvx, dvy, domega)| + w_pus |dpusher|
 
 (|.| Euclidean, dtheta the shorter way round), plus for each obstacle w_obs |dxy| + w_obs w_ang / w_pos |dtheta| +
-w_vel |dv| (w_obs = Task.obstacle_weight). SE2 is itself compound (R^2 weight 1, SO2 weight 0.5): it enters with
+w_vel |dv| (w_obs = Task.obstacle_weight), plus Task.time_weight |dt| for a timed task. SE2 is itself compound (R^2 weight 1, SO2 weight 0.5): it enters with
 weight w_pos and its SO2 part with w_ang / w_pos. tests/test_planning.py checks this formula against OMPL.
 
 Controls: R^2, the pusher velocity (m/s). Each propagate() call is ONE jitted rollout of
@@ -48,26 +49,30 @@ INVALID_X = 1.0e9        # object x written for a state whose propagation failed
 SYCLOP_GRID = 10         # Syclop's decomposition: SYCLOP_GRID x SYCLOP_GRID cells over the object's workspace
 
 
-def read_state(s, nobj=1):
-    """The flat state (6 nobj + 2,) of an OMPL state (planners.tasks); one slice per vector part, as each element
-    read costs a binding call."""
+def read_state(s, nobj=1, timed=False):
+    """The flat state (6 nobj + 2 [+ 1 timed],) of an OMPL state (planners.tasks); one slice per vector part, as
+    each element read costs a binding call."""
     x = []
     for i in range(nobj):
         o = s[2 * i]
         x += [o.getX(), o.getY(), o.getYaw(), *s[2 * i + 1][0:3]]
     x += s[2 * nobj][0:2]
+    if timed:
+        x.append(s[2 * nobj + 1][0])
     return np.array(x)
 
 
-def write_state(s, x, nobj=1):
-    """Write EVERY component of the flat state x (6 nobj + 2,) into the OMPL state s (OMPL does not clear
-    `result`)."""
+def write_state(s, x, nobj=1, timed=False):
+    """Write EVERY component of the flat state x (6 nobj + 2 [+ 1 timed],) into the OMPL state s (OMPL does not
+    clear `result`)."""
     for i in range(nobj):
         o = s[2 * i]
         o.setXY(float(x[6 * i]), float(x[6 * i + 1]))
         o.setYaw(float(x[6 * i + 2]))
         s[2 * i + 1][0:3] = [float(x[6 * i + 3]), float(x[6 * i + 4]), float(x[6 * i + 5])]
     s[2 * nobj][0:2] = [float(x[6 * nobj]), float(x[6 * nobj + 1])]
+    if timed:
+        s[2 * nobj + 1][0] = float(x[6 * nobj + 2])
 
 
 def bounds(low, high):
@@ -86,7 +91,8 @@ class Propagator:
         self.calls = 0
 
     def __call__(self, start, control, duration, result):
-        x = read_state(start, self.tm.nobj)      # read all of start before writing result (they may alias)
+        # read all of start before writing result (they may alias)
+        x = read_state(start, self.tm.nobj, self.tm.timed)
         u = (control[0], control[1])
         del start, control                       # no wrapper may outlive this call (module docstring)
         n = int(round(duration / self.tm.h))
@@ -95,7 +101,7 @@ class Propagator:
             y = x.copy()
             y[0] = INVALID_X
         self.calls += 1
-        write_state(result, y, self.tm.nobj)
+        write_state(result, y, self.tm.nobj, self.tm.timed)
         del result
 
 
@@ -110,12 +116,12 @@ class TaskGoal(ob.GoalSampleableRegion):
         self.rng = ou.RNG()                      # seeded by ou.RNG.setSeed like the planner's: plans reproduce
 
     def distanceGoal(self, state):
-        x = read_state(state, self.tm.nobj)
+        x = read_state(state, self.tm.nobj, self.tm.timed)
         del state                                # no wrapper may outlive this call (module docstring)
         return float(self.tm.goal_distance(x))
 
     def sampleGoal(self, state):
-        write_state(state, self.tm.sample_goal(self.rng.uniformReal), self.tm.nobj)
+        write_state(state, self.tm.sample_goal(self.rng.uniformReal), self.tm.nobj, self.tm.timed)
         del state
 
     def maxSampleCount(self):
@@ -164,8 +170,9 @@ class ObjectGrid(oc.GridDecomposition):
 
 
 def state_space(tm):
-    """The weighted CompoundStateSpace of a TaskModel (module docstring: SE2 + R^3 per body, R^2, the distance
-    formula); each body's SE2 bounds are its centre-of-mass bounds (`TaskModel.com_bounds`)."""
+    """The weighted CompoundStateSpace of a TaskModel (module docstring: SE2 + R^3 per body, R^2, [R^1,] the
+    distance formula); each body's SE2 bounds are its centre-of-mass bounds (`TaskModel.com_bounds`), a timed
+    task's time is in [0, Task.horizon]."""
     t = tm.task
     (px0, px1), (py0, py1) = t.pusher_workspace
     w_pos, w_ang, w_vel, w_pus = t.weights
@@ -181,6 +188,10 @@ def state_space(tm):
     pusher = ob.RealVectorStateSpace(2)
     pusher.setBounds(bounds([px0, py0], [px1, py1]))
     space.addSubspace(pusher, w_pus)
+    if tm.timed:
+        clock = ob.RealVectorStateSpace(1)
+        clock.setBounds(bounds([0.0], [t.horizon]))
+        space.addSubspace(clock, t.time_weight)
     return space
 
 
@@ -207,7 +218,7 @@ class Problem:
         def is_valid(state):
             if not space.satisfiesBounds(state):
                 return False
-            x = read_state(state, tm.nobj)
+            x = read_state(state, tm.nobj, tm.timed)
             del state                            # no wrapper may outlive this call (module docstring)
             return tm.valid(x)
 
@@ -216,7 +227,7 @@ class Problem:
         si.setPropagationStepSize(t.step_duration)
         si.setMinMaxControlDuration(t.min_steps, t.max_steps)
         start = space.allocState()
-        write_state(start, tm.initial_state(), tm.nobj)
+        write_state(start, tm.initial_state(), tm.nobj, tm.timed)
         ss.setStartState(start)
         self.goal = TaskGoal(si, tm)
         ss.setGoal(self.goal)
@@ -293,7 +304,7 @@ class Problem:
     def solution(self):
         """(states (n+1, d), controls (n, 2), steps (n,) propagation steps per control) of the found path."""
         path = self.ss.getSolutionPath()
-        states = np.array([read_state(s, self.tm.nobj) for s in path.getStates()])
+        states = np.array([read_state(s, self.tm.nobj, self.tm.timed) for s in path.getStates()])
         controls = np.array([[c[0], c[1]] for c in path.getControls()]).reshape(-1, 2)
         durs = np.array(path.getControlDurations(), float)
         steps = np.rint(durs / self.task.step_duration).astype(int)

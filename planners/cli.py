@@ -163,14 +163,16 @@ def task_lines(task):
     return [
         f"  bodies       object {task.object}, pusher {task.pusher}, "
         + (f"{len(task.obstacles)} movable obstacles ({', '.join(task.obstacles)})" if task.obstacles
-           else "no movable obstacle"),
+           else "no movable obstacle")
+        + (f"; {', '.join(task.moving)} on {'its path' if len(task.moving) == 1 else 'their paths'} (the state "
+           f"holds the time, up to {task.horizon:g} s)" if task.timed else ""),
         f"  goal         {goal}",
         f"  control      {control}",
         f"  bounds       workspace {region(ws)}; pusher_workspace {region(pws)}; speed_max {task.speed_max:.4g} m/s, "
         f"omega_max {task.omega_max:.4g} rad/s",
         f"  search       planner {task.planner}, time {task.time:g} s, goal_bias {task.goal_bias:.4g}; weights "
         f"position {w[0]:.4g}, angle {w[1]:.4g}, velocity {w[2]:.4g}, pusher {w[3]:.4g}, obstacle "
-        f"{task.obstacle_weight:.4g}; kpiece_cell {task.kpiece_cell:.4g} m",
+        f"{task.obstacle_weight:.4g}{f', time {task.time_weight:.4g}' if task.timed else ''}; kpiece_cell {task.kpiece_cell:.4g} m",
         f"  given        {', '.join(given)} (the rest derived)",
     ]
 

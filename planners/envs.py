@@ -529,7 +529,9 @@ class TaskEnv(gym.Env):
         goal = np.zeros(X.shape, dtype=bool)
         if tm.goal_poly is not None:
             goal = shapely.contains_xy(tm.goal_poly, X, Y)
-        self._drawing = (r, X, Y, bodies, statics, goal)
+        # a timed task's moving bodies (body frame), drawn where they are at the state's time
+        moving = [unary_union([shape_geometry(s, quad_segs=8) for s in t.scene.body(n).shapes]) for n in t.moving]
+        self._drawing = (r, X, Y, bodies, statics, goal, moving)
 
     def render(self):
         if self.render_mode is None:
@@ -540,11 +542,14 @@ class TaskEnv(gym.Env):
         from .tasks import _place
         if self._drawing is None:
             self._setup_drawing()
-        r, X, Y, bodies, statics, goal = self._drawing
+        r, X, Y, bodies, statics, goal, moving = self._drawing
         tm, x = self.tm, self._x
         img = r.blank(WHITE)
         img[goal] = LIGHT_GREEN
         img[statics] = (90, 90, 90)
+        if moving:
+            for g, (bx, by, ba) in zip(moving, tm.moving_poses(x)):
+                img[shapely.contains_xy(_place(g, (bx, by), ba), X, Y)] = (90, 90, 90)
         for i, g in enumerate(bodies):
             d = tm.dyn_order[i]
             pf = to_frame(x[6 * i:6 * i + 3][None], tm.model.com_local[d:d + 1])[0]

@@ -492,6 +492,9 @@ def _frame_poses(tm, X):
     qf = tm.model.com_to_frame(qc)
     qk = np.repeat(tm.qk0[None], len(X), axis=0)
     qk[:, tm.ipusher, 0:2] = X[:, tm.ip:tm.ip + 2]
+    if tm.timed:
+        for j, x in enumerate(X):
+            qk[j, tm.moving_idx] = tm.moving_poses(x)
     return qf, qk
 
 
@@ -580,7 +583,7 @@ def replay_pymunk(plan, tm=None):
     same dict as `replay_lcp` (the goal is judged by the same task test; the penetration is the deepest of any
     contact point of pymunk's arbiters after any step)."""
     try:
-        from planar_lcp.experiments.pymunk_bridge import build_space, read_state
+        from planar_lcp.experiments.pymunk_bridge import build_space, read_state, set_kinematic_velocity
     except ImportError as e:  # the bridge, or pymunk itself
         raise ImportError(f"planar_lcp.experiments.pymunk_bridge cannot be used ({e})") from None
     tm = tm if tm is not None else TaskModel(plan["task_document"])
@@ -590,13 +593,20 @@ def replay_pymunk(plan, tm=None):
     def flat():
         q, _, qk, vc = read_state(hd)        # vc: the centre-of-mass velocities, as the flat state holds them
         qc = tm.model.frame_to_com(q)
-        x = np.empty(tm.ip + 2)
+        x = np.empty(tm.task.state_dim)
         for i, d in enumerate(tm.dyn_order):
             x[6 * i:6 * i + 3] = qc[d]
             x[6 * i + 2] = math.atan2(math.sin(qc[d, 2]), math.cos(qc[d, 2]))
             x[6 * i + 3:6 * i + 6] = vc[d]
         x[tm.ip:tm.ip + 2] = qk[hd.kinematic_names.index(tm.task.pusher), 0:2]
+        if tm.timed:
+            x[tm.ip + 2] = min(step[0], tm.horizon_steps) * tm.h
         return x
+
+    # a timed task's moving bodies follow their paths, their velocities set before each step as TaskModel.advance
+    # takes them (the path's from step 0; at rest after the horizon)
+    moving = [(k, hd.kinematic_names.index(name)) for k, name in enumerate(tm.task.moving)]
+    step = [0]                       # pymunk steps taken
 
     deepest = [0.0, 0.0]              # the deepest penetration (m) and the end of its propagation step (s)
 
@@ -611,7 +621,11 @@ def replay_pymunk(plan, tm=None):
         pusher.angular_velocity = 0.0
         for _ in range(int(k)):
             for _ in range(tm.steps_per_prop):
+                for k, j in moving:
+                    vk = tm.path_v[step[0], k] if step[0] < tm.horizon_steps else (0.0, 0.0, 0.0)
+                    set_kinematic_velocity(hd, hd.kinematic_names[j], vk)
                 space.step(tm.h)
+                step[0] += 1
                 for name in hd.dynamic_names:
                     hd.bodies[name].each_arbiter(overlap)
             dense.append(flat())

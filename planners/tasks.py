@@ -7,11 +7,18 @@ state
 
     x = (qx, qy, qtheta, vx, vy, omega,              the object
          [qx, qy, qtheta, vx, vy, omega] per obstacle, in Task.obstacles order (the scene's other dynamic bodies)
-         px, py)                                     the pusher        (6 (1 + n_obstacles) + 2,)
+         px, py,                                     the pusher        (6 (1 + n_obstacles) + 2,)
+         [t])                                        the time, s: a timed task only
 
 with each body's CENTRE-OF-MASS pose and velocity (m, rad, m/s, rad/s) and the pusher's body-frame position (m),
 so that `replay` and the tests use exactly the checks the planner used. A task with one object has the 8 numbers
 (qx, qy, qtheta, vx, vy, omega, px, py). The goal itself is stated on the object's body-frame pose.
+
+A TIMED task (Task.moving: a kinematic body other than the pusher follows a `path`, e.g. a sliding gate or a
+conveyor's carrier) holds the time as its last entry, a whole number of the scene's steps h, so that propagation is
+still a pure function of the state: each rollout places the moving bodies at the path's pose at the state's time
+and moves them with the path's velocities step by step, as `simulate` does. The time stops at Task.horizon (the last
+path's end; the world holds still after it), so the state space stays bounded.
 """
 
 import math
@@ -80,6 +87,9 @@ class TaskModel:
         # advance()'s inputs and its recordings (one per rollout length), reused from call to call
         self._q, self._v = np.empty((model.ndyn, 3)), np.empty((model.ndyn, 3))
         self._qk, self._vk = self.qk0.copy(), np.zeros((1, model.nkin, 3))
+        self.timed = task.timed
+        if self.timed:
+            self._paths()
         self._recordings = {}
         self.nsteps_total = 0          # simulated steps (throughput)
         #: None, or a list to which each advance() appends its rollout's deepest penetration (m; replay_lcp)
@@ -87,6 +97,29 @@ class TaskModel:
         self._stat_penetration = int(Stat.PENETRATION)
         self._geometry()
         self._check_start_and_goal()
+
+    def _paths(self):
+        """A timed task's moving bodies: their kinematic indices, their poses at every step k h up to the horizon
+        (path_q, (K + 1, n, 3)) and the velocities of those steps (path_v, (K, n, 3)); rollouts read both from the
+        state's step index, so that a state's time places them exactly (no drift from propagation to
+        propagation)."""
+        from planar_lcp.spec.path import path_pose
+        t = self.task
+        self.moving_idx = np.array([self.model.kin_names.index(n) for n in t.moving])
+        K = self.horizon_steps = int(math.ceil(t.horizon / self.h - 1e-9))
+        steps = np.arange(K + 1) * self.h
+        self.path_q = np.stack([path_pose(np.asarray(self.scene.body(n).path, float), steps) for n in t.moving],
+                               axis=1)
+        self.path_v = np.diff(self.path_q, axis=0) / self.h
+        self._vk_timed = {}            # nsteps -> the rollout's (nsteps, nkin, 3) kinematic velocities, reused
+
+    def step_index(self, x):
+        """The step k of a timed state's time (x[-1] = k h, rounded), at most the horizon's."""
+        return min(int(round(float(x[self.ip + 2]) / self.h)), self.horizon_steps)
+
+    def moving_poses(self, x):
+        """(n, 3) the body-frame poses of Task.moving at a timed state's time."""
+        return self.path_q[self.step_index(x)]
 
     # ---- geometry ------------------------------------------------------------------------------------------
     def _geometry(self):
@@ -106,7 +139,7 @@ class TaskModel:
         self.pusher_radius, pusher_inner = pusher_extent["circumradius"], pusher_extent["min_support"]
         statics, self.static_bodies = [], []
         for b in sc.bodies:
-            if b.type == "dynamic" or b.name == t.pusher:
+            if b.type == "dynamic" or b.name == t.pusher or b.name in t.moving:
                 continue              # a kinematic body other than the pusher stands still (spec.task): a static
             first = len(statics)
             for s in b.shapes:
@@ -125,6 +158,14 @@ class TaskModel:
         self.forbidden = self.statics.buffer(max(pusher_inner - PUSHER_SLACK, 0.0)) if statics else None
         if self.forbidden is not None:
             shapely.prepare(self.forbidden)
+        # the same for each moving body, in its own frame: `valid` takes the pusher's centre there at the state's time
+        self.moving_forbidden = []
+        for name in t.moving:
+            b = sc.body(name)
+            grown = unary_union([shape_geometry(s, quad_segs=8) for s in b.shapes]).buffer(
+                max(pusher_inner - PUSHER_SLACK, 0.0))
+            shapely.prepare(grown)
+            self.moving_forbidden.append(grown)
         # per body in state order: its core points about its centre of mass (body frame) and their radii, for the
         # exact "no point leaves the workspace" test; its COM bounds (the workspace less its least half-width, a
         # necessary condition: OMPL's SE2 bounds) and the region where the COM keeps every point inside whatever the
@@ -198,7 +239,7 @@ class TaskModel:
     # ---- state ---------------------------------------------------------------------------------------------
     def initial_state(self):
         m = self.model
-        x = np.zeros(self.ip + 2)
+        x = np.zeros(self.task.state_dim)        # a timed task's time 0 last
         for i, d in enumerate(self.dyn_order):
             x[6 * i:6 * i + 3] = m.q0[d]
             x[6 * i + 2] = wrap_angle(x[6 * i + 2])
@@ -227,14 +268,21 @@ class TaskModel:
         qk, vk = self._qk, self._vk
         qk[self.ipusher, 0] = x[ip]
         qk[self.ipusher, 1] = x[ip + 1]
-        vk[0, self.ipusher, 0] = u[0]
-        vk[0, self.ipusher, 1] = u[1]
+        if self.timed:
+            vk, k0 = self._timed_velocities(nsteps), self.step_index(x)
+            qk[self.moving_idx] = self.path_q[k0]
+            K = self.horizon_steps
+            on = max(0, min(nsteps, K - k0))            # steps still on the paths; the bodies rest after them
+            vk[:on, self.moving_idx] = self.path_v[k0:k0 + on]
+            vk[on:, self.moving_idx] = 0.0
+        vk[:, self.ipusher, 0] = u[0]
+        vk[:, self.ipusher, 1] = u[1]
         done = self.sim.rollout_into(rec, q, v, qk, vk, stop_on_failure=True)
         self.nsteps_total += done
         if self.penetrations is not None:
             self.penetrations.append(float(rec.stats[:done, self._stat_penetration].max()) if done else 0.0)
         ok = done == nsteps and not rec.status[:done].any()
-        y = np.empty(ip + 2)
+        y = np.empty(len(x))
         if n == 1:
             y[0:3] = rec.q[done, 0]
             y[3:6] = rec.v[done, 0]
@@ -246,7 +294,17 @@ class TaskModel:
             yb[:, 3:6] = rec.v[done][self.dyn_order]
         y[ip] = rec.qk[done, self.ipusher, 0]
         y[ip + 1] = rec.qk[done, self.ipusher, 1]
+        if self.timed:
+            y[ip + 2] = min(self.step_index(x) + done, self.horizon_steps) * self.h
         return y, ok and bool(np.isfinite(y).all())
+
+    def _timed_velocities(self, nsteps):
+        """The (nsteps, nkin, 3) kinematic velocities of a timed task's rollout (reused per length): the bodies that
+        stand still 0, the pusher's and the moving bodies' filled in by advance()."""
+        vk = self._vk_timed.get(nsteps)
+        if vk is None:
+            vk = self._vk_timed[nsteps] = np.zeros((nsteps, self.model.nkin, 3))
+        return vk
 
     def execute(self, x0, controls, steps, valid=None):
         """Replay controls open loop exactly as the planner propagated them.
@@ -278,6 +336,8 @@ class TaskModel:
         ip = self.ip
         if not (px0 <= x[ip] <= px1 and py0 <= x[ip + 1] <= py1):
             return False
+        if self.timed and not 0.0 <= x[ip + 2] <= t.horizon:
+            return False
         for i in range(self.nobj):
             (bx0, bx1), (by0, by1) = self.com_bounds[i]
             if not (bx0 <= x[6 * i] <= bx1 and by0 <= x[6 * i + 1] <= by1):
@@ -288,11 +348,26 @@ class TaskModel:
 
     def valid(self, x):
         """Task rules beyond the state bounds: no point of any dynamic body outside task.workspace; the pusher not
-        inside a static body."""
+        inside a static body, nor inside a moving one where it is at the state's time (two kinematic bodies do not
+        collide in the engine: the pusher would pass through it)."""
         import shapely
         if self.forbidden is not None and shapely.contains_xy(self.forbidden, x[self.ip], x[self.ip + 1]):
             return False
+        if self.timed and self.pusher_in_moving_body(x) is not None:
+            return False
         return all(self.inside_workspace(x, i) for i in range(self.nobj))
+
+    def pusher_in_moving_body(self, x):
+        """The name of the moving body whose outline, grown by the pusher's least half-width, holds the pusher's
+        centre at a timed state's time; None when none does."""
+        import shapely
+        poses = self.moving_poses(x)
+        for name, grown, (bx, by, ba) in zip(self.task.moving, self.moving_forbidden, poses):
+            c, s = math.cos(ba), math.sin(ba)
+            dx, dy = x[self.ip] - bx, x[self.ip + 1] - by
+            if shapely.contains_xy(grown, c * dx + s * dy, -s * dx + c * dy):     # the centre in the body's frame
+                return name
+        return None
 
     def inside_workspace(self, x, i):
         """No point of body i (0: the object, then the obstacles) of state x is outside task.workspace (up to
@@ -325,6 +400,13 @@ class TaskModel:
                     f"{[list(w) for w in t.pusher_workspace]}")
         if self.forbidden is not None and shapely.contains_xy(self.forbidden, px, py):
             return f"the pusher {t.pusher!r} at ({px:.4g}, {py:.4g}) overlaps a static body"
+        if self.timed:
+            tt = x[self.ip + 2]
+            if not 0.0 <= tt <= t.horizon:
+                return f"the time {tt:.6g} s is outside [0, {t.horizon:g}] s (the moving bodies' paths)"
+            hit = self.pusher_in_moving_body(x)
+            if hit is not None:
+                return f"the pusher {t.pusher!r} at ({px:.4g}, {py:.4g}) overlaps body {hit!r} at t = {tt:.6g} s"
         for i, name in enumerate([t.object, *t.obstacles]):
             if not self.inside_workspace(x, i):
                 return f"body {name!r} is not inside task.workspace = {ws}"
@@ -406,7 +488,9 @@ class TaskModel:
 
         rng(lo, hi) -> uniform float (OMPL's RNG in the planner, so sampling is seeded)."""
         g = self.task.goal
-        x = np.zeros(self.ip + 2)
+        x = np.zeros(self.task.state_dim)
+        if self.timed:
+            x[self.ip + 2] = round(rng(0.0, self.task.horizon) / self.h) * self.h
         for i in range(1, self.nobj):
             (bx0, bx1), (by0, by1) = self.com_bounds[i]
             x[6 * i] = rng(bx0, bx1)

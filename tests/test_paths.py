@@ -161,13 +161,14 @@ def test_a_bad_csv_names_the_file_and_line(tmp_path):
         parse_scene(doc)
 
 
-def test_a_task_refuses_a_path():
+def test_a_task_refuses_a_path_on_its_pusher():
+    """The planner drives the pusher; another kinematic body may follow a path (tests/test_timed_tasks.py)."""
     from planar_lcp.spec.task import TaskError, parse_task
 
     doc = push_doc(AS_PATH)
     doc["task"] = {"object": "box", "pusher": "pusher", "goal": {"position": [0.3, 0.0]}}
-    with pytest.raises(TaskError, match=r"\('pusher'\) has a path, which task\.pusher \(the planner drives it\) "
-                                        r"must not have: the planning state holds no time"):
+    with pytest.raises(TaskError, match=r"\('pusher'\) is task\.pusher and has a path: the planner drives the "
+                                        r"pusher, so it must not follow one"):
         parse_task(doc)
 
 

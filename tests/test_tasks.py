@@ -172,8 +172,8 @@ MUTATIONS = [
     ("a second kinematic body moves", "push_box",
      [(("bodies", 1), {"name": "belt", "type": "kinematic", "position": [0.3, 0.3], "velocity": [0.1, 0.0],
                        "shapes": [{"type": "disk", "radius": 0.01}]})],
-     "bodies[1] ('belt') is a kinematic body other than task.pusher: it must not move in a task (velocity [0, 0], "
-     "angular_velocity 0), got velocity [0.1, 0.0], angular_velocity 0.0"),
+     "bodies[1] ('belt') is a kinematic body other than task.pusher: it must stand still or follow a path in a task "
+     "(velocity [0, 0], angular_velocity 0), got velocity [0.1, 0.0], angular_velocity 0.0"),
     # the checks that need the geometry (planners.tasks.TaskModel), also before any planning
     ("goal inside a static body", "push_box", [(G + ("x",), 0.13), (G + ("y",), -0.03)],
      "task.goal must not place the object inside a static body, got 40.0% of its area overlapping the static bodies "
@@ -417,7 +417,7 @@ def test_the_benchmark_task_files_load_each_of_a_different_kind():
     """tasks/*.toml (docs/planning.md, "New problems"): at least 8 files, each a valid task, with the derived defaults
     except the keys it names; among them a non-convex compound object, a triangle, a disk, a capsule, a
     position-only goal, an angle-only goal, a goal at rest, a cover goal, a vertical tip goal, six or more movable
-    obstacles and a heavy high-friction object."""
+    obstacles, a heavy high-friction object and a gate on a path (a timed task)."""
     from pathlib import Path
 
     from planners.tasks import TaskModel
@@ -442,5 +442,6 @@ def test_the_benchmark_task_files_load_each_of_a_different_kind():
         seen |= {"tip"} if t.scene.world.plane == "vertical" and g.x is None else set()
         seen |= {"crowd"} if len(t.obstacles) >= 6 else set()
         seen |= {"heavy"} if body.mass >= 5.0 and (body.support_friction or 0.0) >= 0.8 else set()
+        seen |= {"moving body"} if t.timed else set()
     assert {"compound", "non-convex", "triangle", "shape:disk", "shape:capsule", "position only", "angle only",
-            "at rest", "cover", "tip", "crowd", "heavy"} <= seen, seen
+            "at rest", "cover", "tip", "crowd", "heavy", "moving body"} <= seen, seen

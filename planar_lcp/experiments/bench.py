@@ -300,6 +300,7 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
     from planar_lcp.sim import SimOptions, Simulator, simulate
     from planar_lcp.engine.layout import Stat
     from planar_lcp.experiments.pymunk_bridge import PymunkRun
+    from planar_lcp.spec.path import kinematic_velocities
     rows = []
     for i, name in enumerate(scenes):
         if progress is not None:
@@ -311,17 +312,19 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
             sim = sims[warm] = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, solver=sc.sim.solver,
                                                                        formulation=sc.sim.formulation,
                                                                        warm_start=warm))
-            q, v, qk, vk = sim.initial_state()
-            stats[warm] = sim.rollout(q, v, qk, vk[None], n)["stats"]  # also compiles
+            q, v, qk, _ = sim.initial_state()
+            # the run's own kinematic velocities (a `path` body's change step by step), as simulate() takes them
+            vks = kinematic_velocities(sc, sim.model.kin_names, sim.h, n)
+            stats[warm] = sim.rollout(q, v, qk, vks, n)["stats"]  # also compiles
             runners["ours_warm" if warm else "ours"] = (
-                lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], n))
+                lambda sim=sim, q=q, v=v, qk=qk, vks=vks: sim.rollout(q, v, qk, vks, n))
         # the defaults' simulator again: the rollout simulate() makes (contacts and the Trajectory's rows recorded),
         # and its construction
         cold = sims[False]
-        q, v, qk, vk = cold.initial_state()
-        runners["recorded"] = lambda sim=cold, q=q, v=v, qk=qk, vk=vk: sim.rollout(q, v, qk, vk[None], n,
-                                                                                  record_contacts=True,
-                                                                                  trajectory_rows=True)
+        q, v, qk, _ = cold.initial_state()
+        runners["recorded"] = lambda sim=cold, q=q, v=v, qk=qk, vks=vks: sim.rollout(q, v, qk, vks, n,
+                                                                                    record_contacts=True,
+                                                                                    trajectory_rows=True)
         runners["simulate"] = lambda sc=sc: simulate(sc)
         runners["simulator"] = lambda model=cold.model, opts=cold.options: Simulator(model, opts)
         if pymunk:

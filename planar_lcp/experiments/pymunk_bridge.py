@@ -475,18 +475,29 @@ class PymunkRun:
         self.nsteps, self.settings = int(nsteps), settings
         self.h = float(self.scene.sim.h if h is None else h)
         self.spaces = []
+        # a `path` body's velocity changes step by step: set before each step, as run_pymunk does
+        kin = [b.name for b in self.scene.bodies if b.type == "kinematic"]
+        self.moving = [(k, name) for k, name in enumerate(kin) if self.scene.body(name).path is not None]
+        self.vk_seq = kinematic_velocities(self.scene, kin, self.h, self.nsteps) if self.moving else None
 
     def prepare(self, k):
         self.spaces = [self._fresh() for _ in range(k)]
 
     def __call__(self):
-        space = self.spaces.pop() if self.spaces else self._fresh()
+        space, hd = self.spaces.pop() if self.spaces else self._fresh()
         step, h = space.step, self.h
-        for _i in range(self.nsteps):
+        if not self.moving:
+            for _i in range(self.nsteps):
+                step(h)
+            return
+        vk_seq = self.vk_seq
+        for i in range(self.nsteps):
+            for k, name in self.moving:
+                set_kinematic_velocity(hd, name, vk_seq[i, k])
             step(h)
 
     def _fresh(self):
-        return build_space(self.scene, h=self.h, **self.settings)[0]
+        return build_space(self.scene, h=self.h, **self.settings)
 
 
 def time_pymunk(scene, nsteps, *, h=None, repeats=3, **settings):

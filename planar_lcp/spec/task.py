@@ -134,6 +134,14 @@ class Task:
         directions), "gyration" (radius of gyration of its area).
     given : frozenset of str
         The [task] keys the file gave (the rest are derived).
+    moving : tuple of str
+        The kinematic bodies other than the pusher that follow a `path` of two rows or more (scene order): the
+        planning state then holds the time, since where they are depends on it ("timed").
+    horizon : float
+        When the last of them reaches its path's end (s), 0 without any: the state's time stops there, as the world
+        holds still after it.
+    time_weight : float
+        OMPL distance weight of the state's time (per s; `derived_time_weight`), 0 without moving bodies.
     """
 
     name: str
@@ -162,6 +170,14 @@ class Task:
     kpiece_cell: float
     object_extent: dict
     given: frozenset
+    moving: tuple = ()
+    horizon: float = 0.0
+    time_weight: float = 0.0
+
+    @property
+    def timed(self):
+        """Whether the planning state holds the time (a kinematic body other than the pusher follows a path)."""
+        return bool(self.moving)
 
     @property
     def nobj(self):
@@ -170,14 +186,14 @@ class Task:
 
     @property
     def state_dim(self):
-        return 6 * self.nobj + 2
+        return 6 * self.nobj + 2 + (1 if self.timed else 0)
 
     def state_names(self):
         """Names of the flat planning state's entries (planners.tasks)."""
         names = ["x", "y", "theta", "vx", "vy", "omega"]
         for b in self.obstacles:
             names += [f"{b}_{n}" for n in ("x", "y", "theta", "vx", "vy", "omega")]
-        return names + ["pusher_x", "pusher_y"]
+        return names + ["pusher_x", "pusher_y"] + (["t"] if self.timed else [])
 
 
 def canonical_json(document) -> str:
@@ -270,17 +286,17 @@ def parse_task(document: dict, source: str = "<dict>", name: str | None = None, 
     pusher = _body_of_type(v, t, "pusher", "kinematic", scene.bodies)
     dynamic = [b.name for b in scene.bodies if b.type == "dynamic"]
     for b in scene.bodies:
-        # the planning state holds the pusher's position only: another kinematic body must stand still, or
-        # propagation would depend on time and not on the state alone
-        if b.path is not None:
-            role = "task.pusher (the planner drives it)" if b.name == pusher else "a kinematic body in a task"
-            v.fail(f"bodies[{scene.bodies.index(b)}] ({b.name!r}) has a path, which {role} must not have: the "
-                   f"planning state holds no time, so a moving body would make propagation depend on it; got a path "
-                   f"of {len(b.path)} rows")
+        # the planner drives the pusher; another kinematic body stands still or follows a `path`, which the
+        # planning state's time then places (a constant velocity would need an unbounded time)
+        if b.path is not None and b.name == pusher:
+            v.fail(f"bodies[{scene.bodies.index(b)}] ({b.name!r}) is task.pusher and has a path: the planner "
+                   f"drives the pusher, so it must not follow one; got a path of {len(b.path)} rows")
         if b.type == "kinematic" and b.name != pusher and (b.velocity != (0.0, 0.0) or b.angular_velocity != 0.0):
             v.fail(f"bodies[{scene.bodies.index(b)}] ({b.name!r}) is a kinematic body other than task.pusher: it "
-                   f"must not move in a task (velocity [0, 0], angular_velocity 0), got velocity "
-                   f"{list(b.velocity)}, angular_velocity {b.angular_velocity}")
+                   f"must stand still or follow a path in a task (velocity [0, 0], angular_velocity 0), got "
+                   f"velocity {list(b.velocity)}, angular_velocity {b.angular_velocity}")
+    moving = tuple(b.name for b in scene.bodies if b.path is not None and len(b.path) >= 2)
+    horizon = max((float(b.path[-1][0]) for b in scene.bodies if b.name in moving), default=0.0)
     obstacles = tuple(n for n in dynamic if n != obj)
     extent = body_extent(bodies[obj])
     pusher_extent = body_extent(bodies[pusher], about_origin=True)
@@ -351,13 +367,15 @@ def parse_task(document: dict, source: str = "<dict>", name: str | None = None, 
         bodies_list[i] = dataclasses.replace(bodies_list[i], max_force=limit)
         scene = dataclasses.replace(scene, bodies=tuple(bodies_list))
 
+    document = _inline_paths(document, scene)
     return Task(name=name if name is not None else scene.name, scene=scene, source=shown, document=document,
                 sha256=document_sha256(document), object=obj, pusher=pusher, obstacles=obstacles,
                 description=description, planner=planner, time=time, control_max=control_max, step_duration=step,
                 min_steps=lo, max_steps=hi, workspace=workspace, pusher_workspace=pusher_workspace,
                 speed_max=speed_max, omega_max=omega_max, goal_bias=goal_bias, goal=goal,
                 weights=derived_weights(extent, step), obstacle_weight=0.05, kpiece_cell=L / 3.0,
-                object_extent=extent, given=frozenset(t))
+                object_extent=extent, given=frozenset(t), moving=moving, horizon=horizon,
+                time_weight=derived_time_weight(scene, moving, extent))
 
 
 def derived_weights(extent, step_duration):
@@ -371,6 +389,39 @@ def derived_weights(extent, step_duration):
     the object's. Measured (docs/planning.md, "Distance weights"): the circumradius in its place (the first choice)
     needed 1.8 times the iterations at the median on push_box and left 3 of 10 push_t seeds unsolved in 60 s."""
     return (1.0, extent["gyration"], 0.02 * step_duration, 0.1)
+
+
+def _inline_paths(document, scene):
+    """The document with each body's `path` given as a CSV file name replaced by its rows (a copy; the document
+    itself when none is): a plan file stores the task's document to replay it anywhere, without the CSV beside it."""
+    bodies = document.get("bodies")
+    if not isinstance(bodies, list) or not any(isinstance(b, dict) and isinstance(b.get("path"), str)
+                                               for b in bodies):
+        return document
+    out = dict(document)
+    out["bodies"] = [dict(b, path=[list(r) for r in scene.body(b["name"]).path])
+                     if isinstance(b, dict) and isinstance(b.get("path"), str) else b for b in bodies]
+    return out
+
+
+def derived_time_weight(scene, moving, extent):
+    """OMPL's distance weight of a timed task's time (per s): the fastest any point of a moving body goes along its
+    path (m/s), times the object position's weight (1 per m). A time difference then weighs as far as the moving
+    bodies can be apart over it, so that two states whose obstacles are in different places are far apart, while
+    states after every path's end, where time no longer matters, share one time (Task.horizon). 0 without moving
+    bodies."""
+    fastest = 0.0
+    for name in moving:
+        b = scene.body(name)
+        rows = np.asarray(b.path, float)
+        dt = np.diff(rows[:, 0])
+        speed = np.hypot(np.diff(rows[:, 1]), np.diff(rows[:, 2])) / dt
+        spin = np.abs(np.diff(rows[:, 3])) / dt
+        reach = body_extent(b, about_origin=True)["circumradius"]
+        fastest = max(fastest, float(np.max(speed + spin * reach)))
+    # a path that stands still in every row still holds time in the state: a small positive weight keeps OMPL's
+    # distance a metric
+    return max(fastest, 1e-3 * extent["circumradius"]) if moving else 0.0
 
 
 def body_extent(body, about_origin: bool = False) -> dict:
