@@ -172,7 +172,8 @@ def task_lines(task):
         f"omega_max {task.omega_max:.4g} rad/s",
         f"  search       planner {task.planner}, time {task.time:g} s, goal_bias {task.goal_bias:.4g}; weights "
         f"position {w[0]:.4g}, angle {w[1]:.4g}, velocity {w[2]:.4g}, pusher {w[3]:.4g}, obstacle "
-        f"{task.obstacle_weight:.4g}{f', time {task.time_weight:.4g}' if task.timed else ''}; kpiece_cell {task.kpiece_cell:.4g} m",
+        f"{task.obstacle_weight:.4g}{f', time {task.time_weight:.4g}' if task.timed else ''}; kpiece_cell "
+        f"{task.kpiece_cell:.4g} m",
         f"  given        {', '.join(given)} (the rest derived)",
     ]
 
