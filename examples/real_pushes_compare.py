@@ -1,6 +1,6 @@
 """The comparison of docs/real_pushes.md: models of the table and the dynamics against recorded real pushes.
 
-    python examples/real_pushes_compare.py [--data DIR] [--out DIR] [--every K]
+    python examples/real_pushes_compare.py [--data DIR] [--out DIR] [--every K] [--models A,B] [--per-object N]
 
 On the 30 held-out butter pushes, with every model fitted on the 42 pushes of the four training objects only, and by
 leave-one-object-out cross-validation on those four (fit on three objects' pushes, predict the fourth's):
@@ -114,11 +114,18 @@ def main(argv=None):
     ap.add_argument("--out", default="docs/figures/real_pushes", help="output folder")
     ap.add_argument("--every", type=int, default=5, help="fit on every K-th sample of each push (default 5)")
     ap.add_argument("--models", default="fitted,fitted ring,defaults,points,rim,quasi-static,pymunk")
+    ap.add_argument("--per-object", type=int, default=None, metavar="N",
+                    help="only the first N pushes of each object, by file name (a quick check; default all)")
     args = ap.parse_args(argv)
     from planar_lcp.experiments.pushdata import mit
 
     models = args.models.split(",")
     files = mit.push_files(args.data)
+    if args.per_object is not None:
+        seen = {}
+        for f in files:
+            seen.setdefault(mit.parse_push_name(f).shape, []).append(f)
+        files = sorted(f for group in seen.values() for f in group[:args.per_object])
     pushes = [mit.read_push(f, args.data) for f in files]
     train = [p for p in pushes if "/train/" in p.path]
     butter = [p for p in pushes if p.shape == "butter"]
