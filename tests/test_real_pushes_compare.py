@@ -43,7 +43,7 @@ def test_the_comparison_on_two_pushes_per_object(tmp_path):
     assert p.returncode == 0, p.stdout + p.stderr
     with open(tmp_path / "pred.csv") as f:
         pred_rows = list(csv.DictReader(f))
-    rec_d, pred_d, pos = [], [], []
+    rec_d, pred_d = [], []
     for file in butter:
         mine = np.array([[float(q[k]) for k in ("x", "y", "theta")] for q in pred_rows if q["file"] == file.name])
         recorded = mit.push_recording(mit.read_push(file, DATA)).poses[:, 0]
