@@ -461,7 +461,7 @@ def _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_poi
                cy - h * uy_n)
         return 1
 
-    m = 0
+    m = np.int64(0)          # the row: an int64 at every call of _write, so numba compiles it once
     for c in range(cnt):
         if c == 0:
             cx, cy, s = p1x, p1y, s1
