@@ -89,6 +89,22 @@ def test_pymunk_moves_the_body_along_the_same_path():
     assert np.abs(as_path.q - const.q).max() < 1e-15
 
 
+def test_the_timed_pymunk_unit_moves_the_body_along_the_path_as_the_recorded_run():
+    """`bench step`'s pymunk unit (PymunkRun: a whole run without recording) ends where simulate_pymunk does."""
+    pytest.importorskip("pymunk")
+    from planar_lcp.experiments.pymunk_bridge import PymunkRun, read_state, simulate_pymunk
+
+    scene = parse_scene(push_doc(WIGGLE))
+    run = PymunkRun(scene, 40)
+    run.prepare(1)
+    space, handles = run.spaces[0]
+    run()
+    q, _, qk, _ = read_state(handles)
+    ref = simulate_pymunk(scene)
+    assert np.abs(qk - ref.qk[-1]).max() < 1e-15 and np.abs(q - ref.q[-1]).max() < 1e-15
+    assert np.abs(qk[0] - np.asarray(scene.body("pusher").path)[-1, 1:]).max() < 1e-15
+
+
 def test_a_csv_path_relative_to_the_scene_file(tmp_path):
     """A recording's file (planar_lcp.spec.recordings) with the pusher's and another body's columns."""
     rows = np.asarray(WIGGLE["path"])
