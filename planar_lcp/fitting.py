@@ -275,7 +275,8 @@ def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=
         start += size
     k = len(recordings)
     cov = JtJ_inv @ meat @ JtJ_inv * (k / max(1, k - 1))
-    per_run = [_run_errors(with_values(i, res.x), rec, sim_options) for i, rec in enumerate(recordings)]
+    # the errors at the fitted values, run as the residuals were (a Dask cluster's map when given)
+    per_run = mapper(_run_errors, [(with_values(i, res.x), rec, sim_options) for i, rec in enumerate(recordings)])
     names = list(params)
     return FitResult(params=params, values=dict(zip(names, map(float, res.x))),
                      stderr=dict(zip(names, map(float, np.sqrt(np.diag(cov_iid))))),
