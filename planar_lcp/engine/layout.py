@@ -55,6 +55,7 @@ MODEL_LAYOUT = _table("""
 name              | dtype | shape      | unit   | writer  | meaning
 plane             | int   | -          | -      | compile | PLANE_VERTICAL | PLANE_HORIZONTAL
 gravity           | f8    | 2          | m/s^2  | compile | vertical plane (zero in the horizontal plane)
+damping           | float | -          | -      | compile | velocity kept after 1 s: a step starts from v damping^h
 body_kind         | i8    | nbody      | -      | compile | BODY_*
 body_slot         | i8    | nbody      | -      | compile | index among the dynamic (or kinematic) bodies; -1: static
 static_pose       | f8    | nbody x 3  | m, rad | compile | world pose of static bodies (other rows unused)
@@ -143,7 +144,7 @@ lemke_z_refined    | f8    | unknown           | N s        | lemke     | z reco
 lemke_w_refined    | f8    | unknown           | m/s        | lemke     | its w
 lemke_pivot_row    | f8    | tableau_row       | -          | lemke     | the normalized pivot row
 lemke_scaling      | f8    | unknown           | -          | lemke     | equilibration (powers of two)
-v_start            | f8    | dyn x 3           | m/s, rad/s | begin     | v, the velocity at the start of the step
+v_start            | f8    | dyn x 3           | m/s, rad/s | begin     | v damping^h, the velocity at the start of the step
 v_tilde            | f8    | dyn x 3           | m/s, rad/s | begin     | free-motion velocity v + h M^-1 f_ext
 v_hat              | f8    | dyn x 3           | m/s, rad/s | begin     | the linearization pose is q_hat = q + h v_hat
 q_hat              | f8    | dyn x 3           | m, rad     | begin     | the linearization pose

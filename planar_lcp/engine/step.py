@@ -123,18 +123,20 @@ def project_out_of_penetration(m, w, opt, qk_new, stats):
 @njit(cache=True, inline='always')
 def begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats):
     """Free-motion velocity v_tilde = v + h M^-1 f_ext, the first linearization pose, the kinematic end poses; v
-    itself (w.v_start: the approach velocity of restitution's impact law)."""
+    itself (w.v_start: the approach velocity of restitution's impact law). v is first scaled by the world's damping
+    over the step, damping^h (1 without damping: v exactly)."""
     for i in range(stats.shape[0]):
         stats[i] = 0.0
     velocity_form = opt.formulation == FORM_VELOCITY
+    keep = 1.0 if m.damping == 1.0 else m.damping ** h
     for d in range(q.shape[0]):
         for c in range(3):
-            w.v_start[d, c] = v[d, c]
-        w.v_tilde[d, 0] = v[d, 0] + h * m.gravity[0]
-        w.v_tilde[d, 1] = v[d, 1] + h * m.gravity[1]
-        w.v_tilde[d, 2] = v[d, 2]
+            w.v_start[d, c] = keep * v[d, c]
+        w.v_tilde[d, 0] = w.v_start[d, 0] + h * m.gravity[0]
+        w.v_tilde[d, 1] = w.v_start[d, 1] + h * m.gravity[1]
+        w.v_tilde[d, 2] = w.v_start[d, 2]
         for c in range(3):
-            w.v_hat[d, c] = 0.0 if velocity_form else v[d, c]
+            w.v_hat[d, c] = 0.0 if velocity_form else w.v_start[d, c]
             w.q_hat[d, c] = q[d, c] + h * w.v_hat[d, c]
     for kk in range(qk.shape[0]):
         for c in range(3):

@@ -222,6 +222,7 @@ def build_space(scene, *, iterations=DEFAULT_ITERATIONS, collision_slop=DEFAULT_
     space.collision_bias = float(collision_bias)
     horizontal = scene.world.plane == "horizontal"
     space.gravity = (0.0, 0.0) if horizontal else tuple(float(g) for g in scene.world.gravity)
+    space.damping = float(scene.world.damping)          # the same meaning: velocity kept after 1 s
 
     fric, exact = friction_assignment(scene)
     pair_mu = contact_pairs(scene)

@@ -134,7 +134,7 @@ def body_mass_properties(body: BodySpec):
     Returns
     -------
     com : (2,) float64, m
-        Body frame: the area-weighted centroid of the shapes.
+        Body frame: `body.center_of_mass` if given, else the area-weighted centroid of the shapes.
     inertia : float, kg m^2
         About the centre of mass: `body.inertia` if given, else mass / area * polar moment of area.
 
@@ -147,6 +147,12 @@ def body_mass_properties(body: BodySpec):
         raise ValueError(f"body {body.name!r} is {body.type}: it has no mass properties")
     area, com, polar = body_area_properties(body)
     inertia = float(body.inertia) if body.inertia is not None else float(body.mass / area * polar)
+    if body.center_of_mass is not None:
+        # the shapes' polar moment is about their centroid; about another centre it grows by area * distance^2
+        centre = np.asarray(body.center_of_mass, dtype=np.float64)
+        if body.inertia is None:
+            inertia += float(body.mass * np.sum((centre - com) ** 2))
+        com = centre
     return com, inertia
 
 

@@ -127,7 +127,8 @@ class BodySpec:
     """A rigid body: its shapes (body frame) and initial state.
 
     `position` and `velocity` are those of the body-frame ORIGIN (world frame, m and m/s); the dynamics use the
-    centre of mass that `planar_lcp.spec.massprops.body_mass_properties` computes from the shapes.
+    centre of mass that `planar_lcp.spec.massprops.body_mass_properties` computes from the shapes, or
+    `center_of_mass` when given.
     """
 
     name: str
@@ -149,6 +150,9 @@ class BodySpec:
     #: kinematic only: rows (t, x, y, angle) the body-frame origin follows (spec/path.py); `position` and `angle`
     #: are then the path's pose at t = 0 and `velocity`, `angular_velocity` zero (the velocities are per step)
     path: tuple | None = None
+    #: dynamic only: the centre of mass in the body frame (m) in place of the shapes' area centroid, for a body of
+    #: uneven density (the table's pressure stays spread over the shapes)
+    center_of_mass: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -163,6 +167,9 @@ class WorldSpec:
     support_model: str = "limit_surface"
     restitution: float = 0.0
     restitution_pairs: tuple = ()
+    #: the fraction of every dynamic body's velocity kept after one second, as Chipmunk's `space.damping`: each step
+    #: starts from v damping^h. 1: none (the method's); 0: every step starts at rest (gym-pusht's Push-T)
+    damping: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -418,14 +425,14 @@ def _decode_utf8(raw: bytes, path) -> str:
 
 _TOP_KEYS = ("name", "description", "world", "sim", "bodies", "task")
 _WORLD_KEYS = ("plane", "gravity", "support_gravity", "friction", "friction_pairs", "support_model", "restitution",
-               "restitution_pairs")
+               "restitution_pairs", "damping")
 _SIM_KEYS = ("h", "t_end", "solver", "formulation", "fixed_point_iterations", "friction_directions", "pgs_iterations",
              "limit_surface_twists", "limit_surface_resolution")
 #: [sim] keys that shape the horizontal plane's table friction only
 _TABLE_KEYS = ("friction_directions", "limit_surface_twists", "limit_surface_resolution")
-_BODY_KEYS = ("name", "type", "shapes", "mass", "inertia", "position", "angle", "angle_deg", "velocity",
-              "angular_velocity", "support_friction", "support_points", "support_share", "max_force", "max_torque",
-              "path")
+_BODY_KEYS = ("name", "type", "shapes", "mass", "inertia", "center_of_mass", "position", "angle", "angle_deg",
+              "velocity", "angular_velocity", "support_friction", "support_points", "support_share", "max_force",
+              "max_torque", "path")
 _PAIR_KEYS = {"friction_pairs": ("a", "b", "mu"), "restitution_pairs": ("a", "b", "e")}
 _PLACEMENT_KEYS = ("offset", "angle", "angle_deg")
 # Per shape type: (required keys, optional keys with their defaults). Placement keys are added for all but halfplane.
@@ -789,8 +796,14 @@ def _parse_world(v: _Validator, t: dict) -> WorldSpec:
     support_model = v.choice("world.support_model", t["support_model"], SUPPORT_MODELS) if "support_model" in t \
         else d.support_model
     restitution = v.restitution("world.restitution", t["restitution"]) if "restitution" in t else d.restitution
+    damping = d.damping
+    if "damping" in t:
+        damping = v.number("world.damping", t["damping"])
+        if not 0.0 <= damping <= 1.0:
+            v.fail(f"world.damping must be in [0, 1] (the fraction of velocity kept after 1 s), got "
+                   f"{_fmt_num(damping)}")
     return WorldSpec(plane=plane, gravity=gravity, support_gravity=support_gravity, friction=friction,
-                     support_model=support_model, restitution=restitution)
+                     support_model=support_model, restitution=restitution, damping=damping)
 
 
 def _parse_pairs(v: _Validator, key: str, raw, names: list) -> tuple:
@@ -835,13 +848,15 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
         v.fail(f"{path}.shapes must be a non-empty array of tables, got {shapes_raw!r}")
     shapes = tuple(_parse_shape(v, f"{path}.shapes[{j}]", s, btype, plane) for j, s in enumerate(shapes_raw))
 
-    mass = inertia = support_friction = support_points = support_share = None
+    mass = inertia = support_friction = support_points = support_share = center_of_mass = None
     if btype == "dynamic":
         mass = v.positive(f"{path}.mass", v.require(path, t, "mass", " for a dynamic body"))
         v.within(f"{path}.mass", mass, MIN_MASS, MAX_MASS, "kg")
         if "inertia" in t:
             inertia = v.within(f"{path}.inertia", v.positive(f"{path}.inertia", t["inertia"]), MIN_INERTIA,
                                MAX_INERTIA, "kg m^2")
+        if "center_of_mass" in t:
+            center_of_mass = v.place(f"{path}.center_of_mass", t["center_of_mass"])
         for key in ("support_friction", "support_points", "support_share"):
             if key in t and plane != "horizontal":
                 v.fail(f"{path}.{key} is only allowed in the horizontal plane, got world.plane = {plane!r}")
@@ -862,7 +877,7 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
             v.fail(f"{path}.shapes must include a shape with area for a dynamic body (a disk, capsule, box, polygon "
                    "or a segment with radius > 0), got only segments with radius 0")
     else:
-        for key in ("mass", "inertia", "support_friction", "support_points", "support_share"):
+        for key in ("mass", "inertia", "center_of_mass", "support_friction", "support_points", "support_share"):
             if key in t:
                 v.fail(f"{path}.{key} is not allowed on a {btype} body, got {t[key]!r}")
     max_force = max_torque = None
@@ -905,7 +920,7 @@ def _parse_body(v: _Validator, path: str, raw, plane: str) -> BodySpec:
     return BodySpec(name=name, type=btype, shapes=shapes, mass=mass, inertia=inertia, position=position,
                     angle=angle, velocity=velocity, angular_velocity=omega, support_friction=support_friction,
                     support_points=support_points, support_share=support_share, max_force=max_force,
-                    max_torque=max_torque, path=rows)
+                    max_torque=max_torque, path=rows, center_of_mass=center_of_mass)
 
 
 def _parse_path(v: _Validator, path: str, t: dict, btype: str) -> tuple:
