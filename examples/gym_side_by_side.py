@@ -30,7 +30,8 @@ DEFAULT_PLAN = ROOT / "docs" / "figures" / "gym" / "push_t_plan" / "plan.json"
 #: where the push_t scene's origin goes in the arena, mm (the plan's whole motion stays inside the walls)
 PLAN_OFFSET = (200.0, 270.0)
 SETTINGS = {"ours": {}, "ours, contact mu 0": {"contact_friction": 0.0},
-            "ours, no friction": {"contact_friction": 0.0, "table_friction": 0.0}}
+            "ours, no friction": {"contact_friction": 0.0, "table_friction": 0.0},
+            "ours, gym-pusht's physics": {"physics": "gym_pusht"}}
 PART_MM, PART_DEG = 2.0, 2.0
 
 

@@ -34,6 +34,11 @@ PUSHT_COG = (0.0, 45.0)
 K_P, K_V = 100.0, 20.0               # gym-pusht's PD gains (1/s^2, 1/s)
 DT, SUBSTEPS = 0.01, 10              # its physics step (s) and steps per action (10 Hz actions)
 SUCCESS_COVER = 0.95
+#: PushT-v0's models of the world (PushTEnv's `physics`)
+PHYSICS = ("planar_lcp", "gym_pusht")
+#: gym-pusht's T inertia per unit mass, mm^2: pymunk's moment_for_poly of the 120 x 30 bar about the frame origin
+#: ((120^2 + 30^2) / 12 + 15^2 = 1500), taken twice (its source computes the bar's moment for both boxes)
+GYM_PUSHT_INERTIA = 3000.0
 #: the pusher is a force-limited velocity servo (a kinematic body with max_force, docs/method.md): far above what a
 #: push needs (the T's 0.1 kg at the PD law's accelerations: a few N), so that it binds only where a push into a
 #: wall has no rigid solution, and stalls there as a robot would instead of failing the step. N
@@ -143,6 +148,13 @@ class PushTEnv(gym.Env):
     pusher_max_force : float or None
         The pusher servo's force limit (N; PUSHER_MAX_FORCE); None: a purely prescribed pusher, whose push of the T
         into a wall has no rigid solution (that step takes PGS's uncertified answer, counted in info).
+    physics : "planar_lcp" | "gym_pusht"
+        The world's model. "planar_lcp" (default): the T on a table with limit-surface friction, velocities kept
+        from step to step. "gym_pusht": gym-pusht's own, as its source sets it up: no table friction, frictionless
+        contacts, every velocity forgotten at each step (`world.damping = 0`, Chipmunk's `space.damping`), and its
+        T's mass properties (the centre of mass at the mean of the two boxes' centroids, PUSHT_COG, and twice the
+        bar's moment about the frame origin as the inertia, GYM_PUSHT_INERTIA); table_friction and
+        contact_friction default to 0 there.
     random_goal : bool
         Draw the goal pose at every reset (seeded) and put it in the observation (docs/gym.md).
     observation_width, observation_height, visualization_width, visualization_height : int
@@ -153,16 +165,22 @@ class PushTEnv(gym.Env):
 
     def __init__(self, obs_type="state", render_mode="rgb_array", table_friction=None, contact_friction=None,
                  random_goal=False, pusher_max_force=PUSHER_MAX_FORCE, observation_width=96, observation_height=96,
-                 visualization_width=680, visualization_height=680):
+                 visualization_width=680, visualization_height=680, physics="planar_lcp"):
         super().__init__()
+        if physics not in PHYSICS:
+            raise ValueError(f"PushT-v0: physics must be one of {', '.join(PHYSICS)}, got {physics!r}")
+        self.physics = physics
+        gym_world = physics == "gym_pusht"
         if obs_type not in OBS_TYPES:
             raise ValueError(f"PushT-v0: obs_type must be one of {', '.join(OBS_TYPES)}, got {obs_type!r}")
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"PushT-v0: render_mode must be 'rgb_array' or None, got {render_mode!r}")
         self.obs_type, self.render_mode, self.random_goal = obs_type, render_mode, bool(random_goal)
         scene, t, self.boxes, self.pusher_radius_m = _push_t_bodies()
-        self.table_friction = float(t.support_friction if table_friction is None else table_friction)
-        self.contact_friction = float(scene.world.friction if contact_friction is None else contact_friction)
+        self.table_friction = float((0.0 if gym_world else t.support_friction) if table_friction is None
+                                    else table_friction)
+        self.contact_friction = float((0.0 if gym_world else scene.world.friction) if contact_friction is None
+                                      else contact_friction)
         for name, val in (("table_friction", self.table_friction), ("contact_friction", self.contact_friction)):
             if not (math.isfinite(val) and val >= 0.0):
                 raise ValueError(f"PushT-v0: {name} must be a finite number >= 0, got {val!r}")
@@ -195,15 +213,21 @@ class PushTEnv(gym.Env):
                  {"type": "box", "width": th, "height": span, "offset": [hi, mid]},
                  {"type": "box", "width": span, "height": th, "offset": [mid, lo]},
                  {"type": "box", "width": span, "height": th, "offset": [mid, hi]}]
+        t_body = {"name": "T", "type": "dynamic", "mass": self.t_mass, "position": [0.256, 0.300],
+                  "support_friction": self.table_friction,
+                  "shapes": [{"type": "box", "width": w, "height": h, "offset": [ox, oy]} for w, h, ox, oy in
+                             self.boxes]}
+        world = {"plane": "horizontal", "friction": self.contact_friction}
+        if self.physics == "gym_pusht":
+            world["damping"] = 0.0
+            t_body["center_of_mass"] = [PUSHT_COG[0] * MM, PUSHT_COG[1] * MM]
+            t_body["inertia"] = self.t_mass * GYM_PUSHT_INERTIA * MM * MM
         return {
             "name": "push_t_gym", "description": "gym-pusht's arena with the push_t T and pusher (mm -> m)",
-            "world": {"plane": "horizontal", "friction": self.contact_friction},
+            "world": world,
             "sim": {"h": DT},
             "bodies": [
-                {"name": "T", "type": "dynamic", "mass": self.t_mass, "position": [0.256, 0.300],
-                 "support_friction": self.table_friction,
-                 "shapes": [{"type": "box", "width": w, "height": h, "offset": [ox, oy]} for w, h, ox, oy in
-                            self.boxes]},
+                t_body,
                 {"name": "pusher", "type": "kinematic", "position": [0.100, 0.100],
                  "shapes": [{"type": "disk", "radius": self.pusher_radius_m}],
                  **({} if self.pusher_max_force is None else {"max_force": self.pusher_max_force})},
@@ -339,8 +363,20 @@ class PushTEnv(gym.Env):
 
     def step(self, action):
         # checked before anything changes; a target outside the action space is clipped to it (the arena)
-        target = np.clip(_action("PushT-v0", action, "the pusher's target x, y in mm"), 0.0, ARENA) * MM
-        self._last_action = target / MM
+        target = np.clip(_action("PushT-v0", action, "the pusher's target x, y in mm"), 0.0, ARENA)
+        self._last_action = target
+        self.advance(target)
+        cover = self.coverage()
+        reward = float(np.clip(cover / SUCCESS_COVER, 0.0, 1.0))
+        success = cover > SUCCESS_COVER
+        info = self._info()
+        info["is_success"], info["coverage"] = success, cover
+        return self._obs(), reward, success, False, info
+
+    def advance(self, target):
+        """The physics of one action: the PD law's ten substeps towards `target` (x, y mm, unchecked), one rollout.
+        What step() does before it scores and observes; a policy's model calls it directly (planners.pusht)."""
+        target = np.asarray(target, dtype=np.float64) * MM
         # the pusher is kinematic, so its path over the ten substeps follows from the PD law alone: computed here,
         # then the ten steps are one rollout. Position update as the kernel's (q + h v), so the PD law sees the
         # positions the simulation has
@@ -357,12 +393,12 @@ class PushTEnv(gym.Env):
             raise SimulationError(f"PushT-v0: the physics gave a non-finite state from {self._state_summary()}")
         self._q, self._v, self._qk = rec.q[done].copy(), rec.v[done].copy(), rec.qk[done].copy()
         self._agent_vel = v
-        cover = self.coverage()
-        reward = float(np.clip(cover / SUCCESS_COVER, 0.0, 1.0))
-        success = cover > SUCCESS_COVER
-        info = self._info()
-        info["is_success"], info["coverage"] = success, cover
-        return self._obs(), reward, success, False, info
+
+    def set_state(self, agent, agent_velocity, pose):
+        """Put the pusher at `agent` (mm) moving at `agent_velocity` (mm/s, the PD law's state) and the T's frame at
+        `pose` (x, y mm, angle rad), the T at rest; no checks (a policy's model: planners.pusht)."""
+        self._set_state(agent, pose)
+        self._agent_vel = np.asarray(agent_velocity, dtype=np.float64) * MM
 
     def _state_summary(self):
         return f"agent {np.round(self.agent_pos(), 3).tolist()} mm, block {np.round(self.block_pose(), 4).tolist()}"

@@ -1,0 +1,376 @@
+"""A feedback policy for Push-T over our simulator: `PushTPolicy` (docs/closed_loop.md).
+
+At every action it reads the observed state (the pusher's position and the T's pose, gym-pusht's "state"
+observation) and decides the next PD target. Its plan is one push at a time, chosen with the simulator as the model
+(PushT-v0's physics, `planners.envs.PushTEnv.advance`, set to the world the policy acts in):
+
+- Candidates: points along the T's outline every `spacing` mm where the pusher's disk fits, each pushed along the
+  inward normal of its edge. For each, the model pushes from there for `push_reach` mm (one rollout of PushT-v0's
+  actions from the observed pose, the pusher starting at rest just off the point) and records the T's pose at every
+  substep against how far the pusher has gone.
+- Choice: the candidate and the stopping distance along its push whose pose is nearest the goal, in the distance
+  |dp|^2 + (rho dtheta)^2 between centres of mass (rho the T's radius of gyration about its centre of mass); only a
+  push that brings the T nearer than it is now.
+- Execution: the pusher goes to the point (straight, or round the T on a circle clear of it when the straight way
+  would touch it), waits there until nearly at rest, then pushes along the line with targets that lead it by
+  `push_step` mm per action and stop at the chosen distance. After each action the observed T pose is compared with
+  the model's at the pusher's progress along the line: beyond `replan_mm` or `replan_deg` the push is dropped and a
+  new one chosen from the observed state; so is a push whose pusher has stopped at its end.
+
+With world="gym_pusht" the model has gym-pusht's physics (`PushTEnv(physics="gym_pusht")`: no table friction,
+frictionless contacts, every velocity forgotten at each step, its T's mass properties): there, how far the T moves
+depends on the pusher's path and not its speed, so a push is judged by its distance alone. With world="planar_lcp" it
+is our PushT-v0's physics.
+"""
+
+import math
+import time
+
+import numpy as np
+
+from .envs import ARENA, GOAL_POSE, K_P, K_V, PUSHT_COG, SUBSTEPS, WALL_HALF, WALL_LINES, PushTEnv
+
+WORLDS = ("gym_pusht", "planar_lcp")
+#: the pusher's centre stays this far inside the walls' inner faces beyond its radius, mm
+WALL_CLEARANCE = 2.0
+
+
+class PushTPolicy:
+    """A policy for obs_type "state" of `gym_pusht/PushT-v0` and `planar_lcp/PushT-v0`: `reset()`, then
+    `policy(obs) -> action` (the pusher's target, x, y in mm) at every step.
+
+    Parameters
+    ----------
+    world : "gym_pusht" | "planar_lcp"
+        The physics the policy acts in, so that its model is that physics (module docstring).
+    goal : (x, y mm, angle rad)
+        The T's goal pose (gym-pusht's fixed one by default); an observation with 8 numbers (PushT-v0's
+        random_goal) carries its own.
+    spacing, push_reach, push_step : float, mm
+        Candidate points' spacing along the outline, how far each candidate push is tried, the pusher's lead per
+        action while pushing.
+    approach_step : float, mm
+        How far ahead of the pusher its target is put per action on the way to a push.
+    replan_mm, replan_deg : float
+        How far the observed T may drift from the model's prediction before the push is chosen again.
+
+    Attributes (after each call): `compute_s`, the thread CPU time of the call; `replans`, the pushes chosen so far;
+    `phase`, "approach" | "settle" | "push" | "idle".
+    """
+
+    def __init__(self, world="gym_pusht", goal=GOAL_POSE, spacing=6.0, push_reach=60.0, push_step=8.0,
+                 approach_step=35.0, replan_mm=2.0, replan_deg=2.0):
+        if world not in WORLDS:
+            raise ValueError(f"PushTPolicy: world must be one of {', '.join(WORLDS)}, got {world!r}")
+        self.world = world
+        self.model = PushTEnv(obs_type="state", render_mode=None, physics=world)
+        self.goal = np.asarray(goal, dtype=np.float64)
+        self.spacing, self.push_reach, self.push_step = float(spacing), float(push_reach), float(push_step)
+        self.approach_step, self.replan_mm = float(approach_step), float(replan_mm)
+        self.replan_rad = math.radians(float(replan_deg))
+        self.radius = float(self.model.pusher_radius)
+        self._boxes = _boxes_mm(self.model)
+        self._com = np.array(PUSHT_COG, dtype=np.float64)
+        self.rho = _gyration(self._boxes, self._com)
+        self._outline = _outline_points(self._boxes, self.spacing, self.radius)
+        lo, hi = WALL_LINES[0] + WALL_HALF + self.radius + WALL_CLEARANCE, \
+            WALL_LINES[1] - WALL_HALF - self.radius - WALL_CLEARANCE
+        self._arena = (lo, hi)
+        self.reset()
+
+    # ---- the interface ------------------------------------------------------------------------------------------
+    def reset(self):
+        """Forget the episode: the pusher is taken to be at rest, no push chosen."""
+        self._agent_vel = np.zeros(2)
+        self._last = None              # (observed agent, action) of the previous call
+        self._push = None
+        self.phase = "idle"
+        self.replans = 0
+        self.compute_s = 0.0
+
+    def __call__(self, obs):
+        c0 = time.thread_time()
+        obs = np.asarray(obs, dtype=np.float64)
+        agent, pose = obs[0:2], obs[2:5].copy()
+        goal = obs[5:8] if len(obs) >= 8 else self.goal
+        self._track_velocity(agent)
+        action = self._decide(agent, pose, goal)
+        self._last = (agent.copy(), action.copy())
+        self.compute_s = time.thread_time() - c0
+        return action
+
+    # ---- the pusher's velocity ----------------------------------------------------------------------------------
+    def _track_velocity(self, agent):
+        """The PD law's velocity (not observed): the previous action's ten substeps from the previous observation,
+        exactly as the environment computes them; where that does not end where the pusher is seen (a pusher
+        stopped by a wall, another policy's step), the mean velocity of the last action."""
+        if self._last is None:
+            return
+        p, target = self._last
+        p, v = p * 1e-3, self._agent_vel * 1e-3
+        t = target * 1e-3
+        dt = 0.1 / SUBSTEPS
+        for _ in range(SUBSTEPS):
+            v = v + (K_P * (t - p) - K_V * v) * dt
+            p = p + dt * v
+        if np.abs(p * 1e3 - agent).max() < 1e-6:
+            self._agent_vel = v * 1e3
+        else:
+            self._agent_vel = (agent - self._last[0]) / 0.1
+
+    # ---- deciding -----------------------------------------------------------------------------------------------
+    def _decide(self, agent, pose, goal):
+        push = self._push
+        if push is not None and not self._on_track(push, agent, pose):
+            push = self._push = None
+        if push is None:
+            push = self._push = self._choose(agent, pose, goal)
+            self.replans += 1
+            if push is None:
+                self.phase = "idle"
+                return agent.copy()
+        return self._follow(push, agent, pose)
+
+    def _on_track(self, push, agent, pose):
+        """Whether the T is where the model said it would be at the pusher's progress along the push, and the push
+        is not over."""
+        if push["phase"] in ("approach", "settle"):
+            moved = push["start_pose"]
+        else:
+            s = float(np.dot(agent - push["c0"], push["d"]))
+            if push["phase"] == "push" and s >= push["s_stop"] - 0.3 and np.hypot(*self._agent_vel) < 5.0:
+                return False                    # pushed to its end and stopped: choose the next
+            moved = _interp_pose(push["s_path"], push["poses"], max(s, 0.0))
+        dp = math.hypot(pose[0] - moved[0], pose[1] - moved[1])
+        da = abs(_wrap(pose[2] - moved[2]))
+        return dp <= self.replan_mm and da <= self.replan_rad
+
+    def _follow(self, push, agent, pose):
+        c0, d = push["c0"], push["d"]
+        speed = float(np.hypot(*self._agent_vel))
+        if push["phase"] == "approach":
+            dist = float(np.hypot(*(c0 - agent)))
+            if dist < 1.0:
+                push["phase"] = "settle"
+            else:
+                self.phase = "approach"
+                return self._approach_target(push, agent, pose)
+        if push["phase"] == "settle":
+            if float(np.hypot(*(c0 - agent))) < 1.0 and speed < 10.0:
+                push["phase"] = "push"
+                push["s_target"] = 0.0
+            else:
+                self.phase = "settle"
+                return c0.copy()
+        self.phase = "push"
+        push["s_target"] = min(push["s_target"] + self.push_step, push["s_stop"])
+        return c0 + d * push["s_target"]
+
+    def _approach_target(self, push, agent, pose):
+        """The next target on the way to the push's start point: along the route (straight, or round the T), at
+        most approach_step ahead of the pusher, and the start point itself when it is that near."""
+        route = self._route(agent, push["c0"], pose)
+        left, p = self.approach_step, agent.copy()
+        for w in route:
+            seg = w - p
+            n = float(np.hypot(*seg))
+            if n >= left:
+                return p + seg * (left / n)
+            left -= n
+            p = w
+        return p
+
+    def _route(self, agent, c0, pose):
+        """Waypoints (world, mm) from the pusher to c0 that keep its disk off the T at `pose`: [c0] when the straight
+        segment is clear; else out to a circle about the T's centre of mass that clears it, along it the shorter way
+        and in to c0. Points are kept inside the arena."""
+        to_t, to_w = _frame_maps(pose)
+        a, b = to_t(agent), to_t(c0)
+        clear = self.radius + 1.5
+        if _segment_clear(self._boxes, a, b, clear):
+            return [c0]
+        com = self._com
+        R = (_circumradius(self._boxes, com) + self.radius + 4.0) / math.cos(math.radians(15.0))
+        a0 = math.atan2(a[1] - com[1], a[0] - com[0])
+        da = _wrap(math.atan2(b[1] - com[1], b[0] - com[0]) - a0)
+        n = max(1, int(math.ceil(abs(da) / math.radians(30.0))))
+        pts = [com + R * np.array([math.cos(a0 + da * k / n), math.sin(a0 + da * k / n)]) for k in range(n + 1)]
+        lo, hi = self._arena
+        out = [np.clip(to_w(p), lo, hi) for p in pts]
+        return out + [c0]
+
+    def _choose(self, agent, pose, goal):
+        """The best push from the observed pose (module docstring), or None when no push brings the T nearer."""
+        to_t, to_w = _frame_maps(pose)
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        R = np.array([[c, -s], [s, c]])
+        lo, hi = self._arena
+        best = None
+        j_now = self._cost(pose, goal)
+        steps = int(math.ceil(self.push_reach / self.push_step))
+        env = self.model
+        for p_t, n_t in self._outline:
+            c0 = to_w(p_t + (self.radius + 1.0) * n_t)
+            if not (lo <= c0[0] <= hi and lo <= c0[1] <= hi):
+                continue
+            d = -(R @ n_t)
+            env.set_state(c0, (0.0, 0.0), pose)
+            s_path, poses = [0.0], [pose.copy()]
+            for k in range(1, steps + 1):
+                env.advance(c0 + d * (self.push_step * k))
+                rec = env.rec
+                pk = rec.qk[1:, 0, :2] * 1e3
+                fr = _frames(env, rec.q[1:, 0])
+                s_path.extend(((pk - c0) @ d).tolist())
+                poses.extend(fr)
+                if env.failed_steps:
+                    break
+            s_path, poses = np.asarray(s_path), np.asarray(poses)
+            costs = self._cost_many(poses, goal)
+            i = int(np.argmin(costs))
+            if costs[i] < j_now - 1e-3 and (best is None or costs[i] < best[0]):
+                best = (float(costs[i]), c0, d, s_path, poses, float(s_path[i]))
+        if best is None:
+            return None
+        _, c0, d, s_path, poses, s_stop = best
+        return {"c0": c0, "d": d, "s_path": s_path, "poses": poses, "s_stop": s_stop, "phase": "approach",
+                "start_pose": pose.copy(), "s_target": 0.0}
+
+    def _cost(self, pose, goal):
+        return float(self._cost_many(np.asarray(pose)[None], goal)[0])
+
+    def _cost_many(self, poses, goal):
+        """|dp|^2 + (rho dtheta)^2 between the centres of mass of the T at `poses` (n, 3) and at `goal`, mm^2."""
+        com = self._com
+        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        px = poses[:, 0] + c * com[0] - s * com[1]
+        py = poses[:, 1] + s * com[0] + c * com[1]
+        cg, sg = math.cos(goal[2]), math.sin(goal[2])
+        gx, gy = goal[0] + cg * com[0] - sg * com[1], goal[1] + sg * com[0] + cg * com[1]
+        da = (poses[:, 2] - goal[2] + np.pi) % (2 * np.pi) - np.pi
+        return (px - gx) ** 2 + (py - gy) ** 2 + (self.rho * da) ** 2
+
+
+# ---- geometry of the T (its frame, mm) ------------------------------------------------------------------------------
+def _boxes_mm(env):
+    """(k, 4) the T's boxes: centre x, y and half-widths, mm, in gym-pusht's T frame."""
+    return np.array([[1e3 * ox, 1e3 * oy, 500.0 * w, 500.0 * h] for w, h, ox, oy in env.boxes])
+
+
+def _sdf(boxes, p):
+    """Signed distance (mm) from points p (..., 2) to the union of the boxes (negative inside)."""
+    p = np.asarray(p, dtype=np.float64)
+    out = None
+    for cx, cy, hx, hy in boxes:
+        qx, qy = np.abs(p[..., 0] - cx) - hx, np.abs(p[..., 1] - cy) - hy
+        d = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0)) + np.minimum(np.maximum(qx, qy), 0.0)
+        out = d if out is None else np.minimum(out, d)
+    return out
+
+
+def _segment_clear(boxes, a, b, clear):
+    n = max(2, int(math.ceil(np.hypot(*(b - a)) / 2.0)) + 1)
+    pts = a + np.linspace(0.0, 1.0, n)[:, None] * (b - a)
+    return bool(np.all(_sdf(boxes, pts) >= clear))
+
+
+def _circumradius(boxes, centre):
+    corners = np.array([[cx + sx * hx, cy + sy * hy] for cx, cy, hx, hy in boxes for sx in (-1, 1) for sy in (-1, 1)])
+    return float(np.max(np.hypot(*(corners - centre).T)))
+
+
+def _gyration(boxes, centre):
+    """The radius of gyration (mm) of the boxes' area about `centre`."""
+    area = polar = 0.0
+    for cx, cy, hx, hy in boxes:
+        a = 4 * hx * hy
+        area += a
+        polar += a * ((4 * hx * hx + 4 * hy * hy) / 12.0 + (cx - centre[0]) ** 2 + (cy - centre[1]) ** 2)
+    return math.sqrt(polar / area)
+
+
+def _outline_points(boxes, spacing, radius):
+    """(point, outward unit normal) pairs along the outline of the union of the boxes, every `spacing` mm, where the
+    pusher's disk fits against the point (its centre radius + 1 mm out along the normal clears every box)."""
+    from shapely.geometry import box
+    from shapely.ops import unary_union
+    poly = unary_union([box(cx - hx, cy - hy, cx + hx, cy + hy) for cx, cy, hx, hy in boxes]).simplify(0.0)
+    ring = np.asarray(poly.exterior.coords)
+    if poly.exterior.is_ccw is False:
+        ring = ring[::-1]
+    out = []
+    for a, b in zip(ring[:-1], ring[1:]):
+        e = b - a
+        L = float(np.hypot(*e))
+        n = np.array([e[1], -e[0]]) / L                     # outward for a counter-clockwise ring
+        k = max(1, int(math.floor(L / spacing)))
+        for t in (np.arange(k) + 0.5) / k:
+            p = a + t * e
+            if _sdf(boxes, p + (radius + 1.0) * n) >= radius + 0.99:
+                out.append((p, n))
+    return out
+
+
+def _frame_maps(pose):
+    """(world -> T frame, T frame -> world) point maps for the T's frame at pose (x, y mm, angle rad)."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    o = np.array([pose[0], pose[1]])
+
+    def to_t(p):
+        d = np.asarray(p, dtype=np.float64) - o
+        return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+
+    def to_w(p):
+        p = np.asarray(p, dtype=np.float64)
+        return o + np.array([c * p[0] - s * p[1], s * p[0] + c * p[1]])
+    return to_t, to_w
+
+
+def _frames(env, q_com):
+    """The T's frame poses (n, 3; x, y mm, angle rad) of its centre-of-mass poses q_com (n, 3; m, rad)."""
+    from planar_lcp.frames import com_to_frame
+    f = com_to_frame(np.asarray(q_com), np.repeat(env.com_local1, len(q_com), axis=0))
+    return np.column_stack([f[:, 0] * 1e3, f[:, 1] * 1e3, f[:, 2]])
+
+
+def _interp_pose(s_path, poses, s):
+    """The T's pose at pusher progress s along a push (linear between the model's substeps; the angle as is)."""
+    i = int(np.searchsorted(s_path, s))
+    if i <= 0:
+        return poses[0]
+    if i >= len(s_path):
+        return poses[-1]
+    s0, s1 = s_path[i - 1], s_path[i]
+    w = 0.0 if s1 <= s0 else (s - s0) / (s1 - s0)
+    return poses[i - 1] + w * (poses[i] - poses[i - 1])
+
+
+def _wrap(a):
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def run_episode(env, policy, seed=None, options=None, max_steps=300):
+    """One episode of `env` (a gymnasium PushT-v0, obs_type "state") driven by `policy`: a dict with success (as
+    the env says it), the final and best coverage, the actions taken, and the policy's compute per action (s, thread
+    CPU time)."""
+    obs, info = env.reset(seed=seed, options=options)
+    policy.reset()
+    compute, cover, success = [], 0.0, False
+    best = 0.0
+    for k in range(max_steps):
+        action = policy(obs)
+        compute.append(policy.compute_s)
+        obs, reward, terminated, truncated, info = env.step(action)
+        cover = float(info.get("coverage", 0.0))
+        best = max(best, cover)
+        if terminated:
+            success = bool(info.get("is_success", terminated))
+            break
+        if truncated:
+            break
+    return {"seed": seed, "success": success, "coverage": cover, "best_coverage": best, "actions": k + 1,
+            "compute_median_s": float(np.median(compute)), "compute_max_s": float(np.max(compute)),
+            "replans": policy.replans}
+
+
+__all__ = ["PushTPolicy", "WORLDS", "run_episode", "ARENA"]
