@@ -91,6 +91,36 @@ def register(sub):
                         "same")
     b.set_defaults(func=cmd_bench)
 
+    from .pusht_eval import ENVS, MAX_EPISODES
+    e = one_line_errors(sub.add_parser(
+        "pusht-eval", help="run PushTPolicy's episodes in gym-pusht's Push-T or ours and score them",
+        description="Episodes of planners.PushTPolicy (a feedback controller with our simulator as its model, "
+                    "docs/closed_loop.md) in a Push-T environment as registered (300 actions, success at coverage "
+                    "> 0.95): seeds SEED..SEED+N-1. Writes OUT/episodes.csv (one row per episode: success, "
+                    "coverage, actions, the policy's compute per action) and OUT/summary.json. Exit status 0 when "
+                    "every episode ran (whatever their success)."))
+    e.add_argument("--env", required=True, choices=ENVS, help="the environment")
+    e.add_argument("--episodes", type=finite_number(int, 1, False, MAX_EPISODES), required=True, metavar="N")
+    e.add_argument("--seed", type=finite_number(int, 0, True, MAX_SEED, " (a reset seed)"), default=0, metavar="S",
+                   help="the first episode's reset seed (default 0)")
+    e.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    e.add_argument("--world", choices=["gym_pusht", "planar_lcp"], default=None,
+                   help="the physics of the policy's model (default: the environment's own: gym_pusht for "
+                        "gym_pusht/PushT-v0, planar_lcp for ours)")
+    e.add_argument("--table-friction", type=finite_number(float, 0, True), default=None, metavar="MU",
+                   help="planar_lcp/PushT-v0 only: the T's table friction in the world (the model keeps 0.3)")
+    e.add_argument("--contact-friction", type=finite_number(float, 0, True), default=None, metavar="MU",
+                   help="planar_lcp/PushT-v0 only: the pusher-T and T-wall friction in the world (the model keeps "
+                        "0.3)")
+    e.add_argument("--pusht-python", default=None, metavar="PY",
+                   help="gym_pusht/PushT-v0 when gym_pusht does not import here: the python of a virtualenv with "
+                        "gym-pusht==0.1.8 (default $PLANAR_LCP_PUSHT_PYTHON)")
+    e.add_argument("--jobs", type=finite_number(int, 1, False), default=None, metavar="N",
+                   help="run the episodes on a local Dask cluster of N worker processes (127.0.0.1)")
+    e.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run them on the Dask scheduler at ADDRESS (docs/planning.md: securing it with TLS)")
+    e.set_defaults(func=cmd_pusht_eval)
+
 
 def shorten_seconds(text):
     """argparse type of --shorten-time: seconds in [0, MAX_TIME] (the bound of a task's time)."""
@@ -393,4 +423,51 @@ def cmd_bench(args):
         return _err("plan-bench", e)               # checked before any work: nothing was written
     except (SchedulerUnreachable, SchedulerLost) as e:
         return _err("plan-bench", str(e), 1)
+    return 0
+
+
+def cmd_pusht_eval(args):
+    import os
+
+    from planar_lcp.cli import require
+    require("gymnasium")
+    if args.jobs is not None or args.scheduler is not None:
+        require("distributed")
+    from planar_lcp.experiments.cluster import SchedulerLost, SchedulerUnreachable
+
+    from .pusht_eval import evaluate
+    if args.scheduler is not None and args.jobs is not None:
+        return _err("pusht-eval", f"--jobs sizes the local cluster: not with --scheduler {args.scheduler}")
+    env_kwargs = {}
+    for flag, value, key in (("--table-friction", args.table_friction, "table_friction"),
+                             ("--contact-friction", args.contact_friction, "contact_friction")):
+        if value is not None:
+            if args.env != "planar_lcp/PushT-v0":
+                return _err("pusht-eval", f"{flag} changes our PushT-v0's world: only with --env "
+                                          f"planar_lcp/PushT-v0, got --env {args.env}")
+            env_kwargs[key] = value
+    python = args.pusht_python or os.environ.get("PLANAR_LCP_PUSHT_PYTHON")
+    if args.pusht_python is not None and not Path(args.pusht_python).is_file():
+        return _err("pusht-eval", f"--pusht-python {args.pusht_python}: no such file")
+    out = Path(args.out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        return _err("pusht-eval", f"--out {out}: cannot create the directory ({e.strerror or e})")
+    from .pusht_eval import default_world
+    world = args.world or default_world(args.env)
+    print(f"pusht-eval     {args.episodes} episodes of {args.env} (seeds {args.seed}..{args.seed + args.episodes - 1})"
+          f", PushTPolicy(world={world!r})" + (f", the world's {env_kwargs}" if env_kwargs else ""), flush=True)
+    try:
+        s = evaluate(args.env, args.episodes, args.seed, out, world=world, pusht_python=python,
+                     env_kwargs=env_kwargs, jobs=args.jobs, scheduler=args.scheduler,
+                     say=lambda line: print(line, flush=True))
+    except RuntimeError as e:
+        return _err("pusht-eval", e, 1)
+    except (SchedulerUnreachable, SchedulerLost) as e:
+        return _err("pusht-eval", str(e), 1)
+    print(f"success        {s['successes']}/{s['episodes']} ({100 * s['success_rate']:.1f} %), mean final coverage "
+          f"{s['mean_final_coverage']:.3f}; the policy's compute per action: median {s['compute_median_ms']:.2f} ms, "
+          f"max {s['compute_max_ms']:.1f} ms (thread CPU time)")
+    print(f"wrote          {out / 'episodes.csv'}, {out / 'summary.json'}")
     return 0

@@ -53,13 +53,16 @@ class PushTPolicy:
         How far ahead of the pusher its target is put per action on the way to a push.
     replan_mm, replan_deg : float
         How far the observed T may drift from the model's prediction before the push is chosen again.
+    budget_s : float
+        Thread CPU seconds a choice of push may spend simulating candidates (the most promising first), so that
+        every action is decided within the 0.1 s between actions.
 
     Attributes (after each call): `compute_s`, the thread CPU time of the call; `replans`, the pushes chosen so far;
     `phase`, "approach" | "settle" | "push" | "idle".
     """
 
     def __init__(self, world="gym_pusht", goal=GOAL_POSE, spacing=6.0, push_reach=60.0, push_step=8.0,
-                 approach_step=35.0, replan_mm=2.0, replan_deg=2.0):
+                 approach_step=35.0, replan_mm=2.0, replan_deg=2.0, budget_s=0.07):
         if world not in WORLDS:
             raise ValueError(f"PushTPolicy: world must be one of {', '.join(WORLDS)}, got {world!r}")
         self.world = world
@@ -68,14 +71,20 @@ class PushTPolicy:
         self.spacing, self.push_reach, self.push_step = float(spacing), float(push_reach), float(push_step)
         self.approach_step, self.replan_mm = float(approach_step), float(replan_mm)
         self.replan_rad = math.radians(float(replan_deg))
+        self.budget_s = float(budget_s)
         self.radius = float(self.model.pusher_radius)
         self._boxes = _boxes_mm(self.model)
         self._com = np.array(PUSHT_COG, dtype=np.float64)
         self.rho = _gyration(self._boxes, self._com)
+        # the model T's own radius of gyration (its inertia over its mass, mm): how a push's impulse turns it
+        self.rho_m = math.sqrt(self.model.model.arrays.dyn_inertia[0] / self.model.model.arrays.dyn_mass[0]) * 1e3
         self._outline = _outline_points(self._boxes, self.spacing, self.radius)
         lo, hi = WALL_LINES[0] + WALL_HALF + self.radius + WALL_CLEARANCE, \
             WALL_LINES[1] - WALL_HALF - self.radius - WALL_CLEARANCE
         self._arena = (lo, hi)
+        # load the model's kernels now (a first rollout), not in the first action's time
+        self.model.set_state((100.0, 100.0), (0.0, 0.0), (256.0, 300.0, 0.0))
+        self.model.advance((100.0, 100.0))
         self.reset()
 
     # ---- the interface ------------------------------------------------------------------------------------------
@@ -186,7 +195,8 @@ class PushTPolicy:
         and in to c0. Points are kept inside the arena."""
         to_t, to_w = _frame_maps(pose)
         a, b = to_t(agent), to_t(c0)
-        clear = self.radius + 1.5
+        # c0 is radius + 1 mm off the T: a way clear by radius + 0.5 mm may end there
+        clear = self.radius + 0.5
         if _segment_clear(self._boxes, a, b, clear):
             return [c0]
         com = self._com
@@ -209,13 +219,29 @@ class PushTPolicy:
         j_now = self._cost(pose, goal)
         steps = int(math.ceil(self.push_reach / self.push_step))
         env = self.model
+        grad = self._cost_gradient(pose, goal)
+        # a frictionless push at p along -n moves the centre of mass along -n and turns the T by (p - c) x (-n) over
+        # the radius of gyration^2 (per unit of impulse and mass): the cost's slope along that first motion. Pushes
+        # that start uphill are not tried; the others in the order of their slope, the steepest first, until the
+        # time budget is spent (so that a decision keeps to real time)
+        tried = []
         for p_t, n_t in self._outline:
             c0 = to_w(p_t + (self.radius + 1.0) * n_t)
             if not (lo <= c0[0] <= hi and lo <= c0[1] <= hi):
                 continue
+            arm = p_t - self._com
+            slope = float(grad @ np.array([-n_t[0], -n_t[1], -(arm[0] * n_t[1] - arm[1] * n_t[0]) / self.rho_m ** 2]))
+            if slope < 0.0:
+                tried.append((slope, len(tried), c0, n_t))
+        tried.sort(key=lambda c: c[:2])
+        t_start = time.thread_time()
+        for _, _, c0, n_t in tried:
+            if time.thread_time() - t_start > self.budget_s:
+                break
             d = -(R @ n_t)
             env.set_state(c0, (0.0, 0.0), pose)
-            s_path, poses = [0.0], [pose.copy()]
+            s_path, poses, costs = [0.0], [pose.copy()], [j_now]
+            rising = 0
             for k in range(1, steps + 1):
                 env.advance(c0 + d * (self.push_step * k))
                 rec = env.rec
@@ -223,10 +249,12 @@ class PushTPolicy:
                 fr = _frames(env, rec.q[1:, 0])
                 s_path.extend(((pk - c0) @ d).tolist())
                 poses.extend(fr)
-                if env.failed_steps:
-                    break
-            s_path, poses = np.asarray(s_path), np.asarray(poses)
-            costs = self._cost_many(poses, goal)
+                c = self._cost_many(fr, goal)
+                rising = rising + 1 if c[-1] > min(costs) else 0
+                costs.extend(c.tolist())
+                if env.failed_steps or rising >= 2:
+                    break                           # past its best for two actions: it only gets worse
+            s_path, poses, costs = np.asarray(s_path), np.asarray(poses), np.asarray(costs)
             i = int(np.argmin(costs))
             if costs[i] < j_now - 1e-3 and (best is None or costs[i] < best[0]):
                 best = (float(costs[i]), c0, d, s_path, poses, float(s_path[i]))
@@ -235,6 +263,18 @@ class PushTPolicy:
         _, c0, d, s_path, poses, s_stop = best
         return {"c0": c0, "d": d, "s_path": s_path, "poses": poses, "s_stop": s_stop, "phase": "approach",
                 "start_pose": pose.copy(), "s_target": 0.0}
+
+    def _cost_gradient(self, pose, goal):
+        """The cost's gradient (module docstring) with respect to the T's centre of mass (x, y, mm; in the T's
+        frame) and its angle, at `pose`."""
+        com = self._com
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        px, py = pose[0] + c * com[0] - s * com[1], pose[1] + s * com[0] + c * com[1]
+        cg, sg = math.cos(goal[2]), math.sin(goal[2])
+        gx, gy = goal[0] + cg * com[0] - sg * com[1], goal[1] + sg * com[0] + cg * com[1]
+        dw = np.array([px - gx, py - gy])
+        dt = np.array([c * dw[0] + s * dw[1], -s * dw[0] + c * dw[1]])      # in the T's frame, as n_t and arm
+        return np.array([2.0 * dt[0], 2.0 * dt[1], 2.0 * self.rho ** 2 * _wrap(pose[2] - goal[2])])
 
     def _cost(self, pose, goal):
         return float(self._cost_many(np.asarray(pose)[None], goal)[0])
@@ -347,6 +387,59 @@ def _interp_pose(s_path, poses, s):
 
 def _wrap(a):
     return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+class SubprocessEnv:
+    """gym-pusht's environment in another python (its own virtualenv: it pins pymunk < 7), driven through
+    planners/pusht_server.py: `reset(seed=...)` and `step(action)` as a gymnasium environment's, obs_type "state".
+
+    Raises RuntimeError naming the interpreter when the server cannot start (no such python, no gym-pusht there)."""
+
+    def __init__(self, python, env_id="gym_pusht/PushT-v0"):
+        import json
+        import subprocess
+        from pathlib import Path
+        self._json = json
+        server = Path(__file__).resolve().parent / "pusht_server.py"
+        try:
+            self._p = subprocess.Popen([str(python), str(server), env_id], stdin=subprocess.PIPE,
+                                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, bufsize=1)
+        except OSError as e:
+            raise RuntimeError(f"cannot start {python} for {env_id}: {e}") from None
+        first = self._p.stdout.readline()
+        if not first:
+            err = self._p.stderr.read().strip().splitlines()
+            raise RuntimeError(f"{python} could not serve {env_id}: {err[-1] if err else 'it exited'}")
+        hello = json.loads(first)
+        self.version = hello.get("gym_pusht")
+        self.env_id = env_id
+
+    def _ask(self, req):
+        self._p.stdin.write(self._json.dumps(req) + "\n")
+        self._p.stdin.flush()
+        ans = self._json.loads(self._p.stdout.readline())
+        if "error" in ans:
+            raise RuntimeError(f"{self.env_id}: {ans['error']}")
+        return ans
+
+    def reset(self, seed=None, options=None):
+        if options:
+            raise ValueError("SubprocessEnv.reset: options are not served")
+        a = self._ask({"cmd": "reset", "seed": seed})
+        return np.asarray(a["obs"], dtype=np.float64), a["info"]
+
+    def step(self, action):
+        a = self._ask({"cmd": "step", "action": [float(x) for x in action]})
+        return (np.asarray(a["obs"], dtype=np.float64), float(a["reward"]), bool(a["terminated"]),
+                bool(a["truncated"]), a["info"])
+
+    def close(self):
+        if self._p.poll() is None:
+            try:
+                self._ask({"cmd": "close"})
+            except (OSError, ValueError):
+                pass
+            self._p.wait(timeout=10)
 
 
 def run_episode(env, policy, seed=None, options=None, max_steps=300):
