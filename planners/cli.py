@@ -449,6 +449,12 @@ def cmd_pusht_eval(args):
     python = args.pusht_python or os.environ.get("PLANAR_LCP_PUSHT_PYTHON")
     if args.pusht_python is not None and not Path(args.pusht_python).is_file():
         return _err("pusht-eval", f"--pusht-python {args.pusht_python}: no such file")
+    if args.env.startswith("gym_pusht/") and not python:
+        import importlib.util
+        if importlib.util.find_spec("gym_pusht") is None:
+            return _err("pusht-eval", f"--env {args.env}: gym_pusht does not import here; give --pusht-python PY "
+                                      "(or $PLANAR_LCP_PUSHT_PYTHON), the python of a virtualenv with "
+                                      "gym-pusht==0.1.8")
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)

@@ -103,7 +103,7 @@ class PushTPolicy:
         agent, pose = obs[0:2], obs[2:5].copy()
         goal = obs[5:8] if len(obs) >= 8 else self.goal
         self._track_velocity(agent)
-        action = self._decide(agent, pose, goal)
+        action = np.clip(self._decide(agent, pose, goal), 0.0, ARENA)      # the action space
         self._last = (agent.copy(), action.copy())
         self.compute_s = time.thread_time() - c0
         return action
@@ -176,11 +176,22 @@ class PushTPolicy:
         return c0 + d * push["s_target"]
 
     def _approach_target(self, push, agent, pose):
-        """The next target on the way to the push's start point: along the route (straight, or round the T), at
-        most approach_step ahead of the pusher, and the start point itself when it is that near."""
-        route = self._route(agent, push["c0"], pose)
-        left, p = self.approach_step, agent.copy()
-        for w in route:
+        """The next target on the way to the push's start point: approach_step further along the route (straight,
+        or round the T) than the route's point nearest the pusher, the latest of the route's legs on a tie, so that
+        the target never leads back; the start point itself when it is that near."""
+        route = [agent.copy()] + self._route(agent, push["c0"], pose)
+        near, leg = agent.copy(), 0
+        best = math.inf
+        for i in range(len(route) - 1):
+            a, ab = route[i], route[i + 1] - route[i]
+            L2 = float(ab @ ab)
+            t = 0.0 if L2 == 0.0 else min(1.0, max(0.0, float((agent - a) @ ab) / L2))
+            q = a + t * ab
+            dist = float(np.hypot(*(agent - q)))
+            if dist <= best + 1e-9:
+                best, near, leg = dist, q, i
+        left, p = self.approach_step, near
+        for w in route[leg + 1:]:
             seg = w - p
             n = float(np.hypot(*seg))
             if n >= left:
