@@ -56,13 +56,15 @@ class PushTPolicy:
     budget_s : float
         Thread CPU seconds a choice of push may spend simulating candidates (the most promising first), so that
         every action is decided within the 0.1 s between actions.
+    settle_mm, settle_speed : float
+        The push starts once the pusher is this near its start point (mm) and this slow (mm/s).
 
     Attributes (after each call): `compute_s`, the thread CPU time of the call; `replans`, the pushes chosen so far;
     `phase`, "approach" | "settle" | "push" | "idle".
     """
 
     def __init__(self, world="gym_pusht", goal=GOAL_POSE, spacing=6.0, push_reach=60.0, push_step=8.0,
-                 approach_step=35.0, replan_mm=2.0, replan_deg=2.0, budget_s=0.07):
+                 approach_step=60.0, replan_mm=2.0, replan_deg=2.0, budget_s=0.07, settle_mm=1.0, settle_speed=10.0):
         if world not in WORLDS:
             raise ValueError(f"PushTPolicy: world must be one of {', '.join(WORLDS)}, got {world!r}")
         self.world = world
@@ -72,6 +74,7 @@ class PushTPolicy:
         self.approach_step, self.replan_mm = float(approach_step), float(replan_mm)
         self.replan_rad = math.radians(float(replan_deg))
         self.budget_s = float(budget_s)
+        self.settle_mm, self.settle_speed = float(settle_mm), float(settle_speed)
         self.radius = float(self.model.pusher_radius)
         self._boxes = _boxes_mm(self.model)
         self._com = np.array(PUSHT_COG, dtype=np.float64)
@@ -165,7 +168,7 @@ class PushTPolicy:
                 self.phase = "approach"
                 return self._approach_target(push, agent, pose)
         if push["phase"] == "settle":
-            if float(np.hypot(*(c0 - agent))) < 1.0 and speed < 10.0:
+            if float(np.hypot(*(c0 - agent))) < self.settle_mm and speed < self.settle_speed:
                 push["phase"] = "push"
                 push["s_target"] = 0.0
             else:
@@ -267,8 +270,14 @@ class PushTPolicy:
                     break                           # past its best for two actions: it only gets worse
             s_path, poses, costs = np.asarray(s_path), np.asarray(poses), np.asarray(costs)
             i = int(np.argmin(costs))
-            if costs[i] < j_now - 1e-3 and (best is None or costs[i] < best[0]):
-                best = (float(costs[i]), c0, d, s_path, poses, float(s_path[i]))
+            if costs[i] < j_now - 1e-3:
+                # the progress per action it takes to get there and push: the way round the T at about half an
+                # approach step per action, a few to settle, the push at push_step per action
+                way = _polyline_length([agent] + self._route(agent, c0, pose))
+                actions = way / (0.5 * self.approach_step) + 3.0 + max(float(s_path[i]), 0.0) / self.push_step
+                rate = (j_now - float(costs[i])) / actions
+                if best is None or rate > best[0]:
+                    best = (rate, c0, d, s_path, poses, float(s_path[i]))
         if best is None:
             return None
         _, c0, d, s_path, poses, s_stop = best
@@ -396,6 +405,10 @@ def _interp_pose(s_path, poses, s):
     return poses[i - 1] + w * (poses[i] - poses[i - 1])
 
 
+def _polyline_length(points):
+    return float(sum(np.hypot(*(b - a)) for a, b in zip(points[:-1], points[1:])))
+
+
 def _wrap(a):
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
@@ -443,6 +456,15 @@ class SubprocessEnv:
         a = self._ask({"cmd": "step", "action": [float(x) for x in action]})
         return (np.asarray(a["obs"], dtype=np.float64), float(a["reward"]), bool(a["terminated"]),
                 bool(a["truncated"]), a["info"])
+
+    def render(self):
+        """gym-pusht's own drawing of the current state (its render(): 680 x 680 RGB), through a temporary file."""
+        import tempfile
+        from pathlib import Path
+        with tempfile.TemporaryDirectory() as d:
+            path = Path(d) / "frame.npy"
+            self._ask({"cmd": "render", "path": str(path)})
+            return np.load(path)
 
     def close(self):
         if self._p.poll() is None:

@@ -49,8 +49,9 @@ def make_env(env_id, pusht_python=None, env_kwargs=None):
     return env, env.version
 
 
-def run_chunk(env_id, world, seeds, first_episode, pusht_python=None, env_kwargs=None):
-    """Episodes of seeds `seeds` (a Dask task, or in this process): one row (COLUMNS) per episode."""
+def run_chunk(env_id, world, seeds, first_episode, pusht_python=None, env_kwargs=None, on_row=None):
+    """Episodes of seeds `seeds` (a Dask task, or in this process) in one environment with one policy: one row
+    (COLUMNS) per episode; `on_row(row)` is called as each ends."""
     from .pusht import PushTPolicy, run_episode
     env, _ = make_env(env_id, pusht_python, env_kwargs)
     policy = PushTPolicy(world=world)
@@ -64,6 +65,8 @@ def run_chunk(env_id, world, seeds, first_episode, pusht_python=None, env_kwargs
                          "actions": int(r["actions"]), "compute_median_ms": round(1e3 * r["compute_median_s"], 4),
                          "compute_max_ms": round(1e3 * r["compute_max_s"], 4), "replans": int(r["replans"]),
                          "wall_s": round(time.perf_counter() - t0, 3)})
+            if on_row is not None:
+                on_row(rows[-1])
     finally:
         env.close()
     return rows
@@ -82,16 +85,18 @@ def evaluate(env_id, episodes, seed, out, world=None, pusht_python=None, env_kwa
     rows = []
     t0 = time.perf_counter()
 
+    def report_one(r):
+        rows.append(r)
+        say(f"episode {r['episode']:4d} (seed {r['seed']}): {'success' if r['success'] else 'FAILED '}  "
+            f"coverage {r['coverage']:.3f}  {r['actions']:3d} actions  compute median "
+            f"{r['compute_median_ms']:.2f} ms, max {r['compute_max_ms']:.1f} ms")
+
     def report(rs):
         for r in rs:
-            rows.append(r)
-            say(f"episode {r['episode']:4d} (seed {r['seed']}): {'success' if r['success'] else 'FAILED '}  "
-                f"coverage {r['coverage']:.3f}  {r['actions']:3d} actions  compute median "
-                f"{r['compute_median_ms']:.2f} ms, max {r['compute_max_ms']:.1f} ms")
+            report_one(r)
 
     if jobs is None and scheduler is None:
-        for i, s in enumerate(seeds):
-            report(run_chunk(env_id, world, [s], i, pusht_python, env_kwargs))
+        run_chunk(env_id, world, seeds, 0, pusht_python, env_kwargs, on_row=report_one)
     else:
         from planar_lcp.experiments.cluster import close_cluster, local_jobs, open_cluster
         client, cluster = open_cluster(scheduler, local_jobs(jobs, len(seeds)))

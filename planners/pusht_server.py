@@ -9,6 +9,7 @@ TimeLimit, unmodified. Requests and answers:
 
     {"cmd": "reset", "seed": S}        -> {"obs": [...], "info": {...}}
     {"cmd": "step", "action": [x, y]}  -> {"obs": [...], "reward": r, "terminated": b, "truncated": b, "info": {...}}
+    {"cmd": "render", "path": P}       -> {"shape": [h, w, 3]}: env.render()'s image saved as P (numpy's .npy)
     {"cmd": "close"}                   -> {} and the process ends
 
 Before the first request it writes {"ready": true, "gym_pusht": VERSION, "env": ENV_ID}. An error answers
@@ -54,6 +55,10 @@ def main(argv=None):
             elif cmd == "step":
                 obs, reward, terminated, truncated, info = env.step(np.asarray(req["action"], dtype=np.float64))
                 ans = {"obs": obs, "reward": reward, "terminated": terminated, "truncated": truncated, "info": info}
+            elif cmd == "render":
+                img = np.asarray(env.render())
+                np.save(req["path"], img)
+                ans = {"shape": list(img.shape)}
             elif cmd == "close":
                 out.write("{}\n")
                 out.flush()

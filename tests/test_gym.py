@@ -396,6 +396,10 @@ def test_side_by_side_with_gym_pusht_prints_gym_mds_table(tmp_path):
             mine = np.array(mine["state"])
             assert np.array_equal(mine[0], theirs[0]) or np.allclose(mine[0], theirs[0], rtol=0, atol=1e-9)
             assert np.abs(mine[:, :2] - theirs[:, :2]).max() < 1e-9        # the pusher: the same PD law
+        # gym-pusht's physics in our engine follows its T along every episode
+        mine = np.array(ep["ours"]["ours, gym-pusht's physics"]["state"])
+        assert np.abs(mine[:, 2:4] - theirs[:, 2:4]).max() < 2.0, ep["name"]            # mm
+        assert np.abs(mine[:, 4] - theirs[:, 4]).max() < np.radians(1.0), ep["name"]
 
 
 def test_speed_command_runs_beside_gym_pusht():
