@@ -157,3 +157,34 @@ def test_a_python_without_gym_pusht_cannot_serve_it():
         pytest.skip("gym_pusht imports in this python")
     with pytest.raises(RuntimeError, match=r"could not serve gym_pusht/PushT-v0: .*No module named 'gym_pusht'"):
         SubprocessEnv(sys.executable)
+
+
+def test_the_python_example_of_closed_loop_md_runs(tmp_path):
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+    md = (Path(__file__).resolve().parent.parent / "docs" / "closed_loop.md").read_text()
+    code = re.findall(r"```python\n(.*?)```", md, re.S)[0]
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("True "), r.stdout            # seed 0 succeeds: is_success, coverage, compute
+
+
+@pytest.mark.parametrize("env_id", ["planar_lcp/PushT-v0", "gym_pusht/PushT-v0"])
+def test_the_episode_gif_command_runs(tmp_path, env_id):
+    import subprocess
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parent.parent
+    args = [sys.executable, str(root / "examples" / "pusht_episode_gif.py"), "--env", env_id, "--seed", "5000",
+            "--every", "10", "--out", str(tmp_path / "e.gif")]
+    if env_id.startswith("gym_pusht"):
+        from test_gym import pusht_python
+        args += ["--pusht-python", pusht_python()]
+    r = subprocess.run(args, capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert "seed 5000: success after" in r.stdout and (tmp_path / "e.gif").stat().st_size > 5000
+    from PIL import Image
+    im = Image.open(tmp_path / "e.gif")
+    assert im.n_frames > 10 and im.size == (340, 340)
