@@ -209,19 +209,31 @@ class PushTPolicy:
         and in to c0. Points are kept inside the arena."""
         to_t, to_w = _frame_maps(pose)
         a, b = to_t(agent), to_t(c0)
+        lo, hi = self._arena
+        lead = []
+        gap = float(_sdf(self._boxes, a))
+        if gap < self.radius + 3.0:
+            # the pusher against the T (a push just ended): first straight away from it, along the distance's
+            # gradient, so that going round does not drag the T along
+            e = 1e-3
+            g = np.array([_sdf(self._boxes, a + [e, 0.0]) - _sdf(self._boxes, a - [e, 0.0]),
+                          _sdf(self._boxes, a + [0.0, e]) - _sdf(self._boxes, a - [0.0, e])])
+            if np.hypot(*g) > 0.0:
+                a = a + g / np.hypot(*g) * (self.radius + 6.0 - gap)
+                lead = [np.clip(to_w(a), lo, hi)]
+                a = to_t(lead[0])
         # c0 is radius + 1 mm off the T: a way clear by radius + 0.5 mm may end there
         clear = self.radius + 0.5
         if _segment_clear(self._boxes, a, b, clear):
-            return [c0]
+            return lead + [c0]
         com = self._com
         R = (_circumradius(self._boxes, com) + self.radius + 4.0) / math.cos(math.radians(15.0))
         a0 = math.atan2(a[1] - com[1], a[0] - com[0])
         da = _wrap(math.atan2(b[1] - com[1], b[0] - com[0]) - a0)
         n = max(1, int(math.ceil(abs(da) / math.radians(30.0))))
         pts = [com + R * np.array([math.cos(a0 + da * k / n), math.sin(a0 + da * k / n)]) for k in range(n + 1)]
-        lo, hi = self._arena
         out = [np.clip(to_w(p), lo, hi) for p in pts]
-        return out + [c0]
+        return lead + out + [c0]
 
     def _choose(self, agent, pose, goal):
         """The best push from the observed pose (module docstring), or None when no push brings the T nearer."""
