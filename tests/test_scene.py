@@ -439,8 +439,8 @@ B0, B1, B2 = ("bodies", 0), ("bodies", 1), ("bodies", 2)
 S00, S10, S20 = B0 + ("shapes", 0), B1 + ("shapes", 0), B2 + ("shapes", 0)
 SQUARE_CW = [[0, 0], [0, 1], [1, 1], [1, 0]]
 PENTAGRAM = [[math.cos(2 * math.pi * i / 5), math.sin(2 * math.pi * i / 5)] for i in (0, 2, 4, 1, 3)]
-BODY_KEYS = ("name, type, shapes, mass, inertia, position, angle, angle_deg, velocity, angular_velocity, "
-             "support_friction, support_points, support_share, max_force, max_torque, path")
+BODY_KEYS = ("name, type, shapes, mass, inertia, center_of_mass, position, angle, angle_deg, velocity, "
+             "angular_velocity, support_friction, support_points, support_share, max_force, max_torque, path")
 
 # (id, base, mutations, message after "x.toml: ")
 CASES = [
@@ -449,7 +449,7 @@ CASES = [
      "unknown key 'foo' (allowed: name, description, world, sim, bodies, task)"),
     ("world-unknown", base, [put(("world", "gravty"), [0, 0])],
      "world: unknown key 'gravty' (allowed: plane, gravity, support_gravity, friction, friction_pairs, "
-     "support_model, restitution, restitution_pairs)"),
+     "support_model, restitution, restitution_pairs, damping)"),
     ("sim-unknown", base, [put(("sim", "dt"), 0.1)],
      "sim: unknown key 'dt' (allowed: h, t_end, solver, formulation, fixed_point_iterations, friction_directions, "
      "pgs_iterations, limit_surface_twists, limit_surface_resolution)"),
