@@ -204,3 +204,22 @@ def test_closed_loop_mds_table_is_the_commands_output():
     assert r.returncode == 0, r.stderr
     start = md.index("<!-- closed-loop table -->\n") + len("<!-- closed-loop table -->\n")
     assert r.stdout.strip() == md[start:md.index("<!-- end of the closed-loop table -->")].strip()
+
+
+def test_gym_pushts_t_is_identified_from_its_transitions():
+    """examples/identify_gym_pusht.py on two episodes of gym-pusht (its virtualenv): the fitted inertia and centre of
+    mass are gym-pusht's source's (3000 mm^2, 45 mm) within 2 % and 0.5 mm, from a start at 1500 and 35."""
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from test_gym import pusht_python
+    root = Path(__file__).resolve().parent.parent
+    r = subprocess.run([sys.executable, str(root / "examples" / "identify_gym_pusht.py"), "--pusht-python",
+                        pusht_python(), "--episodes", "2", "--actions", "100"], capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 0, r.stderr
+    inertia = float(re.search(r"inertia_mm2  = ([\d.]+)", r.stdout).group(1))
+    com = float(re.search(r"com_y_mm     = ([\d.]+)", r.stdout).group(1))
+    assert abs(inertia - 3000.0) < 60.0 and abs(com - 45.0) < 0.5, r.stdout

@@ -415,6 +415,23 @@ def test_plan_bench(tmp_path):
     check_dir(out, ["tip_box.log", "tip_box.db", "summary.md", "summary.json", "boxplots.png", "records.jsonl"])
 
 
+@covers("pusht-eval")
+def test_pusht_eval(tmp_path):
+    """Our PushT-v0 with the world's friction changed (gym-pusht's own needs its virtualenv:
+    tests/test_pusht_policy.py runs it there when PLANAR_LCP_PUSHT_PYTHON is set); with --jobs on a local cluster."""
+    out = tmp_path / "pe"
+    r = run_cli("pusht-eval", "--env", "planar_lcp/PushT-v0", "--episodes", "2", "--seed", "3", "--table-friction",
+                "0.45", "--contact-friction", "0.45", "--jobs", "1", "--out", out, cwd=tmp_path)
+    ok(r)
+    check_dir(out, ["episodes.csv", "summary.json"])
+    header, rows = check_csv(out / "episodes.csv", first="episode", min_rows=2)
+    assert header[:3] == ["episode", "seed", "success"] and len(rows) == 2
+    d = check_json(out / "summary.json", ["env", "world", "episodes", "successes", "success_rate",
+                                          "compute_median_ms", "compute_max_ms", "failures"])
+    assert d["env_kwargs"] == {"table_friction": 0.45, "contact_friction": 0.45} and d["world"] == "planar_lcp"
+    assert "cluster" not in r.stderr and f"success        {d['successes']}/2" in r.stdout
+
+
 @pytest.fixture(scope="module")
 def push_root(tmp_path_factory):
     """A small data root in the MIT pushing data set's layout made by our simulator (tests/pushdata_synthetic.py):
