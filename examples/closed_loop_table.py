@@ -24,7 +24,8 @@ def row(folder):
     world = ", ".join(f"{k} {v:g}" for k, v in s["env_kwargs"].items()) or "as registered"
     return (f"| {env} | {world} | {s['world']} | {s['seeds'][0]}..{s['seeds'][1]} | {s['successes']}/{s['episodes']} "
             f"({100 * s['success_rate']:.1f} %) | {s['mean_final_coverage']:.3f} | "
-            f"{s['median_actions_of_successes']:.0f} ({most}) | {s['compute_median_ms']:.2f} / {s['compute_max_ms']:.1f} |")
+            f"{s['median_actions_of_successes']:.0f} ({most}) | {s['compute_median_ms']:.2f} / "
+            f"{s['compute_max_ms']:.1f} |")
 
 
 def main(argv=None):

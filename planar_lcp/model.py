@@ -312,7 +312,8 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
         return np.ascontiguousarray(a)
 
     arrays = ModelArrays(
-        plane=plane, gravity=arr(gravity), damping=float(scene.world.damping), body_kind=body_kind, body_slot=body_slot, static_pose=static_pose,
+        plane=plane, gravity=arr(gravity), damping=float(scene.world.damping), body_kind=body_kind,
+        body_slot=body_slot, static_pose=static_pose,
         dyn_body=arr(np.flatnonzero(body_kind == BODY_DYNAMIC), np.int64),
         dyn_mass=arr(dyn_mass), dyn_inertia=arr(dyn_inertia), dyn_inv_mass=arr(1.0 / np.asarray(dyn_mass, float)),
         shape_body=arr(shape_body, np.int64), shape_kind=arr(shape_kind, np.int64),
