@@ -5,17 +5,20 @@ observation) and decides the next PD target. Its plan is one push at a time, cho
 (PushT-v0's physics, `planners.envs.PushTEnv.advance`, set to the world the policy acts in):
 
 - Candidates: points along the T's outline every `spacing` mm where the pusher's disk fits, each pushed along the
-  inward normal of its edge. For each, the model pushes from there for `push_reach` mm (one rollout of PushT-v0's
-  actions from the observed pose, the pusher starting at rest just off the point) and records the T's pose at every
-  substep against how far the pusher has gone.
-- Choice: the candidate and the stopping distance along its push whose pose is nearest the goal, in the distance
-  |dp|^2 + (rho dtheta)^2 between centres of mass (rho the T's radius of gyration about its centre of mass); only a
-  push that brings the T nearer than it is now.
-- Execution: the pusher goes to the point (straight, or round the T on a circle clear of it when the straight way
-  would touch it), waits there until nearly at rest, then pushes along the line with targets that lead it by
-  `push_step` mm per action and stop at the chosen distance. After each action the observed T pose is compared with
-  the model's at the pusher's progress along the line: beyond `replan_mm` or `replan_deg` the push is dropped and a
-  new one chosen from the observed state; so is a push whose pusher has stopped at its end.
+  inward normal of its edge; those whose first motion (a frictionless push's: along the push, turning by the moment
+  arm over the radius of gyration squared) takes the T away from the goal are dropped, the others tried steepest
+  first until `budget_s` of thread CPU time is spent. For each, the model pushes from there for up to `push_reach`
+  mm (rollouts of PushT-v0's actions from the observed pose, the pusher starting at rest just off the point) and
+  records the T's pose at every substep against how far the pusher has gone.
+- Choice: each candidate's best stopping distance, in the distance |dp|^2 + (rho dtheta)^2 between centres of mass
+  and the goal's (rho the T's radius of gyration about its centre of mass); among the pushes that bring the T
+  nearer than it is now, the one with the most progress per action it costs (the way there, settling, the push).
+- Execution: the pusher first moves straight off the T if it is against it, then goes to the point (straight, or
+  round the T on a circle clear of it when the straight way would touch it), waits there until nearly at rest, then
+  pushes along the line with targets that lead it by `push_step` mm per action and stop at the chosen distance.
+  After each action the observed T pose is compared with the model's at the pusher's progress along the line:
+  beyond `replan_mm` or `replan_deg` the push is dropped and a new one chosen from the observed state; so is a push
+  whose pusher has stopped at its end.
 
 With world="gym_pusht" the model has gym-pusht's physics (`PushTEnv(physics="gym_pusht")`: no table friction,
 frictionless contacts, every velocity forgotten at each step, its T's mass properties): there, how far the T moves
