@@ -112,3 +112,17 @@ def test_center_of_mass_is_for_dynamic_bodies():
                           "shapes": [{"type": "box", "width": 0.1, "height": 0.1}]})
     with pytest.raises(SceneError, match=r"bodies\[1\]\.center_of_mass is not allowed on a static body"):
         parse_scene(doc)
+
+
+def test_the_tables_pressure_stays_on_the_shapes_with_a_given_centre_of_mass():
+    """The limit surface's support pressure is kept about the model's centre of mass: with center_of_mass given, its
+    edges, nodes and size are the plain body's moved by the offset (the pressure stays where the shapes are)."""
+    from planar_lcp.spec.limit_surface import gyration_radius, support_pressure
+    plain = parse_scene(free_doc(1.0)).body("box")
+    moved = parse_scene(free_doc(1.0, com=(0.02, 0.01))).body("box")
+    a, b = support_pressure(plain, 8), support_pressure(moved, 8)
+    off = np.array([0.02, 0.01])
+    assert len(a.edges) == 4 and np.allclose(b.edges + np.tile(off, 2), a.edges, rtol=0, atol=1e-15)
+    assert np.allclose(b.far[:, :2] + off, a.far[:, :2], rtol=0, atol=1e-15) and np.array_equal(b.far[:, 2], a.far[:, 2])
+    assert b.edge_scale == a.edge_scale and b.size > a.size
+    assert gyration_radius(moved) ** 2 == pytest.approx(gyration_radius(plain) ** 2 + 0.02 ** 2 + 0.01 ** 2, rel=1e-12)

@@ -25,7 +25,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from planar_lcp.spec.massprops import body_area_properties, support_share
+from planar_lcp.spec.massprops import body_area_properties, body_mass_properties, support_share
 
 def _gauss01(n):
     x, w = np.polynomial.legendre.leggauss(n)
@@ -150,8 +150,10 @@ def support_pressure(body, n):
     twice, as in `massprops`), or equal shares at `body.support_points` when the scene gives them (then nodes only),
     or `support_share` of the load at them and the rest uniform.
     nodes: its curved pieces' (or the support points); far: its polygon pieces'; disk_nodes: one (Q, 3) array per
-    disk; size: the largest distance of the support from the COM, m."""
-    area, com, _ = body_area_properties(body)
+    disk; size: the largest distance of the support from the COM, m. Positions are about the body's centre of mass
+    (`body_mass_properties`: the shapes' area centroid, or `center_of_mass` when given), the frame the model uses."""
+    area, _, _ = body_area_properties(body)
+    com = np.asarray(body_mass_properties(body)[0], dtype=np.float64)
     share = support_share(body)
     if share == 1.0:
         pts = np.array(body.support_points, dtype=np.float64).reshape(-1, 2) - com
@@ -221,10 +223,12 @@ def disk_table():
 
 def gyration_radius(body):
     """sqrt(integral p |r - com|^2 dA / integral p dA), m: the radius that makes a twist's spin commensurate with its
-    slide (the support pressure's, like `support_pressure`)."""
-    area, com, polar = body_area_properties(body)
+    slide (the support pressure's, like `support_pressure`), about the body's centre of mass."""
+    area, centroid, polar = body_area_properties(body)
+    com = np.asarray(body_mass_properties(body)[0], dtype=np.float64)
     share = support_share(body)
-    second = (1.0 - share) * polar / area if share < 1.0 else 0.0
+    # the uniform part's second moment about the centroid, moved to the centre of mass (parallel axes)
+    second = (1.0 - share) * (polar / area + float(np.sum((com - centroid) ** 2))) if share < 1.0 else 0.0
     if share > 0.0:
         pts = np.array(body.support_points, dtype=np.float64).reshape(-1, 2) - com
         second += share * float(np.mean(np.sum(pts * pts, axis=1)))
