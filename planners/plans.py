@@ -605,7 +605,7 @@ def replay_pymunk(plan, tm=None):
 
     # a timed task's moving bodies follow their paths, their velocities set before each step as TaskModel.advance
     # takes them (the path's from step 0; at rest after the horizon)
-    moving = [(k, hd.kinematic_names.index(name)) for k, name in enumerate(tm.task.moving)]
+    moving = list(enumerate(tm.task.moving))
     step = [0]                       # pymunk steps taken
 
     deepest = [0.0, 0.0]              # the deepest penetration (m) and the end of its propagation step (s)
@@ -621,9 +621,9 @@ def replay_pymunk(plan, tm=None):
         pusher.angular_velocity = 0.0
         for _ in range(int(k)):
             for _ in range(tm.steps_per_prop):
-                for k, j in moving:
-                    vk = tm.path_v[step[0], k] if step[0] < tm.horizon_steps else (0.0, 0.0, 0.0)
-                    set_kinematic_velocity(hd, hd.kinematic_names[j], vk)
+                for m, name in moving:
+                    vk = tm.path_v[step[0], m] if step[0] < tm.horizon_steps else (0.0, 0.0, 0.0)
+                    set_kinematic_velocity(hd, name, vk)
                 space.step(tm.h)
                 step[0] += 1
                 for name in hd.dynamic_names:

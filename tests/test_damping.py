@@ -123,6 +123,7 @@ def test_the_tables_pressure_stays_on_the_shapes_with_a_given_centre_of_mass():
     a, b = support_pressure(plain, 8), support_pressure(moved, 8)
     off = np.array([0.02, 0.01])
     assert len(a.edges) == 4 and np.allclose(b.edges + np.tile(off, 2), a.edges, rtol=0, atol=1e-15)
-    assert np.allclose(b.far[:, :2] + off, a.far[:, :2], rtol=0, atol=1e-15) and np.array_equal(b.far[:, 2], a.far[:, 2])
+    assert np.allclose(b.far[:, :2] + off, a.far[:, :2], rtol=0, atol=1e-15)
+    assert np.array_equal(b.far[:, 2], a.far[:, 2])
     assert b.edge_scale == a.edge_scale and b.size > a.size
     assert gyration_radius(moved) ** 2 == pytest.approx(gyration_radius(plain) ** 2 + 0.02 ** 2 + 0.01 ** 2, rel=1e-12)
