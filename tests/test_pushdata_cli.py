@@ -415,7 +415,10 @@ def test_ctrl_c_stops_a_fit_on_a_local_cluster_and_its_workers(synthetic, tmp_pa
     pytest.importorskip("distributed")
     root, _ = synthetic
     t0 = time.monotonic()
-    r = ctrl_c_cli(["pushdata", "fit", root, "--out", tmp_path / "m.json", "--jobs", "2"],
+    # four parameters: a fit long enough (tens of seconds) that the interrupt at 5 s always finds it running (two
+    # took about 5 s once the errors at the optimum ran on the workers too)
+    r = ctrl_c_cli(["pushdata", "fit", root, "--out", tmp_path / "m.json", "--jobs", "2", "--params",
+                    "support_friction,pusher_friction,ring_share,ring_scale"],
                    lambda: time.monotonic() - t0 > 5.0, tmp_path, env={mit.DATA_ENV: str(root)})
     assert r.returncode == 130, (r.stdout, r.stderr)
     assert r.stderr.splitlines()[-1] == "planar-lcp pushdata: error: interrupted (Ctrl-C); stopped", r.stderr
