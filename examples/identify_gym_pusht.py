@@ -27,16 +27,14 @@ DT = 0.01
 
 def pd_path(agent0, actions):
     """The pusher's positions (mm) at every physics step of the actions, from rest at agent0: gym-pusht's PD law."""
-    from planners.envs import K_P, K_V
+    from planners.envs import pd_substeps
     p, v = np.asarray(agent0, float) * 1e-3, np.zeros(2)
-    out = [p * 1e3]
+    out = [p[None] * 1e3]
     for a in actions:
-        t = np.asarray(a, float) * 1e-3
-        for _ in range(SUB):
-            v = v + (K_P * (t - p) - K_V * v) * DT
-            p = p + DT * v
-            out.append(p * 1e3)
-    return np.array(out)
+        ps, vs = pd_substeps(p, v, np.asarray(a, float) * 1e-3)
+        p, v = ps[-1], vs[-1]
+        out.append(ps * 1e3)
+    return np.concatenate(out)
 
 
 def record(env, policy, seed, actions_max):

@@ -50,6 +50,19 @@ WHITE, LIGHT_GREEN, LIGHT_GRAY = (255, 255, 255), (144, 238, 144), (211, 211, 21
 SLATE_GRAY, ROYAL_BLUE, RED = (143, 163, 184), (78, 126, 255), (255, 0, 0)
 
 
+def pd_substeps(p, v, target):
+    """gym-pusht's PD law over one action: from the pusher's position p and velocity v (m, m/s) towards `target`
+    (m), SUBSTEPS steps of DT, each v += (K_P (target - p) - K_V v) DT, then p += DT v (the kernel's q + h v).
+    Returns the positions and velocities after each substep, (SUBSTEPS, 2) each."""
+    p, v = np.asarray(p, dtype=np.float64), np.asarray(v, dtype=np.float64)
+    ps, vs = np.empty((SUBSTEPS, 2)), np.empty((SUBSTEPS, 2))
+    for i in range(SUBSTEPS):
+        v = v + (K_P * (target - p) - K_V * v) * DT
+        p = p + DT * v
+        ps[i], vs[i] = p, v
+    return ps, vs
+
+
 def _show(value, limit=120):
     """A value for a message: its numbers as a list when it has some, else its repr; at most `limit` characters."""
     try:
@@ -380,11 +393,10 @@ class PushTEnv(gym.Env):
         # the pusher is kinematic, so its path over the ten substeps follows from the PD law alone: computed here,
         # then the ten steps are one rollout. Position update as the kernel's (q + h v), so the PD law sees the
         # positions the simulation has
-        p, v, vk = self._qk[0, :2].copy(), self._agent_vel.copy(), self.vk_seq
-        for i in range(SUBSTEPS):
-            v = v + (K_P * (target - p) - K_V * v) * DT
-            p = p + DT * v
-            vk[i, 0, 0], vk[i, 0, 1] = v[0], v[1]
+        _, vs = pd_substeps(self._qk[0, :2], self._agent_vel, target)
+        vk = self.vk_seq
+        vk[:, 0, 0:2] = vs
+        v = vs[-1].copy()
         rec = self.rec
         done = self.sim.rollout_into(rec, self._q, self._v, self._qk, vk, stop_on_failure=False)
         self.failed_steps = int(np.count_nonzero(rec.status))

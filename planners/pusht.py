@@ -31,7 +31,7 @@ import time
 
 import numpy as np
 
-from .envs import ARENA, GOAL_POSE, K_P, K_V, PUSHT_COG, SUBSTEPS, WALL_HALF, WALL_LINES, PushTEnv
+from .envs import ARENA, GOAL_POSE, PUSHT_COG, WALL_HALF, WALL_LINES, PushTEnv, pd_substeps
 
 WORLDS = ("gym_pusht", "planar_lcp")
 #: the pusher's centre stays this far inside the walls' inner faces beyond its radius, mm
@@ -121,13 +121,9 @@ class PushTPolicy:
         stopped by a wall, another policy's step), the mean velocity of the last action."""
         if self._last is None:
             return
-        p, target = self._last
-        p, v = p * 1e-3, self._agent_vel * 1e-3
-        t = target * 1e-3
-        dt = 0.1 / SUBSTEPS
-        for _ in range(SUBSTEPS):
-            v = v + (K_P * (t - p) - K_V * v) * dt
-            p = p + dt * v
+        p0, target = self._last
+        ps, vs = pd_substeps(p0 * 1e-3, self._agent_vel * 1e-3, target * 1e-3)
+        p, v = ps[-1], vs[-1]
         if np.abs(p * 1e3 - agent).max() < 1e-6:
             self._agent_vel = v * 1e3
         else:
