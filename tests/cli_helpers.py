@@ -52,17 +52,31 @@ def interrupt_cli(args, started, tmp_path, wait=1.0):
             p.kill()
 
 
+def group_size(pgid):
+    """How many live processes the process group `pgid` holds (read from Linux's /proc)."""
+    n = 0
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                n += os.getpgid(int(d.name)) == pgid
+            except (ProcessLookupError, PermissionError):
+                pass
+    return n
+
+
 def ctrl_c_cli(args, ready, cwd, timeout=300, env=None):
     """Run `planar-lcp ARGS` in a process group of its own, wait until `ready()` is true, then press Ctrl-C as a
     terminal does: SIGINT to the whole foreground group, the command and every process it started (a local Dask
-    cluster's workers too). `env`: extra environment variables. Returns a subprocess.CompletedProcess (returncode,
+    cluster's workers too). `ready` takes no argument, or one: the group's id (see `group_size`). `env`: extra
+    environment variables. Returns a subprocess.CompletedProcess (returncode,
     stdout, stderr) with `seconds` from the signal to the exit and `group_left`: whether any process of the group
     outlived the command by 10 s."""
     p = subprocess.Popen(CLI + [str(a) for a in args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                          cwd=cwd, env=cli_env(PYTHONUNBUFFERED="1", **(env or {})), start_new_session=True)
     try:
         t0 = time.monotonic()
-        while not ready():
+        takes_group = ready.__code__.co_argcount == 1
+        while not (ready(p.pid) if takes_group else ready()):
             if p.poll() is not None:
                 out, err = p.communicate()
                 raise AssertionError(f"the command ended (exit status {p.returncode}) before it was ready to be "

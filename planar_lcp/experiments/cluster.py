@@ -56,22 +56,32 @@ def open_cluster(scheduler=None, jobs=1, timeout=30):
     warnings.filterwarnings("ignore", message=r"Port 8787 is already in use", category=UserWarning)
     cluster = LocalCluster(n_workers=0, threads_per_worker=1, processes=True, host="127.0.0.1",
                            dashboard_address=None, silence_logs=logging.ERROR)
-    client = None
+    client, spawned = None, []
     try:
-        _spawn_ignoring_sigint(cluster, jobs, timeout)
+        _spawn_ignoring_sigint(cluster, jobs, timeout, spawned)
         client = Client(cluster)
         client.wait_for_workers(jobs, timeout=timeout)
     except BaseException:
+        # interrupted (or failed) while the workers come up: a worker process still unpickling its start-up state
+        # when the cluster below releases that state dies printing a traceback (FileNotFoundError of a semaphore);
+        # killed first, it dies silently, and none of them has done any of the command's work yet
+        _silence_distributed()
+        for proc in spawned:
+            try:
+                proc.kill()
+            except Exception:  # noqa: BLE001 - already gone
+                pass
         close_cluster(client, cluster, quiet=True)
         raise
     return client, cluster
 
 
-def _spawn_ignoring_sigint(cluster, jobs, timeout):
+def _spawn_ignoring_sigint(cluster, jobs, timeout, spawned):
     """Start the `jobs` worker processes of `cluster` with SIGINT ignored, a disposition a child process inherits
     and keeps (Python installs its KeyboardInterrupt handler only over the default one). This process ignores it
-    only until the processes exist (milliseconds: the cluster's event-loop thread starts them), not until they
-    connect (a second or more), so that a Ctrl-C meanwhile is not lost."""
+    only until the processes exist (30 to 40 ms: the cluster's event-loop thread starts them), not until they
+    connect (a second or more), so that a Ctrl-C meanwhile is not lost. The processes started are appended to
+    `spawned` (multiprocessing.Process) as they appear."""
     import multiprocessing
     import signal
     import threading
@@ -85,7 +95,8 @@ def _spawn_ignoring_sigint(cluster, jobs, timeout):
     try:
         cluster.scale(jobs)
         t0 = time.monotonic()
-        while len(set(multiprocessing.active_children()) - before) < jobs and time.monotonic() - t0 < timeout:
+        while len(spawned) < jobs and time.monotonic() - t0 < timeout:
+            spawned.extend(p for p in multiprocessing.active_children() if p not in before and p not in spawned)
             time.sleep(0.005)
     finally:
         signal.signal(signal.SIGINT, old)
@@ -95,13 +106,8 @@ def close_cluster(client, cluster, futures=(), quiet=False):
     """Cancel `futures` (if any still run), close the client and stop a local cluster. `quiet` (after Ctrl-C or a
     failure): nothing of distributed's reaches the terminal, whose last line is the command's own (a worker stopped
     inside a run, or a scheduler already gone, makes distributed log errors while it closes)."""
-    import logging
-
     if quiet:
-        # for good, not only while closing: the event loop's thread and distributed's exit handlers still log after
-        # close() returns, and the command's one line must stay the last
-        for name in ("distributed", "tornado", "asyncio"):
-            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+        _silence_distributed()
     try:
         if client is not None:
             if futures:
@@ -120,6 +126,21 @@ def close_cluster(client, cluster, futures=(), quiet=False):
                 except Exception:  # noqa: BLE001 - cluster.close() below stops whatever is left
                     pass
             cluster.close()
+
+
+def _silence_distributed():
+    """Nothing of distributed's reaches the terminal any more, for good, not only while closing: the event loop's
+    thread and distributed's exit handlers still log after close() returns, and the command's one line must stay
+    the last."""
+    import logging
+    import warnings
+
+    # tornado.application has a level of its own (set when distributed configures logging), so it is named
+    for name in ("distributed", "tornado", "tornado.application", "asyncio"):
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+    # a Client interrupted inside its constructor (Ctrl-C as the workers come up) is never returned to be closed:
+    # its __del__ closes it at exit with coroutines that no event loop runs, and Python warns of each
+    warnings.filterwarnings("ignore", message=r"coroutine '.*' was never awaited", category=RuntimeWarning)
 
 
 #: seconds a local worker is given to stop by itself when a stopped benchmark closes its cluster
