@@ -105,13 +105,14 @@ class PushController:
         g = tm.task.goal
         dp = math.hypot(x[0] - ref[0], x[1] - ref[1])
         da = abs((x[2] - ref[2] + math.pi) % (2 * math.pi) - math.pi)
-        return dp <= self.replan_tol * g.position_tol and da <= self.replan_tol * g.angle_tol
+        # a goal without an angle (a disk) leaves the object free to spin: its angle is not tracked
+        return dp <= self.replan_tol * g.position_tol and (g.angle is None or da <= self.replan_tol * g.angle_tol)
 
     def _follow(self, push, x):
         ip = self.tm.ip
         p = x[ip:ip + 2]
         if push["phase"] == "approach":
-            route = self._route(x, push["c0"])
+            route, push["side"] = self._route(x, push["c0"], push.get("side", 0))
             target = route[0]
             d = target - p
             dist = float(np.hypot(*d))
@@ -126,9 +127,10 @@ class PushController:
         push["k"] += 1
         return push["u"].copy()
 
-    def _route(self, x, c0):
-        """Waypoints for the pusher to c0 clear of the object: [c0] when the straight way is clear, else round it
-        on a circle about its centre of mass."""
+    def _route(self, x, c0, side=0):
+        """(waypoints for the pusher to c0 clear of the object, the side it goes round): [c0] when the straight way
+        is clear, else round it on a circle about its centre of mass, anticlockwise (side +1), clockwise (-1) or the
+        shorter way (0); a push keeps the side it started with, so that the way does not flip from step to step."""
         import shapely
         from shapely.geometry import LineString
         tm = self.tm
@@ -138,18 +140,21 @@ class PushController:
         from .tasks import _place
         body = _place(tm.object_poly_body, f[:2], f[2])
         if shapely.distance(body, LineString([p, c0])) >= self.r + 0.5 * self.gap or np.allclose(p, c0):
-            return [np.asarray(c0, float)]
+            return [np.asarray(c0, float)], side
         com = x[0:2]
         rad = (tm.object_radius + self.r + 4 * self.gap + 0.005) / math.cos(math.radians(15.0))
         a0 = math.atan2(p[1] - com[1], p[0] - com[0])
         da = (math.atan2(c0[1] - com[1], c0[0] - com[0]) - a0 + math.pi) % (2 * math.pi) - math.pi
+        if side * da < 0:
+            da += side * 2 * math.pi                     # round the way it started
+        side = side or (1 if da >= 0 else -1)
         n = max(1, int(math.ceil(abs(da) / math.radians(30.0))))
         pts = [com + rad * np.array([math.cos(a0 + da * k / n), math.sin(a0 + da * k / n)]) for k in range(n + 1)]
         # the first waypoint not yet reached
         for i, w in enumerate(pts):
             if np.hypot(*(w - p)) > 1e-4:
-                return pts[i:] + [np.asarray(c0, float)]
-        return [np.asarray(c0, float)]
+                return pts[i:] + [np.asarray(c0, float)], side
+        return [np.asarray(c0, float)], side
 
     def _choose(self, x):
         tm = self.tm
