@@ -53,11 +53,18 @@ def register(sub):
     r = one_line_errors(sub.add_parser(
         "replay", help="re-simulate a plan's controls open loop and check the goal",
         description="Re-simulate the controls of PLAN.json open loop (our LCP simulator, or pymunk through "
-                    "planar_lcp.experiments.pymunk_bridge), report the final goal error and the deepest "
-                    "penetration, write replay_SIMULATOR.png and replay_SIMULATOR.gif. Exit status 0 only when the "
-                    "goal holds at the end."))
+                    "planar_lcp.experiments.pymunk_bridge), or execute it closed loop (--closed-loop), optionally in "
+                    "a world whose friction and masses differ from the task's (--perturb); report the final goal "
+                    "error and the deepest penetration, write replay_SIMULATOR[_closed_loop].png and .gif. Exit "
+                    "status 0 only when the goal holds at the end."))
     r.add_argument("plan", metavar="PLAN.json")
     r.add_argument("--simulator", choices=["lcp", "pymunk"], default="lcp")
+    r.add_argument("--closed-loop", action="store_true",
+                   help="feedback at every propagation step (planners.closed_loop.PlanTracker: receding-horizon "
+                        "tracking of the plan over our simulator, docs/closed_loop.md); stops when the goal holds")
+    r.add_argument("--perturb", type=_perturbation, default=None, metavar="mu=F,mass=G",
+                   help="factors on every friction coefficient (mu) and dynamic mass (mass) of the world executed "
+                        "in (pymunk's, or ours); the plan and the controller's model keep the task's")
     r.add_argument("--out", default=None, metavar="DIR",
                    help="where to write the replay's figure and GIF (default: the plan's dir)")
     r.add_argument("--no-gif", action="store_true", help="skip the replay's GIF")
@@ -132,6 +139,24 @@ def shorten_seconds(text):
     if not (math.isfinite(x) and 0 <= x <= MAX_TIME):
         raise argparse.ArgumentTypeError(f"must be a number of seconds in [0, {MAX_TIME:g}], got {text!r}")
     return x
+
+
+def _perturbation(text):
+    """--perturb mu=F,mass=G (either or both): {"mu": F, "mass": G}, positive finite factors."""
+    out = {}
+    for part in text.split(","):
+        key, eq, val = part.partition("=")
+        key = key.strip()
+        if not eq or key not in ("mu", "mass") or key in out:
+            raise argparse.ArgumentTypeError(f"must be mu=F,mass=G (factors, either or both), got {text!r}")
+        try:
+            f = float(val)
+        except ValueError:
+            f = float("nan")
+        if not (math.isfinite(f) and f > 0):
+            raise argparse.ArgumentTypeError(f"{key} must be a positive finite factor, got {val.strip()!r}")
+        out[key] = f
+    return out
 
 
 def _err(cmd, msg, code=2):
@@ -364,18 +389,28 @@ def cmd_replay(args):
     if isinstance(sh, dict) and sh.get("status") in ("running", "interrupted"):
         print("shortening     " + ("interrupted (Ctrl-C): the best exact plan it had" if sh["status"] == "interrupted"
                                    else "never finished (the plan file written before it): the planner's plan"))
-    print(f"simulator      {args.simulator}", flush=True)
+    how = "closed loop (PlanTracker)" if args.closed_loop else "open loop"
+    world = (", world perturbed: " + ", ".join(f"{k} x{v:g}" for k, v in args.perturb.items())) if args.perturb else ""
+    print(f"simulator      {args.simulator}, {how}{world}", flush=True)
     try:
-        res = plan.replay(args.simulator)
+        res = plan.replay(args.simulator, closed_loop=args.closed_loop, perturb=args.perturb)
     except ImportError as e:
         return _err("replay", f"--simulator pymunk is not available: {e}")
+    if args.closed_loop:
+        import numpy as np
+        c = res["compute_s"]
+        print(f"{'steps':<16} {res['steps']} propagation steps of {plan.task.step_duration:g} s (the plan: "
+              f"{int(plan.steps.sum())})")
+        if len(c):
+            print(f"{'compute':<16} median {1e3 * np.median(c):.1f} ms, max {1e3 * c.max():.1f} ms of thread CPU "
+                  f"per step")
     rep = res["report"]
     for k, v in rep.items():
         print(f"{k:<16} {v:.6g}" if isinstance(v, float) else _show(f"{k:<16}", v) if isinstance(v, list)
               else f"{k:<16} {v}")
     print(f"{'max_penetration':<16} {res['penetration']:.3g} m (deepest overlap of any two bodies after any step; "
           f"in the propagation step ending at t = {res['penetration_time']:.2f} s)")
-    name = f"replay_{args.simulator}"
+    name = f"replay_{args.simulator}" + ("_closed_loop" if args.closed_loop else "")
     plot_plan(plan.model, res["dense"], out / f"{name}.png",
               title=f"replay of {data['task']} in {args.simulator}: goal {'holds' if rep['goal_holds'] else 'missed'}")
     wrote = [out / f"{name}.png"]

@@ -240,27 +240,50 @@ class Plan:
         """Write the plan file (JSON)."""
         save_plan(self.data, path)
 
-    def replay(self, simulator="lcp"):
-        """Re-simulate the controls open loop.
+    def replay(self, simulator="lcp", closed_loop=False, perturb=None):
+        """Re-simulate the plan: its controls open loop, or closed loop in pymunk.
 
         Parameters
         ----------
         simulator : {"lcp", "pymunk"}
             "lcp": ours, exactly as the planner propagated them (bit for bit); "pymunk": through
             planar_lcp.experiments.pymunk_bridge, from the scene's start (another contact model: expect drift).
+        closed_loop : bool
+            A planners.closed_loop.PlanTracker chooses every propagation step's control from the simulator's
+            state (docs/closed_loop.md, "Any task in pymunk"); the run stops when the goal holds.
+        perturb : dict, optional
+            {"mu": f, "mass": g}, factors on every friction coefficient and every dynamic body's mass of the world
+            executed in (spec.scene.perturbed_scene); the plan and the tracker's model keep the task's.
 
         Returns
         -------
         dict
             final : (d,) the last state; report : the goal report with simulation_ok and goal_holds; dense :
             (k, d) the states at every propagation step; bound : (n + 1, d) those at the control boundaries
-            ("lcp" only, else None); tm : the TaskModel.
+            ("lcp" only, else None); tm : the TaskModel; pymunk: steps, and closed loop compute_s (per step).
         """
-        if simulator == "lcp":
+        if simulator not in ("lcp", "pymunk"):
+            raise TaskError(f"simulator must be 'lcp' or 'pymunk', got {simulator!r}")
+        if simulator == "lcp" and not (closed_loop or perturb):
             return replay_lcp(self.data, tm=self.model)
-        if simulator == "pymunk":
-            return replay_pymunk(self.data, tm=self.model)
-        raise TaskError(f"simulator must be 'lcp' or 'pymunk', got {simulator!r}")
+        scene = None
+        if perturb:
+            from planar_lcp.spec.scene import perturbed_scene
+            unknown = sorted(set(perturb) - {"mu", "mass"})
+            if unknown:
+                raise TaskError(f"perturb takes mu and mass, got {', '.join(unknown)}")
+            scene = perturbed_scene(self.model.scene, friction=perturb.get("mu", 1.0), mass=perturb.get("mass", 1.0))
+        controller = None
+        if closed_loop:
+            from .closed_loop import PlanTracker
+            controller = PlanTracker(self)
+        if simulator == "lcp":
+            if controller is None:            # the plan's controls in a perturbed world, judged at their end
+                from .closed_loop import OpenLoop
+                return run_closed_loop_lcp(self.data, OpenLoop(self), tm=self.model, scene=scene,
+                                           max_steps=int(self.steps.sum()), stop_at_goal=False)
+            return run_closed_loop_lcp(self.data, controller, tm=self.model, scene=scene)
+        return replay_pymunk(self.data, tm=self.model, controller=controller, scene=scene)
 
     def plot(self, path, title=None):
         """A strobe of the replayed plan over the scene (plan.png)."""
@@ -483,6 +506,37 @@ def replay_lcp(plan, tm=None):
                 penetration_time=(i + 1) * tm.task.step_duration if len(pen) else 0.0)
 
 
+def run_closed_loop_lcp(plan, controller, tm=None, scene=None, max_steps=None, stop_at_goal=True):
+    """Execute a plan closed loop in our simulator: `controller(x) -> u` chooses every propagation step's pusher
+    velocity from the state, the world being the task's scene or `scene` (e.g. spec.scene.perturbed_scene of it).
+    Stops as replay_pymunk does (the goal holds, or `max_steps`, default three times the plan's steps plus 100; without
+    `stop_at_goal`, after `max_steps` only, as an open loop is judged at the plan's end). Returns
+    replay_pymunk's dict (steps, compute_s; no penetration is measured: 0)."""
+    import dataclasses
+    tm = tm if tm is not None else TaskModel(plan["task_document"])
+    world = tm if scene is None else TaskModel(dataclasses.replace(tm.task, scene=scene))
+    n_steps = int(max_steps) if max_steps is not None else 3 * int(np.sum(plan["steps"])) + 100
+    controller.reset()
+    x, ok, compute = np.asarray(plan["start"], float), True, []
+    dense = [x]
+    for _ in range(n_steps):
+        if stop_at_goal and tm.goal_distance(x) <= 1.0 and tm.admissible(x):
+            break
+        u = controller(x)
+        compute.append(float(getattr(controller, "compute_s", float("nan"))))
+        x, good = world.advance(x, u, tm.steps_per_prop)
+        dense.append(x)
+        if not good:
+            ok = False
+            break
+    dense = np.array(dense)
+    rep = tm.goal_report(x)
+    rep["simulation_ok"] = bool(ok)
+    rep["goal_holds"] = bool(rep["goal_holds"] and ok and tm.admissible(x))
+    return dict(final=x, report=rep, dense=dense, bound=None, tm=tm, penetration=0.0, penetration_time=0.0,
+                steps=len(dense) - 1, compute_s=np.array(compute))
+
+
 def _frame_poses(tm, X):
     """Body-frame poses of the dynamic bodies (n, ndyn, 3), in the scene's order, and kinematic poses (n, nkin, 3)
     of flat states X (n, d)."""
@@ -575,20 +629,30 @@ def animate_plan(tm, X, path, fps=20, max_frames=120):
             writer.grab_frame()
 
 
-def replay_pymunk(plan, tm=None):
-    """Re-simulate the plan's controls open loop in pymunk (planar_lcp.experiments.pymunk_bridge), from the scene's
-    start.
+def replay_pymunk(plan, tm=None, controller=None, scene=None, max_steps=None):
+    """Execute a plan in pymunk (planar_lcp.experiments.pymunk_bridge), from the scene's start: open loop (the
+    plan's controls in turn) or, with `controller`, closed loop.
 
-    The pusher's velocity is set to each control in turn; the space is stepped with the scene's h. Returns the
-    same dict as `replay_lcp` (the goal is judged by the same task test; the penetration is the deepest of any
-    contact point of pymunk's arbiters after any step)."""
+    controller : callable, optional
+        `controller(x) -> u`: the pusher's velocity (m/s) for the next propagation step from pymunk's state as a
+        flat planning state x (planners.tasks), e.g. planners.closed_loop.PlanTracker; `reset()` is called first.
+        The run stops at the first propagation step whose state meets the goal (TaskModel.goal_distance <= 1 and
+        admissible), or after `max_steps` steps (default: three times the plan's, plus 100).
+    scene : Scene, optional
+        The world to execute in, default the task's scene (e.g. spec.scene.perturbed_scene of it).
+
+    The pusher's velocity is set to each control; the space is stepped with the scene's h. Returns the same dict as
+    `replay_lcp` (the goal is judged by the same task test; the penetration is the deepest of any contact point of
+    pymunk's arbiters after any step), with `steps` (propagation steps executed) and, closed loop, `compute_s`
+    (the controller's thread CPU seconds of each step)."""
     try:
         from planar_lcp.experiments.pymunk_bridge import build_space, read_state, set_kinematic_velocity
     except ImportError as e:  # the bridge, or pymunk itself
         raise ImportError(f"planar_lcp.experiments.pymunk_bridge cannot be used ({e})") from None
     tm = tm if tm is not None else TaskModel(plan["task_document"])
-    space, hd = build_space(tm.scene, h=tm.h)
+    space, hd = build_space(scene if scene is not None else tm.scene, h=tm.h)
     pusher = hd.bodies[tm.task.pusher]
+    step = [0]                       # pymunk steps taken
 
     def flat():
         q, _, qk, vc = read_state(hd)        # vc: the centre-of-mass velocities, as the flat state holds them
@@ -606,8 +670,6 @@ def replay_pymunk(plan, tm=None):
     # a timed task's moving bodies follow their paths, their velocities set before each step as TaskModel.advance
     # takes them (the path's from step 0; at rest after the horizon)
     moving = list(enumerate(tm.task.moving))
-    step = [0]                       # pymunk steps taken
-
     deepest = [0.0, 0.0]              # the deepest penetration (m) and the end of its propagation step (s)
 
     def overlap(arb):
@@ -615,24 +677,41 @@ def replay_pymunk(plan, tm=None):
             if -p.distance > deepest[0]:
                 deepest[0], deepest[1] = -p.distance, (len(dense)) * tm.task.step_duration
 
+    controls = np.repeat(np.asarray(plan["controls"], float).reshape(-1, 2), np.asarray(plan["steps"], int), axis=0)
+    if controller is None:
+        n_steps = len(controls)
+    else:
+        n_steps = int(max_steps) if max_steps is not None else 3 * len(controls) + 100
+        controller.reset()
+    compute = []
     dense = [flat()]
-    for u, k in zip(np.asarray(plan["controls"], float), np.asarray(plan["steps"], int)):
+    for n in range(n_steps):
+        if controller is None:
+            u = controls[n]
+        else:
+            x = dense[-1]
+            if tm.goal_distance(x) <= 1.0 and tm.admissible(x):
+                break
+            u = controller(x)
+            compute.append(float(getattr(controller, "compute_s", float("nan"))))
         pusher.velocity = (float(u[0]), float(u[1]))
         pusher.angular_velocity = 0.0
-        for _ in range(int(k)):
-            for _ in range(tm.steps_per_prop):
-                for m, name in moving:
-                    vk = tm.path_v[step[0], m] if step[0] < tm.horizon_steps else (0.0, 0.0, 0.0)
-                    set_kinematic_velocity(hd, name, vk)
-                space.step(tm.h)
-                step[0] += 1
-                for name in hd.dynamic_names:
-                    hd.bodies[name].each_arbiter(overlap)
-            dense.append(flat())
+        for _ in range(tm.steps_per_prop):
+            for m, name in moving:
+                vk = tm.path_v[step[0], m] if step[0] < tm.horizon_steps else (0.0, 0.0, 0.0)
+                set_kinematic_velocity(hd, name, vk)
+            space.step(tm.h)
+            step[0] += 1
+            for name in hd.dynamic_names:
+                hd.bodies[name].each_arbiter(overlap)
+        dense.append(flat())
     dense = np.array(dense)
     x = dense[-1]
     rep = tm.goal_report(x)
     rep["simulation_ok"] = bool(np.all(np.isfinite(dense)))
     rep["goal_holds"] = bool(rep["goal_holds"] and tm.admissible(x))
-    return dict(final=x, report=rep, dense=dense, bound=None, tm=tm, penetration=deepest[0],
-                penetration_time=deepest[1])
+    out = dict(final=x, report=rep, dense=dense, bound=None, tm=tm, penetration=deepest[0],
+               penetration_time=deepest[1], steps=len(dense) - 1)
+    if controller is not None:
+        out["compute_s"] = np.array(compute)
+    return out

@@ -1039,3 +1039,26 @@ def _check_support_points(v: _Validator, path: str, points: tuple, shapes: tuple
         if not (lo[0] - tol <= p[0] <= hi[0] + tol and lo[1] - tol <= p[1] <= hi[1] + tol):
             v.fail(f"{path}[{j}] must lie within the body's extent x in [{lo[0]:.6g}, {hi[0]:.6g}], y in "
                    f"[{lo[1]:.6g}, {hi[1]:.6g}] (the bounding box of its shapes, body frame, m), got {_show_vec(p)}")
+
+
+def perturbed_scene(scene: Scene, friction: float = 1.0, mass: float = 1.0) -> Scene:
+    """The scene with every Coulomb coefficient (world.friction, world.friction_pairs, each body's
+    support_friction) times `friction` and every dynamic body's mass (and a given inertia) times `mass`: the world
+    a plan made in `scene` is executed in when that world is not the model (`planar-lcp replay --perturb`)."""
+    for label, f in (("friction", friction), ("mass", mass)):
+        if not (isinstance(f, (int, float)) and math.isfinite(f) and f > 0):
+            raise SceneError(f"{scene.source}: the {label} factor must be a positive number, got {f!r}")
+    w = scene.world
+    world = dataclasses.replace(w, friction=w.friction * friction,
+                                friction_pairs=tuple((a, b, v * friction) for a, b, v in w.friction_pairs))
+    bodies = []
+    for b in scene.bodies:
+        kw = {}
+        if b.support_friction is not None:
+            kw["support_friction"] = b.support_friction * friction
+        if b.type == "dynamic":
+            kw["mass"] = b.mass * mass
+            if b.inertia is not None:
+                kw["inertia"] = b.inertia * mass
+        bodies.append(dataclasses.replace(b, **kw))
+    return dataclasses.replace(scene, world=world, bodies=tuple(bodies))
