@@ -6,6 +6,7 @@
     p.exact, p.controls, p.durations, p.goal_report
     p.save("plan.json"); p.plot("plan.png")
     planners.load_plan("plan.json").replay()       # bit for bit the planner's states
+    planners.load_plan("plan.json").replay("pymunk", closed_loop=True)   # with feedback (planners.PlanTracker)
 
 A task is a scene file with a [task] table (docs/scene-format.md, "Task files"; docs/planning.md, "Plan your own
 task"). Importing this package does not import ompl: `plan` does, when it is called.
@@ -20,8 +21,18 @@ from planar_lcp.spec.task import DEFAULT_PLANNER, PLANNERS, Goal, Task, TaskErro
 from .plans import Plan, ShorteningInterrupted, load_plan, plan
 from .tasks import TaskModel
 
-__all__ = ["DEFAULT_PLANNER", "PLANNERS", "Goal", "Plan", "ShorteningInterrupted", "Task", "TaskError", "TaskModel",
-           "load_plan", "load_task", "plan", "shipped_tasks"]
+__all__ = ["DEFAULT_PLANNER", "PLANNERS", "Goal", "Plan", "PlanTracker", "PushController", "PushTPolicy",
+           "ShorteningInterrupted", "Task", "TaskError", "TaskModel", "load_plan", "load_task", "plan", "shipped_tasks"]
+
+# the feedback controllers (docs/closed_loop.md), imported when first named: planners.PushTPolicy needs shapely
+_LAZY = {"PlanTracker": "closed_loop", "PushController": "closed_loop", "PushTPolicy": "pusht"}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        import importlib
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _register_envs():

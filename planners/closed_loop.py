@@ -1,14 +1,21 @@
-"""Closed loop for task files: a feedback controller over a TaskModel, and its runs in pymunk (work in progress).
+"""Closed loop for any task: feedback controllers over a TaskModel, our simulator as their model.
 
-`PushController(tm)`: for a horizontal-plane task with a disk pusher, one push at a time, chosen from the observed
-flat state (planners.tasks) by simulating candidate pushes with the task's own forward model (`TaskModel.advance`),
-scored by the task's own goal distance (`TaskModel.goal_distance`) and validity (`TaskModel.admissible`): the Push-T
-policy's method (planners/pusht.py) with velocity controls held for the task's step duration.
+`PlanTracker(plan)`: executes a plan with feedback (receding-horizon tracking). At every propagation step it
+simulates the plan's controls from the observed state, each with one of a few constant offsets, for a few steps,
+and keeps the one that ends nearest the plan's reference; off the plan or stalled it pushes the object back to
+where the plan has it a little later; past the plan's end it pushes the object into the goal. docs/closed_loop.md,
+"Any task".
 
-`run_pymunk(tm, controller, ...)`: the task executed in pymunk through the bridge, the controller deciding each
-propagation step's pusher velocity from pymunk's state.
+`PushController(tm)`: for a horizontal-plane task, one push at a time, chosen from the observed flat state
+(planners.tasks) by simulating candidate pushes with the task's own forward model (`TaskModel.advance`), scored by a
+distance (the task's goal distance unless given) and the task's validity (`TaskModel.admissible`): the Push-T
+policy's method (planners/pusht.py) with velocity controls held for the task's step duration. PlanTracker uses it
+to recover and to finish.
+
+Both are callables `controller(x) -> u` (the pusher's velocity, m/s, for the next propagation step) with `reset()`
+and `compute_s` (the thread CPU seconds of the last call); planners.plans.replay_pymunk and run_closed_loop_lcp
+execute them in pymunk or in our simulator (`planar-lcp replay --closed-loop`).
 """
-
 import math
 import time
 
@@ -30,7 +37,7 @@ class PushController:
 
     def __init__(self, tm, spacing=None, gap=0.001, reach=None, push_speed=None, budget_steps=300, replan_tol=1.0,
                  distance=None, stall=4):
-        from shapely.geometry import Point  # noqa: F401  (shapely needed)
+        import shapely  # noqa: F401 - the candidates' clearance and the approach's way are shapely's
         t = tm.task
         if tm.scene.world.plane != "horizontal":
             raise ValueError(f"PushController: task {t.name!r} is in the vertical plane; it pushes on a table only")
@@ -200,7 +207,10 @@ class PushController:
         tm = self.tm
         ip = tm.ip
         search = self._search
-        if search is None or np.abs(search["x"][:ip] - x[:ip]).max() > 1e-4:
+        # a search goes on while the bodies stay within a fifth of the goal's position tolerance of where it began
+        # (their poses: the velocities of a body coming to rest change meanwhile)
+        moved = None if search is None else np.abs((search["x"][:ip] - x[:ip]).reshape(-1, 6)[:, 0:2]).max()
+        if search is None or moved > 0.2 * tm.task.goal.position_tol:
             order = np.random.default_rng(self.replans).permutation(len(self._outline))
             speeds = (self.push_speed, self.push_speed / 4.0, self.push_speed / 16.0)
             search = self._search = {"x": x.copy(), "todo": [(sp, j) for sp in speeds for j in order],
@@ -267,23 +277,31 @@ class PlanTracker:
     error by the goal's position tolerance and its angle error by the angle tolerance, the object's fully, the
     obstacles' by `obstacle_weight`, and the pusher's position by `pusher_weight`.
 
+    Off the plan (the object's pose farther than `lost` from the reference's, in goal tolerances) or stalled (no
+    progress along the reference for `stall` steps), on a table: a PushController brings the object to the
+    reference's pose `lookahead` steps on (at most `recover_max` steps), and tracking resumes there; when the object
+    is already there (the plan only moves the pusher meanwhile) tracking skips ahead. Past the plan's end, when no
+    candidate brings the goal nearer: a PushController on the task's goal (`finisher`; "auto": on a table, none in
+    the vertical plane). Every choice is deterministic: the push searches' budget is `budget_steps` simulated
+    propagation steps per call, not seconds.
+
     horizon : int, propagation steps each candidate is simulated. window : int, how far ahead of the last index the
     search for the nearest reference state looks. offsets : (fractions of the task's control_max) of the candidates'
     offsets."""
 
     def __init__(self, plan, horizon=4, window=10, offsets=(0.25, 0.6), obstacle_weight=0.3, pusher_weight=0.2,
-                 finisher="auto", lost=3.0, stall=8, lookahead=10, recover_max=100, budget_steps=300):
+                 finisher="auto", lost=3.0, stall=8, lookahead=10, recover_max=100, budget_steps=150):
         self.plan = plan
         self.tm = tm = plan.model
         # past the plan's end, when no candidate brings the goal nearer: one push at a time (PushController) on a
-        # table; "auto": for a horizontal-plane task with a disk pusher, else none
+        # table; "auto": for a horizontal-plane task, else none
         if finisher == "auto":
             finisher = None
             if tm.scene.world.plane == "horizontal":
                 finisher = PushController(tm, budget_steps=budget_steps)
         self.finisher = finisher
-        # off the plan (the object's distance from the reference above `lost`): pushes that bring the object back to
-        # the reference's pose, then tracking again; on a table only, as the finisher
+        # off the plan or stalled: pushes that bring the object to the reference's pose a little later, then
+        # tracking again; on a table only, as the finisher
         self.lost = float(lost)
         self.stall, self.lookahead, self.recover_max = int(stall), int(lookahead), int(recover_max)
         self.recoverer = None
