@@ -280,7 +280,8 @@ class PlanTracker:
     Off the plan (the object's pose farther than `lost` from the reference's, in goal tolerances) or stalled (no
     progress along the reference for `stall` steps), on a table: a PushController brings the object to the
     reference's pose `lookahead` steps on (at most `recover_max` steps), and tracking resumes there; when the object
-    is already there (the plan only moves the pusher meanwhile) tracking skips ahead. Past the plan's end, when no
+    is already there (the plan only moves the pusher meanwhile) tracking skips ahead; when no push brings it there,
+    the plan is given up for the finisher's pushes into the goal. Past the plan's end, when no
     candidate brings the goal nearer: a PushController on the task's goal (`finisher`; "auto": on a table, none in
     the vertical plane). Every choice is deterministic: the push searches' budget is `budget_steps` simulated
     propagation steps per call, not seconds.
@@ -381,6 +382,11 @@ class PlanTracker:
                 self._recover_steps += 1
                 u = self.recoverer(x)
                 self.phase = "recover: " + self.recoverer.phase
+                if self.recoverer.phase == "idle" and self.finisher is not None:
+                    # no push brings the object back to the plan: the plan is given up for pushes into the goal
+                    self.finishing = True
+                    u = self.finisher(x)
+                    self.phase = "finish: " + self.finisher.phase
                 self.compute_s = time.thread_time() - c0
                 return u
             # back on the plan (or the recovery took too long): tracking resumes at the target's index
@@ -436,9 +442,11 @@ class PlanTracker:
             if best is None or cost < best[0]:
                 best = (cost, off)
         if at_end and self.finisher is not None and (best is None or best[0] >= tm.goal_distance(x)):
+            # the finisher starts at the next step: its search and this step's candidates in one step would be
+            # twice a step's compute
             self.finishing = True
-            u = self.finisher(x)
-            self.phase = "finish: " + self.finisher.phase
+            u = np.zeros(2)
+            self.phase = "finish: thinking"
         else:
             u = self._u(j, best[1] if best is not None else 0.0)
         self.compute_s = time.thread_time() - c0
