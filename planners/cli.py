@@ -389,9 +389,12 @@ def cmd_replay(args):
     if isinstance(sh, dict) and sh.get("status") in ("running", "interrupted"):
         print("shortening     " + ("interrupted (Ctrl-C): the best exact plan it had" if sh["status"] == "interrupted"
                                    else "never finished (the plan file written before it): the planner's plan"))
-    how = "closed loop (PlanTracker)" if args.closed_loop else "open loop"
-    world = (", world perturbed: " + ", ".join(f"{k} x{v:g}" for k, v in args.perturb.items())) if args.perturb else ""
-    print(f"simulator      {args.simulator}, {how}{world}", flush=True)
+    print(f"simulator      {args.simulator}", flush=True)
+    if args.closed_loop or args.perturb:
+        how = "closed loop (PlanTracker)" if args.closed_loop else "open loop"
+        world = (", world perturbed: " + ", ".join(f"{k} x{v:g}" for k, v in args.perturb.items())) \
+            if args.perturb else ""
+        print(f"execution      {how}{world}", flush=True)
     try:
         res = plan.replay(args.simulator, closed_loop=args.closed_loop, perturb=args.perturb)
     except ImportError as e:
