@@ -86,7 +86,8 @@ def test_replay_closed_loop_perturbed_in_pymunk_end_to_end(tmp_path):
                 "--out", tmp_path, "--no-gif")
     assert r.returncode == 0, r.stdout + r.stderr
     out = r.stdout
-    assert "simulator      pymunk\nexecution      closed loop (PlanTracker), world perturbed: mu x0.8, mass x1.2\n" in out, out
+    assert ("simulator      pymunk\nexecution      closed loop (PlanTracker), world perturbed: mu x0.8, mass x1.2\n"
+            in out), out
     assert "goal_holds       True" in out and r.stderr.strip() == "", out + r.stderr
     steps = next(x for x in out.splitlines() if x.startswith("steps  "))
     assert int(steps.split()[1]) <= 3 * 22 + 100 and "(the plan: 22)" in steps, steps
