@@ -25,9 +25,9 @@ import subprocess
 import sys
 import time
 
-import numba
 import numpy as np
 
+from planar_lcp.engine import cache_dir as engine_cache_dir, copying_inlined_ir_once
 from planar_lcp.engine.compile_notice import COLD_START_SECONDS, announce_background
 from planar_lcp.engine.interpreted import compiled
 from planar_lcp.engine.precompile import may_start, start_helper
@@ -122,7 +122,7 @@ def start_background(kernel=None):
     kernel = default_kernel() if kernel is None else kernel
     if _inside or kernel is not default_kernel() or compiled(kernel):
         return None
-    cache_dir = numba.config.CACHE_DIR
+    cache_dir = engine_cache_dir()
     if not may_start() or not cache_dir:
         return None
     if _background is not None and _background.running():
@@ -253,17 +253,19 @@ def compile_kernels(kernel_set="default", progress=None, helper=True):
         if helper:
             start_helper()
         stages = compilation_stages(kernel_set)
-        for i, (label, stage) in enumerate(stages):
-            stage()
-            if progress is not None:
-                progress(label, i + 1, len(stages))
+        # the kernels compiled for every later run: numba's inliner copying a callee's IR once (planar_lcp.engine)
+        with copying_inlined_ir_once():
+            for i, (label, stage) in enumerate(stages):
+                stage()
+                if progress is not None:
+                    progress(label, i + 1, len(stages))
     finally:
         _inside = False
 
 
 def _compile_in_background(kernel_set):
     """The background process: `compile_kernels(kernel_set)` under the lock."""
-    lock = lock_file(numba.config.CACHE_DIR)
+    lock = lock_file(engine_cache_dir())
     if not _take_lock(lock, os.getpid()):
         return
     try:

@@ -304,10 +304,11 @@ def _cmd_warmup(args):
     if numba.config.DISABLE_JIT:
         print("planar-lcp warmup: NUMBA_DISABLE_JIT is set: nothing is compiled")
         return 0
-    where = numba.config.CACHE_DIR or "numba's default cache (__pycache__ beside the sources)"
+    from planar_lcp.engine import cache_dir
+    where = cache_dir() or "numba's default cache (__pycache__ beside the sources)"
     # a background compilation another run started: let it finish first (its work is the first stages' work)
-    if numba.config.CACHE_DIR:
-        Background(None, lock_file(numba.config.CACHE_DIR), 0.0).wait()
+    if cache_dir():
+        Background(None, lock_file(cache_dir()), 0.0).wait()
     total = len(compilation_stages("all"))
     t0 = time.perf_counter()
     print(f"planar-lcp warmup: compiling every kernel into {where} ({total} stages)", flush=True)

@@ -5,6 +5,7 @@
   `rollout` equals a Python loop of `step` bit for bit (tested).
 """
 
+import contextlib
 import dataclasses
 import functools
 import os
@@ -15,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planar_lcp.engine import copying_inlined_ir_once
 from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS, SUPPORT_POINTS
 from planar_lcp.engine.interpreted import compiled, python_version
 from planar_lcp.engine.layout import (INT_STATS, NSTAT, STATS, Stat, StepOptions, make_step_work,
@@ -322,9 +324,13 @@ class Simulator:
             kernel, m, w = python_version(kernel), self.model.arrays, self.work
         else:
             m, w = self.kmodel, self.kwork
+        # a first call that compiles in this process: with numba's inliner copying a callee's IR once
+        # (planar_lcp.engine), restored after
+        compiles = not python and not getattr(kernel, "overloads", True)
         t0 = time.perf_counter()
-        done = int(kernel(m, rec.q[0], rec.v[0], rec.qk[0], vk_seq, start, n, self.h, self.kopt, w, rec,
-                          stop_on_failure, reset_warm_start))
+        with copying_inlined_ir_once() if compiles else contextlib.nullcontext():
+            done = int(kernel(m, rec.q[0], rec.v[0], rec.qk[0], vk_seq, start, n, self.h, self.kopt, w, rec,
+                              stop_on_failure, reset_warm_start))
         # a Ctrl-C that numba's dispatcher swallowed during the call (planar_lcp.interrupt) stops the run here
         raise_if_interrupted()
         return done, done / max(time.perf_counter() - t0, 1e-9), python

@@ -4,12 +4,11 @@
 
 import io
 
-import numba
 import pytest
 from numba import njit
 
 from cli_helpers import run_cli
-from planar_lcp import background
+from planar_lcp import background, engine
 from planar_lcp.engine.compile_notice import (BACKGROUND_NOTICE, NOTICE, CompileNotice, announce_background,
                                               announce_compilation, uninstall)
 
@@ -65,7 +64,7 @@ def test_a_warm_cache_prints_nothing(tmp_path):
     assert first.returncode == 0, first.stderr
     assert first.stderr in ("", f"planar-lcp simulate: {NOTICE}\n", f"planar-lcp simulate: {BACKGROUND_NOTICE}\n"), \
         first.stderr
-    lock = background.lock_file(numba.config.CACHE_DIR)                # this process's cache: the CLI's too
+    lock = background.lock_file(engine.cache_dir())                    # this process's cache: the CLI's too
     assert background.Background(None, lock, 0.0).wait(timeout=600)   # a background compilation has ended
     second = run_cli(*args, cwd=tmp_path)
     assert second.returncode == 0 and second.stderr == "", second.stderr

@@ -201,25 +201,24 @@ def _normalised_llvm(text):
 
 @pytest.mark.needs_jit
 def test_numbas_inlining_copies_a_callee_once_and_compiles_the_same_code():
-    """planar_lcp.engine makes numba's inline_ir copy a callee's IR with one memo (linear time instead of blocks x
-    variables): where it applies (numba 0.68.1), a kernel with inlined callees compiles to the same LLVM IR and the
-    same result with it as with numba's own copy."""
+    """planar_lcp.engine.copying_inlined_ir_once() makes numba's inline_ir copy a callee's IR with one memo (linear
+    time instead of blocks x variables) inside it, numba's own method back after: where it applies (numba 0.68.1), a
+    kernel with inlined callees compiles to the same LLVM IR and the same result with it as with numba's own copy."""
     import numba
     import planar_lcp.engine as engine
     from numba.core.inline_closurecall import InlineWorker
-    if not engine.INLINE_COPY_PATCHED:
-        # another numba: its inline_ir no longer has the lines the patch replaces, and it compiles as it does
-        pytest.skip(f"numba {numba.__version__}: inline_ir without the per-block copy; the patch does not apply")
-    patched = InlineWorker.inline_ir
-    assert patched._planar_lcp_one_copy
+    original = InlineWorker.inline_ir
     a = np.arange(5.0)
     outputs = []
-    for inline_ir in (patched, patched._numba_original):
-        InlineWorker.inline_ir = inline_ir
-        try:
-            kernel = _inlined_kernel()
-            outputs.append((kernel(a), _normalised_llvm(kernel.inspect_llvm(kernel.signatures[0]))))
-        finally:
-            InlineWorker.inline_ir = patched
+    with engine.copying_inlined_ir_once() as applies:
+        if not applies:
+            # another numba: its inline_ir no longer has the lines the edit replaces, and it compiles as it does
+            pytest.skip(f"numba {numba.__version__}: inline_ir without the per-block copy; the edit does not apply")
+        assert InlineWorker.inline_ir._planar_lcp_one_copy and InlineWorker.inline_ir._numba_original is original
+        kernel = _inlined_kernel()
+        outputs.append((kernel(a), _normalised_llvm(kernel.inspect_llvm(kernel.signatures[0]))))
+    assert InlineWorker.inline_ir is original
+    kernel = _inlined_kernel()
+    outputs.append((kernel(a), _normalised_llvm(kernel.inspect_llvm(kernel.signatures[0]))))
     assert outputs[0][0] == outputs[1][0] == 31.0
     assert outputs[0][1] == outputs[1][1]

@@ -1,17 +1,20 @@
-"""Numba kernels. Importing this package first points numba's on-disk cache at a directory keyed by a hash of every
-kernel source file.
+"""Numba kernels, and where numba caches them: a directory keyed by a hash of every kernel source file, for
+planar_lcp's own files only.
 
 Why: numba's cache (`cache=True`) is invalidated only when the file defining a function changes, not when a callee in
 another file changes. After an edit or an upgrade, `rollout_lemke` (rollout.py unchanged) would silently keep an
 old inlined `step_pipeline` (step.py changed). Keying the cache directory on all kernel sources makes any change start
-a fresh cache. A user-set NUMBA_CACHE_DIR is respected as is. numba's cache setting is process-wide: other numba
-libraries imported after planar_lcp (QuantEcon in the benchmarks) cache into the same directory.
+a fresh cache. The directory is given to numba by a cache locator of ours, consulted first and answering only for
+files of the planar_lcp package, so that other numba libraries' caches stay where numba puts them and
+`numba.config` is left as it was. A user-set NUMBA_CACHE_DIR is respected as is: numba's own locator then serves every
+file, ours among them (`cache_dir()` says which directory holds our kernels).
 
-It also makes numba's inlining of `inline='always'` functions copy a callee's IR in linear time
-(`_copy_inlined_ir_once`): the step's compilation spent a third of its own time there (docs/performance.md, "Issue M").
+`copying_inlined_ir_once()`: a context in which numba's inlining of `inline='always'` functions copies a callee's IR
+in linear time; the processes that compile the kernels for the others (background.py, precompile.py, `planar-lcp
+warmup`) compile inside it: the step's compilation spends a third of its own time in that copy otherwise.
 """
-
 import ast
+import contextlib
 import hashlib
 import inspect
 import os
@@ -36,13 +39,61 @@ def _cache_dir():
     return os.path.join(base, "planar_lcp", "numba", kernel_source_hash())
 
 
-if not os.environ.get("NUMBA_CACHE_DIR"):
+def _own_cache_dir():
     try:
         d = _cache_dir()
         os.makedirs(d, exist_ok=True)
-        numba.config.CACHE_DIR = d
+        return d
     except OSError:
-        pass  # an unwritable home: numba falls back to its own locators (next to the sources, or a temp dir)
+        return None  # an unwritable home: numba's own locators serve (next to the sources, or a temp dir)
+
+
+#: the keyed directory (module docstring), or None when it cannot be created
+OWN_CACHE_DIR = _own_cache_dir()
+#: the planar_lcp package's directory: the files our locator answers for
+_PACKAGE_DIR = str(Path(__file__).resolve().parent.parent) + os.sep
+
+
+def cache_dir():
+    """The directory numba caches planar_lcp's kernels in: NUMBA_CACHE_DIR when set (numba.config.CACHE_DIR), else
+    the keyed directory; None when neither exists (numba then caches beside the sources)."""
+    return numba.config.CACHE_DIR or OWN_CACHE_DIR
+
+
+def _install_cache_locator():
+    """Put _KernelCacheLocator first among numba's cache locators (once)."""
+    from numba.core.caching import CacheImpl, UserProvidedCacheLocator
+
+    class _KernelCacheLocator(UserProvidedCacheLocator):
+        """numba's locator of a user-provided cache directory, with OWN_CACHE_DIR as the directory, for the files
+        of the planar_lcp package only, and only when the user has set no NUMBA_CACHE_DIR: the same paths as
+        numba's own locator gives with NUMBA_CACHE_DIR = OWN_CACHE_DIR (the processes that compile for this one
+        are started so), so both share one cache."""
+
+        def __init__(self, py_func, py_file):
+            self._py_file = py_file
+            self._lineno = py_func.__code__.co_firstlineno
+            self._cache_path = os.path.join(OWN_CACHE_DIR, self.get_suitable_cache_subpath(py_file))
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if numba.config.CACHE_DIR or OWN_CACHE_DIR is None or not os.path.exists(py_file):
+                return None
+            if not os.path.realpath(py_file).startswith(_PACKAGE_DIR):
+                return None
+            self = cls(py_func, py_file)
+            try:
+                self.ensure_cache_path()
+            except OSError:
+                return None
+            return self
+
+    if not any(getattr(c, "_planar_lcp", False) for c in CacheImpl._locator_classes):
+        _KernelCacheLocator._planar_lcp = True
+        CacheImpl._locator_classes.insert(0, _KernelCacheLocator)
+
+
+_install_cache_locator()
 
 
 # numba's `InlineWorker.inline_ir` copies the callee's IR block by block, a deep copy with a memo of its own per
@@ -65,28 +116,46 @@ _ONE_COPY = """        kernel_copy.blocks = copy.deepcopy(the_ir.blocks)
 """
 
 
-def _copy_inlined_ir_once():
-    """Patch numba's `InlineWorker.inline_ir` as the comment above says; returns whether it was patched."""
+def _one_copy_inline_ir():
+    """numba's `InlineWorker.inline_ir` edited as the comment above says, or None where the installed numba's
+    source does not have those lines exactly (made once, on first use)."""
     from numba.core import inline_closurecall as ic
-    worker = ic.InlineWorker
-    if getattr(worker.inline_ir, "_planar_lcp_one_copy", False):
-        return True
+    original = ic.InlineWorker.inline_ir
     try:
-        lines, first = inspect.getsourcelines(worker.inline_ir)
+        lines, first = inspect.getsourcelines(original)
     except (OSError, TypeError):
-        return False
+        return None
     src = textwrap.dedent("".join(lines))
     if src.count(_PER_BLOCK_COPY) != 1:
-        return False
+        return None
     tree = ast.parse(src.replace(_PER_BLOCK_COPY, _ONE_COPY))
     ast.increment_lineno(tree, first - 1)       # tracebacks point at numba's own lines
     namespace = {}
     exec(compile(tree, ic.__file__, "exec"), ic.__dict__, namespace)
     patched = namespace["inline_ir"]
     patched._planar_lcp_one_copy = True
-    patched._numba_original = worker.inline_ir
+    patched._numba_original = original
+    return patched
+
+
+_PATCHED = []
+
+
+@contextlib.contextmanager
+def copying_inlined_ir_once():
+    """Inside: numba's inliner copies a callee's IR once (the comment above); numba's own method is back after.
+    Yields whether the edit applies to the installed numba."""
+    from numba.core import inline_closurecall as ic
+    if not _PATCHED:
+        _PATCHED.append(_one_copy_inline_ir())
+    patched = _PATCHED[0]
+    worker = ic.InlineWorker
+    if patched is None or getattr(worker.inline_ir, "_planar_lcp_one_copy", False):
+        yield patched is not None
+        return
+    original = worker.inline_ir
     worker.inline_ir = patched
-    return True
-
-
-INLINE_COPY_PATCHED = _copy_inlined_ir_once()
+    try:
+        yield True
+    finally:
+        worker.inline_ir = original

@@ -196,16 +196,18 @@ def compile_kinds(kinds):
                "lemke_kernel": (WORK_STRUCT, sig[2], types.int64, types.int64, types.boolean)}
     stages = [(_drive_islands, (MODEL_STRUCT, WORK_STRUCT, types.int64, types.int64))]
     stages += [(_CALLS[kind], None) if kind in _CALLS else (_DRIVERS[kind], special.get(kind, sig)) for kind in kinds]
-    for driver, driver_sig in stages:
-        if driver_sig is None:
-            driver()
-            continue
-        try:
-            driver.compile(driver_sig)
-        except _Typed:
-            pass
-    _new_struct.compile((numba.typeof(WORK_STRUCT), types.NamedTuple([numba_type(f) for f in WORK_LAYOUT],
-                                                                     StepWork)))
+    from planar_lcp.engine import copying_inlined_ir_once
+    with copying_inlined_ir_once():
+        for driver, driver_sig in stages:
+            if driver_sig is None:
+                driver()
+                continue
+            try:
+                driver.compile(driver_sig)
+            except _Typed:
+                pass
+        _new_struct.compile((numba.typeof(WORK_STRUCT), types.NamedTuple([numba_type(f) for f in WORK_LAYOUT],
+                                                                         StepWork)))
 
 
 _helper = None
@@ -240,8 +242,9 @@ def start_helper():
     if _helper is not None or not may_start() or compiled(rollout_lemke):
         return None
     env = dict(os.environ, **{ENV_SWITCH: "0"})
-    if numba.config.CACHE_DIR:
-        env["NUMBA_CACHE_DIR"] = numba.config.CACHE_DIR
+    from planar_lcp.engine import cache_dir
+    if cache_dir():
+        env["NUMBA_CACHE_DIR"] = cache_dir()
     try:
         _helper = subprocess.Popen([sys.executable, "-m", __name__, *HELPER_KINDS], env=env,
                                    stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
