@@ -73,7 +73,7 @@ def cmd_demo(args):
     written = []
 
     print("planar-lcp demo")
-    print("1. The seed paper's falling rod (section 4.1), Stewart-Trinkle time-stepping with Lemke")
+    print("1. Stewart & Trinkle's falling rod (their section 4.1), their time-stepping with Lemke")
     t0 = time.perf_counter()
     try:
         traj = simulate("falling_rod")

@@ -377,7 +377,7 @@ def format_step_table(rows, compile_times=None):
                      "and energy recorded; "
                      "settings, the compiled model (remembered for a scene already compiled), Simulator, "
                      "Trajectory); Simulator(): construction "
-                     "from a compiled model; targets (issue M): set-up and Simulator() <= 300 µs, simulate() ratio "
+                     "from a compiled model; targets: set-up and Simulator() <= 300 µs, simulate() ratio "
                      "<= 1.5")
     if rows:
         lines.append("")
@@ -822,7 +822,7 @@ def format_scaling_piles_table(rows, fits, fit_spread, fit_bodies):
         lines.append(f"fitted growth exponent of {kind} (cost ~ bodies^p, fitted per round, median [min-max]): "
                      + "; ".join(parts))
     if fits:
-        lines.append("target (issue L): p <= 1.3 over 16 to 256 bodies for towers and bins with the defaults")
+        lines.append("target: p <= 1.3 over 16 to 256 bodies for towers and bins with the defaults")
     return "\n".join(lines)
 
 

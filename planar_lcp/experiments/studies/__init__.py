@@ -55,8 +55,8 @@ def _runner(module_name):
 
 def register(subparsers):
     """Add the `study` command and its sub-commands to the `planar-lcp` parser."""
-    s = subparsers.add_parser("study", help="the seed paper's experiments: falling rod, four-disk cascade",
-                              description="Reproduce the seed paper's section 4 experiments: figures, event tables "
+    s = subparsers.add_parser("study", help="Stewart & Trinkle's experiments: falling rod, four-disk cascade",
+                              description="Reproduce Stewart & Trinkle's section 4 experiments: figures, event tables "
                                           "and the Table 1 error measures over step sizes.")
     sub = s.add_subparsers(dest="study", required=True, metavar="STUDY")
     from planar_lcp.cli import one_line_errors
