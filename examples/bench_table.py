@@ -61,7 +61,7 @@ def main(dirs):
             du = r["duration_q1_med_q3"]
             ft = q(r["time_q1_med_q3"]) if r["exact"] else "-"
             fd = q(du) if r["exact"] else "-"
-            # a summary written before issue 25 has no first_ duration: its plans were the planner's first plans
+            # a summary written by older versions has no first_ duration: its plans were the planner's first plans
             f1 = q(r.get("first_duration_q1_med_q3", du)) if r["exact"] else "-"
             slowest = max((x["solve_time"] for x in s["records"] if x["planner"] == r["planner"] and x["exact"]),
                           default=float("nan"))

@@ -1,4 +1,4 @@
-"""Where a step of the bin of 40 shapes goes (issue L): at states of a run with the defaults, the whole step and its
+"""Where a step of the bin of 40 shapes goes: at states of a run with the defaults, the whole step and its
 parts, thread CPU time, the least of 5 repetitions of 10 calls each: contacts and islands, the assembly of every
 island's dense LCP, and on the largest island the mode iteration's attempt (which the bin's islands fail), block
 Lemke on its dense LCP and the tableau on the same LCP.

@@ -2,7 +2,7 @@
 in alternating rounds over the variants given, and the time until a background compilation it started has ended
 (planar_lcp/background.py: simulate() on a cold cache): this tree with the second compiling process,
 without it (PLANAR_LCP_PRECOMPILE=0), and other source trees (--tree, e.g. a git worktree of an earlier commit).
-Used for docs/performance.md ("Issue M"):
+Used for docs/performance.md ("Compile time"):
 
     python examples/cold_start.py [--rounds 2] [--tree /path/to/worktree] [--no-helper] -- simulate falling_rod
     python examples/cold_start.py --rounds 1 --tree /work/before -- plan push_box --seed 5 --iterations 15000

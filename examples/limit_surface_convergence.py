@@ -1,5 +1,5 @@
 """The points model converges to the limit-surface model as its support points fill the body and its friction
-directions fill the circle (issue H; docs/method.md, "Table friction").
+directions fill the circle (docs/method.md, "Table friction").
 
 A 0.2 m x 0.1 m box slides and spins on the table (v0 = 0.5 m/s along x, w0 = 8 rad/s, mu = 0.4) until it stops.
 It runs with support_model = "limit_surface" and with support_model = "points" on an n x n grid of cell-centre

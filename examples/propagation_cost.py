@@ -1,6 +1,7 @@
 """What one OMPL propagation costs: `TaskModel.advance` (which reuses its arrays through `Simulator.rollout_into`)
-against the same rollout through `Simulator.rollout` (fresh arrays per call, the code path advance used before
-issue I), in the same process, in alternating rounds, thread CPU time per call: median [min-max] over the rounds.
+against the same rollout through `Simulator.rollout` (fresh arrays per call, the code path advance used before it
+reused its arrays), in the same process, in alternating rounds, thread CPU time per call: median [min-max] over the
+rounds.
 
 Each task's pusher is first driven into its object (0.5 s towards the object's centre of mass), so the timed
 propagations push: contacts, the table's friction and the LCP are all in the cost. Both paths give bit-identical
@@ -19,8 +20,8 @@ ROUNDS, CALLS = 15, 200
 
 
 def advance_by_rollout(tm, x, u, nsteps):
-    """advance() as it was before issue I: Simulator.rollout, which allocates its outputs on every call (for one
-    object its code then, verbatim; for push_clutter the same with the obstacles' blocks)."""
+    """advance() as it was before it reused its arrays: Simulator.rollout, which allocates its outputs on every call
+    (for one object its code then, verbatim; for push_clutter the same with the obstacles' blocks)."""
     m, n, ip = tm.model, tm.nobj, tm.ip
     if n == 1:
         q = np.array([[x[0], x[1], x[2]]])

@@ -1,7 +1,7 @@
-"""Where simulate()'s time outside the rollout goes (issue M), for one scene: the call against the rollout it makes
+"""Where simulate()'s time outside the rollout goes, for one scene: the call against the rollout it makes
 (contacts and the Trajectory's rows recorded, on a Simulator made once), alternately in rounds of 20 calls, thread
 CPU time, median; the call with the scene's name against the call with its Scene and against load_scene; then each
-part of the call timed while 300 calls run. Used for docs/performance.md ("Issue M"):
+part of the call timed while 300 calls run. Used for docs/performance.md ("Compile time", the set-up of every call):
 
     python examples/simulate_setup.py [SCENE]          (default falling_rod)
 """
