@@ -175,8 +175,8 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
     horizontal plane's table friction: docs/method.md, "Table friction").
 
     seed_friction_arm: apply contact friction at each shape's core point (a capsule's end-cap centre) instead of the
-    contact point, reproducing the seed paper's friction vectors d = [+-1, 0, +-(l/2) sin theta] (for comparison only;
-    the moment arm to the contact point is the physically right one).
+    contact point, reproducing Stewart & Trinkle's friction vectors d = [+-1, 0, +-(l/2) sin theta] (for comparison
+    only; the moment arm to the contact point is the physically right one).
 
     Raises SceneError if bodies interpenetrate at the start by more than START_OVERLAP_TOL."""
     bodies = scene.bodies

@@ -466,7 +466,7 @@ _CONTACT_KEYS = [(k, {"con_n": "normal", "con_p": "point"}.get(k, k[4:]))
 def _trajectory_stats(out, done):
     """Trajectory.stats' rows of the first `done` steps of a rollout made with trajectory_rows: every stat by its
     name, each a contiguous row, the integer-valued ones as int (the rollout kernel writes them after each call's
-    steps, engine/rollout.py `record_rows`: a transposed copy and a conversion here took 15 to 20 us, issue M)."""
+    steps, engine/rollout.py `record_rows`: a transposed copy and a conversion here took 15 to 20 us)."""
     rows = (out["stat_rows"], out["stat_ints"])
     return {name: rows[integer][row, :done] for name, integer, row in _STAT_SLOTS}
 
@@ -475,7 +475,7 @@ class _RunSetup:
     """What `simulate` makes of its arguments before the rollout (the validated settings, the run's scene, options and
     compiled model, the run-size check passed, the contacts' shape pairs), kept for the next call with the same
     arguments and the same Scene object: a Scene that hashes is immutable (frozen dataclasses and tuples), so
-    the same object with the same arguments validates, compiles and checks the same (issue M's set-up)."""
+    the same object with the same arguments validates, compiles and checks the same."""
 
     __slots__ = ("scene", "run_scene", "nsteps", "options", "model", "shape_pairs")
 
@@ -495,7 +495,7 @@ RUN_SETUPS = 32
 
 #: Scenes `simulate` loaded from a name or a file, by (the file, its modification time and size), the last
 #: LOADED_SCENES: a sweep that names its scene reads and validates the file once (about 0.4 ms a call, more than the
-#: rest of the set-up: issue M), so that its calls are kept by `_run_setups` too. Only a Scene that hashes is kept
+#: rest of the set-up), so that its calls are kept by `_run_setups` too. Only a Scene that hashes is kept
 #: (immutable: shared safely); an edited file has another key.
 _loaded_scenes = OrderedDict()
 LOADED_SCENES = 32
@@ -589,7 +589,7 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
     on_failure: "raise" (default) raises SimulationError at the first failed step (one where no method gave a
     certified answer); "record" continues (the failed island takes PGS's uncertified answer) and lists every failure
     in Trajectory.failures. seed_friction_arm applies contact
-    friction at the shapes' core points, as the seed paper's rod does (see compile_scene). option_names: how error
+    friction at the shapes' core points, as Stewart & Trinkle's rod does (see compile_scene). option_names: how error
     messages name the keywords, e.g. {"t_end": "--t-end", "on_failure": "--on-failure record"} for a command line
     (default: the keywords themselves). progress: called as progress(steps_done, nsteps) every quarter second or so
     of a long run (`Simulator.progress`). Further keywords go to SimOptions.

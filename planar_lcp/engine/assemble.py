@@ -1,4 +1,4 @@
-"""Stage 3 of a step: the contact LCP of one island (seed paper eqs. 13-20 in 2D), and the PGS impulse problem.
+"""Stage 3 of a step: the contact LCP of one island (Stewart & Trinkle eqs. 13-20 in 2D), and the PGS impulse problem.
 
 Unknowns of the LCP, blocked (see docs/method.md):
 
@@ -67,7 +67,7 @@ def contact_column(m, poses, con_pair, con_p, j, dx, dy, col_dyn, col_g, u):
 def friction_column(m, poses, con_pair, con_phi, con_n, con_p, j, dx, dy, col_dyn, col_g, u):
     """The generalized column of a tangential impulse at contact j: at the contact point (physically right), or,
     if the model was compiled with seed_friction_arm, at each shape's core point p +- (phi/2 + r) n (for a
-    capsule: the end-cap centre), which is what the seed paper's d = [+-1, 0, +-(l/2) sin theta] does."""
+    capsule: the end-cap centre), which is what Stewart & Trinkle's d = [+-1, 0, +-(l/2) sin theta] does."""
     contact_column(m, poses, con_pair, con_p, j, dx, dy, col_dyn, col_g, u)
     if m.seed_friction_arm == 0:
         return

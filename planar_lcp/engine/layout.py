@@ -457,7 +457,7 @@ _SCALAR_TYPES = {"int": (int, np.int64), "float": (float, np.float64), "bool": (
 
 def _has_field_type(field, v):
     """True only if numba.typeof(v) is `numba_type(field)`, from numpy's attributes: typeof costs microseconds an
-    array and a Simulator's structs have about 190 (issue M). An array's numba type is its dtype, ndim, layout ('C'
+    array and a Simulator's structs have about 190. An array's numba type is its dtype, ndim, layout ('C'
     when C-contiguous), readonly (not writeable) and aligned flags. False means: ask numba.typeof."""
     if not field.shape:
         return type(v) in _SCALAR_TYPES[field.dtype]

@@ -100,9 +100,9 @@ def _drive_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
 def _drive_lemke_reversed(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     """The kernels `lemke_island` calls (engine/solvers/lemke.py), typed as it calls them, in the reverse of the order
     in which the step's typing reaches them: the first process, whose step reaches them from the first, meets this
-    one's work instead of compiling the same kernels at the same time (the helper's first plan of issue M compiled
-    most of them in both). A kernel whose callees the step reaches earlier (record_failed_island: the assembly)
-    comes after them. PGS's driver, run before this one, has compiled the impulses' kernels (apply_impulses,
+    one's work instead of compiling the same kernels at the same time (an earlier design of the helper compiled most
+    of them in both). A kernel whose callees the step reaches earlier (record_failed_island: the assembly) comes after
+    them. PGS's driver, run before this one, has compiled the impulses' kernels (apply_impulses,
     record_impulses, contact_velocities, typed alike) and island_problem_size and island_servo. The values are never
     computed: only the types count (n, nf, nsb, ns int64 as island_problem_size's and island_servo's; piv_tol,
     equilibrate and elastic as LEMKE_CHAIN's items)."""

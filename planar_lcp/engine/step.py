@@ -1,4 +1,4 @@
-"""One time step (seed paper sections 3-4 in 2D): contacts, islands, one LCP per island, integration.
+"""One time step (Stewart & Trinkle's sections 3-4 in 2D): contacts, islands, one LCP per island, integration.
 
     M (v+ - v) = h f_ext + G z        q+ = q + h v+
 

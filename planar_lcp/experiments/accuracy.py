@@ -1,6 +1,6 @@
-"""The seed paper's Table 1 error measures of a run against a reference run (`tradeoff`, the studies).
+"""Stewart & Trinkle's Table 1 error measures of a run against a reference run (`tradeoff`, the studies).
 
-The seed (section 4.2) measures the velocity error by the integral over the run of ||v_h(t) - v(t)||_inf and the
+The paper (section 4.2) measures the velocity error by the integral over the run of ||v_h(t) - v(t)||_inf and the
 position error by the sup norm of q_h - q, against the finest run as the "exact" solution. In the time stepping
 (q_{k+1} = q_k + h v_{k+1}) the velocity v_h(t) on a step (t_k, t_k+1] is v_{k+1}, a step function; its integral is
 h sum_{k >= 1} ||v_h(t_k) - v_ref(t_k)||, the reference sampled at the coarse run's step ends. A trapezoidal rule

@@ -289,7 +289,7 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
     ours (warm-started) / pymunk measured back to back, with its spread in ratio_min, ratio_q1, ratio_q3,
     ratio_max; the µs per step are medians over rounds.
 
-    Also timed in the same rounds, the API a user calls (issue M): `simulate(scene)` over the scene's own run with
+    Also timed in the same rounds, the API a user calls: `simulate(scene)` over the scene's own run with
     the defaults (`simulate_ratio` against pymunk), its set-up (`setup_us`: the per-round difference between that
     run and the rollout it makes, which records the contacts and the Trajectory's stats rows and energy: settings,
     the compiled model, the Simulator and the rest of the Trajectory), and `Simulator(model, options)` alone

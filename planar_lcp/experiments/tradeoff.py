@@ -19,7 +19,7 @@ tests/test_tradeoff.py checks both: K = 6 gives the K = 62 reference to round-of
 half the error of the finest swept default setting.
 
 Per setting: the velocity error, the integral over [0, t_end] of ||v_h - v_ref|| dt, and the sup-norm position error
-(the seed paper's Table 1 measures, `accuracy.table1_errors`); the deepest penetration; the energy drift (the largest
+(Stewart & Trinkle's Table 1 measures, `accuracy.table1_errors`); the deepest penetration; the energy drift (the largest
 rise of the energy above its starting value, J; 0 when the energy only decreases, as it must without external work);
 and the CPU cost per simulated second. The cost is the least thread CPU time (`time.thread_time`, as in `bench`) of
 REPEATS warm runs (1 with --quick), divided by t_end. The clock counts no time the core spends on other processes.

@@ -47,7 +47,7 @@ MAX_FIXED_POINT_ITERATIONS = 1_000     # LCP solves per step
 MAX_FRICTION_DIRECTIONS = 256          # edges of the table-friction polygon (8 already approximates the disk to 8 %)
 MAX_LIMIT_SURFACE_TWISTS = 256         # fixed twists of the polyhedral limit surface (LCP unknowns per body)
 MAX_LIMIT_SURFACE_RESOLUTION = 64      # Gauss points per direction of a curved piece (nodes grow as its square)
-# Physical bounds (issue N): magnitudes outside them are typos or unit mistakes that the numerics cannot carry (a disk
+# Physical bounds: magnitudes outside them are typos or unit mistakes that the numerics cannot carry (a disk
 # radius of 1e308 overflowed the mass properties; a box of 1e308 failed at step 0 as an invalid LCP). They span the
 # machine-to-micro range a planar contact simulator is used at, with room on either side.
 MIN_LENGTH = 1e-6                      # m: a shape's radius, width, height or length when > 0 (a micron)

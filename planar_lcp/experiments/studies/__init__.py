@@ -1,4 +1,4 @@
-"""`planar-lcp study ...`: the seed paper's numerical experiments (section 4), reproduced and compared.
+"""`planar-lcp study ...`: Stewart & Trinkle's numerical experiments (their section 4), reproduced and compared.
 
 - `study falling-rod`: section 4.1, Figures 2-5, events and the Table 1 measures (see docs/falling-rod.md)
 - `study four-disks`: section 4.2 in elevation, Figure 6's impulse cascade and Table 1 (see docs/four-disks.md)

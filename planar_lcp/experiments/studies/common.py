@@ -1,4 +1,4 @@
-"""Shared pieces of the studies: runs over step sizes, the seed paper's Table 1 measures, tables and figures.
+"""Shared pieces of the studies: runs over step sizes, Stewart & Trinkle's Table 1 measures, tables and figures.
 
 Nothing here imports matplotlib at module level (``import planar_lcp.cli`` must stay light).
 """
@@ -12,7 +12,7 @@ import numpy as np
 
 from planar_lcp.experiments.accuracy import table1_errors
 
-#: The seed paper's step sizes (Table 1); the finest is the reference solution.
+#: Stewart & Trinkle's step sizes (their Table 1); the finest is the reference solution.
 SEED_STEPS = (0.02, 0.01, 0.005, 0.0025, 0.00125)
 #: `--quick`: two step sizes, each compared against a reference run at half the finer one.
 QUICK_STEPS = (0.0025, 0.00125)
@@ -81,7 +81,7 @@ def run_steps(scene, hs, *, desc, **kwargs):
 
 
 def convergence(trajs, ref, t_end):
-    """The seed paper's Table 1 measures for each trajectory against the reference `ref`.
+    """Stewart & Trinkle's Table 1 measures for each trajectory against the reference `ref`.
 
     All norms are the infinity norm over every coordinate of every dynamic body (n = 3 nbody), as in the seed.
     The comparison is at the common times t_i = i h, i = 0..round(t_end / h), of the coarser step h.

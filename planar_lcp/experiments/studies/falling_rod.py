@@ -1,4 +1,4 @@
-"""The seed paper's falling rod (section 4.1, Figures 2-5), over the seed's step sizes.
+"""Stewart & Trinkle's falling rod (their section 4.1, Figures 2-5), over their step sizes.
 
 `planar-lcp study falling-rod --out DIR [--quick] [--restitution E]` writes strobe.png, vy.png, omega.png, vx.png,
 seed_arm.png, events.csv/.md and convergence.csv/.md (see docs/falling-rod.md). --restitution E replaces the scene's
@@ -235,8 +235,8 @@ def run(out, quick=False, restitution=None):
                                  "slides left (s)", "contact losses", "final x (m)", "final theta (rad)"],
                                 spec=spec))
         f.write("\n\n" + ("" if scene.world.restitution == 0 else "With e = 0: ")
-                + "Seed paper (h not stated for these times; its Figure 2 uses h = 0.0025): impact t = 0.383, the "
-                "tip slides right, stops, slides left; slap-down t = 0.548; slides left for 0.02 s; then rest.\n")
+                + "Stewart & Trinkle (h not stated for these times; their Figure 2 uses h = 0.0025): impact t = 0.383, "
+                "the tip slides right, stops, slides left; slap-down t = 0.548; slides left for 0.02 s; then rest.\n")
 
     rows, phase_rows = common.write_convergence(out, scene, trajs, hs, h_ref, T_END, title="Falling rod",
                                                 bodies="the rod", desc="falling rod, grid phases", note=note)

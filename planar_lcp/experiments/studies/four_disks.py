@@ -1,4 +1,4 @@
-"""The seed paper's colliding balls (section 4.2, Figures 6-8, Table 1), in a vertical plane (elevation view).
+"""Stewart & Trinkle's colliding balls (their section 4.2, Figures 6-8, Table 1), in a vertical plane (elevation view).
 
 `planar-lcp study four-disks --out DIR [--quick]` writes trajectories.png, impulses.png, velocity.png,
 events.csv/.md, cascade.csv/.md and convergence.csv/.md (see docs/four-disks.md).
