@@ -31,7 +31,7 @@ numba's type inference makes such cycles (caught exceptions with their traceback
 empty cache it compiles inside a propagate() call (the PGS fallback kernel, on Lemke's first failure). The frame of
 that propagate() call then stayed alive holding `start`/`result`; OMPL freed those states, a state component was
 allocated at the same address, and nanobind returned the stale CompoundState wrapper for it: read_state failed with
-"CompoundState, slice" (issue 10). A leaked frame keeps the locals it has when it returns, so a callback whose
+"CompoundState, slice". A leaked frame keeps the locals it has when it returns, so a callback whose
 wrapper locals are deleted leaks no wrapper, whatever else leaks.
 """
 

@@ -186,7 +186,7 @@ def summarize(records, planners, time_limit):
         ex = [r for r in rs if r["exact"]]
         ts = np.array([r["solve_time"] for r in ex])
         sps = np.array([r["steps_per_second"] for r in rs if np.isfinite(r["steps_per_second"])])
-        # records written before issue 25 have no first_ costs: their plan was the first plan
+        # records written by older versions have no first_ costs: their plan was the first plan
         cost = {k: _quartiles(np.array([r.get(k, r.get(k[len("first_"):], float("nan"))) for r in ex]))
                 for k in COST_KEYS}
         rows.append(dict(planner=p, runs=len(rs), exact=len(ex), success_rate=len(ex) / max(len(rs), 1),
