@@ -1,4 +1,4 @@
-"""Naive oracle for issue H (table friction as a limit surface): the table's friction wrench on a body under uniform
+"""Naive oracle for table friction as a limit surface: the table's friction wrench on a body under uniform
 support pressure, by direct quadrature of Coulomb's law at every point of the support region.
 
 For a body moving with twist (vx, vy, omega) about its centre of mass, the friction force per area at body point r

@@ -1,8 +1,8 @@
 """Oracle for `engine.assemble.assemble_lcp`: an independent dense numpy build of one island's contact LCP.
 
-The reference below is written from the mathematics (docs/method.md, "The scheme", seed paper eqs. 13-20 in 2D), not
-from the kernel: it forms the generalized impulse matrix G = [N, D_c, D_s] over ALL dynamic dofs, the mass matrix
-M = blockdiag(m, m, J), the friction incidence matrices E_c, E_s and the Coulomb matrix U explicitly, then
+The reference below is written from the mathematics (docs/method.md, "The scheme", Stewart & Trinkle eqs. 13-20 in
+2D), not from the kernel: it forms the generalized impulse matrix G = [N, D_c, D_s] over ALL dynamic dofs, the mass
+matrix M = blockdiag(m, m, J), the friction incidence matrices E_c, E_s and the Coulomb matrix U explicitly, then
 
     A = [[G^T M^-1 G,  [E_c 0; 0 E_s]],        b = [G^T v~ (+ normal / kinematic terms),
          [U  -[E_c 0; 0 E_s]^T,  0   ]]             0 (contacts), mu_s h load_s (support points)]
@@ -361,8 +361,8 @@ def test_shipped_scene_matches_reference(name):
                 cases_with_contacts += bool(isl_con)
                 seen += len(isl_con)
             assert seen == prob.ncon, "every contact belongs to exactly one island"
-    # issue B's scenes all make contact; a planning-task scene starts with its pusher at rest and clear of the object
-    # (the planner sets the velocity), so only its table-friction islands are compared
+    # the scenes of ISSUE_B_SCENES all make contact; a planning-task scene starts with its pusher at rest and clear of
+    # the object (the planner sets the velocity), so only its table-friction islands are compared
     if name in ISSUE_B_SCENES:
         assert cases_with_contacts > 0, f"{name}: no island with contacts was compared"
     assert cases >= 4

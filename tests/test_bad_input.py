@@ -1,4 +1,4 @@
-"""Bad input (issue F, deliverables 6 and 9): every hole gets one line naming the file or flag, the field, the
+"""Bad input: every hole gets one line naming the file or flag, the field, the
 expected and the actual value; exit status 2 from the CLI without a traceback; a ValueError from the Python API.
 
 The CLI cases run `planar-lcp` in a subprocess (cli_helpers.run_cli), as a user would."""
@@ -304,7 +304,7 @@ def test_support_point_outside_its_body():
     parse_scene(_push_with_support([[-0.01, -0.06], [0.21, 0.06], [0.1, 0.0]]), "x.toml")
 
 
-# --- 5. the failure message (deliverable 9) ---------------------------------------------------------------------
+# --- 5. the failure message ---------------------------------------------------------------------------------------
 
 
 # res_tol = 0 demands an exact residual, which round-off denies on some step: a real, controlled LCP failure
@@ -339,7 +339,7 @@ def test_failure_message_cli_names_the_flag(monkeypatch, capsys):
 
 
 def test_a_jam_reads_as_no_rigid_solution_on_the_command_line(tmp_path):
-    """Issue N: a kinematic pusher driving a box into a wall stops the run with one line that says there is no
+    """A kinematic pusher driving a box into a wall stops the run with one line that says there is no
     rigid solution and names the bodies, not a solver's status; exit status 1."""
     pytest.importorskip("scipy")
     from test_reliability import JAM
@@ -392,7 +392,7 @@ def test_run_size_advice_names_the_support_models_knob(support, knob):
         check_run_size(model, 1, limit=1000)
 
 
-# --- 6. absurd magnitudes (issue N) ------------------------------------------------------------------------------
+# --- 6. absurd magnitudes -----------------------------------------------------------------------------------------
 
 ABSURD = (1e308, -1e308, 1e-308, 1e30, -1e30, 1e-30, 0.0, -1.0, 1e6, 1e-9)
 
@@ -417,7 +417,7 @@ def test_absurd_magnitudes_in_shipped_scenes_give_a_clean_result_or_a_one_line_e
     """300 seeded mutations of the shipped scenes, each one number set to an absurd value (1e308, 1e-308, 0, -1, ...):
     each loads and runs a few steps cleanly, or is refused at load by a SceneError of one line that names the field
     (a physical bound, docs/scene-format.md "Limits"), or stops as a SimulationError; never another exception, a
-    non-finite state or a numpy warning (the disk radius 1e308 of issue N overflowed in spec/massprops.py)."""
+    non-finite state or a numpy warning (a disk radius of 1e308 once overflowed in spec/massprops.py)."""
     import copy
     import warnings
     from planar_lcp.spec.scene import SceneError, list_scenes, read_document, scenes_dir
@@ -488,7 +488,7 @@ def test_each_physical_bound_is_named_with_its_value(mutation, message):
 
 
 def test_an_absurd_size_on_the_command_line_is_one_line_and_exit_2(tmp_path):
-    """Issue N: the disk radius of 1e308 that overflowed in spec/massprops.py, in a scene file run as a user runs it."""
+    """The disk radius of 1e308 that once overflowed in spec/massprops.py, in a scene file run as a user runs it."""
     f = tmp_path / "huge.toml"
     f.write_text('name = "huge"\n[sim]\nh = 0.01\nt_end = 0.1\n[[bodies]]\nname = "disk"\ntype = "dynamic"\nmass = 1.0\n'
                  '[[bodies.shapes]]\ntype = "disk"\nradius = 1e308\n')

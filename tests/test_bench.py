@@ -139,7 +139,7 @@ def test_bench_step_alternates_ours_warm_and_pymunk_and_reports_their_ratios(mon
     assert log[12:] == (["ours"] + ["ours_warm"] * 2 + ["recorded", "simulate"] + ["simulator"] * 4 +
                         ["pymunk"] * 3) * 4
     n = r["steps"]
-    # the API's view (issue M): simulate() against pymunk, its set-up over the bare rollout, Simulator() alone
+    # the API's view: simulate() against pymunk, its set-up over the bare rollout, Simulator() alone
     assert r["simulate_us_per_step"] == pytest.approx(0.015 / n * 1e6)
     assert r["simulate_ratio"] == pytest.approx(3.75)
     assert r["setup_us"] == pytest.approx(2000.0) and r["simulator_us"] == pytest.approx(2500.0)
@@ -190,7 +190,7 @@ def test_bench_step_json_keeps_the_old_fields_and_adds_the_spread(monkeypatch, t
                                      warm_first_simulate_s=0.2))
     path = tmp_path / "bench.json"
     bench.run_bench("step", json_path=str(path))
-    err = capsys.readouterr().err                 # issue M: a line on stderr as each stage of minutes starts
+    err = capsys.readouterr().err                 # a line on stderr as each stage of minutes starts
     assert "bench step: the first simulate() on an empty numba cache" in err and "bench step: box_tip (1 of 1)" in err
     d = json.loads(path.read_text())
     assert d["step"]["clock"] == "thread_time"

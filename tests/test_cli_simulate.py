@@ -60,7 +60,7 @@ def summary_field(out, label):
 
 def _check_scene_listing(out):
     listed = list_scenes(tasks=True)
-    # issue B's eight scenes are shipped (the planning tasks add scenes of their own)
+    # the eight scenes of SHIPPED are shipped (the planning tasks add scenes of their own)
     assert set(SHIPPED) <= {n for n, _, _ in listed}
     for name, description, has_task in listed:
         mark = r"\[task\]" if has_task else ""

@@ -1,4 +1,4 @@
-"""Restitution in the pymunk comparison (issue J, part 3): the scene's per-pair coefficient on pymunk's arbiters, a
+"""Restitution in the pymunk comparison: the scene's per-pair coefficient on pymunk's arbiters, a
 bounce in pymunk that shows it acts, and `planar-lcp compare --restitution`.
 
 Oracles: Scene.restitution_between (the contract: per pair from the scene, not pymunk's product of elasticities);

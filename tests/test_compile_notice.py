@@ -1,4 +1,4 @@
-"""Issue M, "say what is happening": one line before a cold numba cache's wait, nothing when the cache is warm
+"""Saying what is happening: one line before a cold numba cache's wait, nothing when the cache is warm
 (planar_lcp/engine/compile_notice.py). The cold runs themselves are the slow suite's (tests/test_readme_commands.py
 `test_demo` and tests/test_planning_e2e.py `test_first_plan_on_a_cold_cache` check the line there)."""
 

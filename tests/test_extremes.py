@@ -1,4 +1,4 @@
-"""Numerical stability at the extremes (issue E).
+"""Numerical stability at the extremes.
 
 Every case asserts: no NaN/inf, no uncaught exception, every step reports a status (and, with Lemke, no failed
 step), energy never gained beyond a stated bound, penetration bounded, and the physically right outcome where one is

@@ -1,4 +1,4 @@
-"""`planar-lcp study falling-rod --restitution E` (issue J): the flag reaches every run of the study, bad values are
+"""`planar-lcp study falling-rod --restitution E`: the flag reaches every run of the study, bad values are
 refused before any work, and without it the study is unchanged.
 
 The study runs in-process on a short run: T_END cut to 0.45 s (the first impact is at 0.3858 s), --quick."""

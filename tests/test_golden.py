@@ -1,4 +1,4 @@
-"""Golden trajectories: the behaviour of the simulator recorded before restructuring it (issue 11), and a test that the
+"""Golden trajectories: the behaviour of the simulator recorded before restructuring it, and a test that the
 code still reproduces it: every shipped scene, each formulation, the default solver (Lemke) and settings, over the
 scene's own duration. Recorded per step: the COM poses and velocities of the dynamic bodies, the kinematic poses, the
 pivot count and the step status.
@@ -7,8 +7,8 @@ The files in tests/golden/ are made by `python tests/test_golden.py` (it overwri
 that is MEANT to change behaviour, and say so in the commit.
 
 Horizontal-plane scenes are also run with support_model = "points" (files `*__points.npz`): the table-friction model
-that was the default before issue H, whose runs were recorded before it and are kept as they were. The default runs
-of those scenes (the limit surface) were recorded when issue H made it the default.
+that was the default before the limit surface, whose runs were recorded before it and are kept as they were. The
+default runs of those scenes (the limit surface) were recorded when the limit surface became the default.
 
 What is compared with the record, and why (docs/method.md, "Reproducibility"). Another machine computes the same
 operations in the same order (numba compiles without fast-math or fused multiply-adds), but its C library's cos and

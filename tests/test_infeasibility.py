@@ -1,4 +1,4 @@
-"""Issue N, certified infeasibility (planar_lcp/infeasibility.py): when no method certifies an island's LCP, the
+"""Certified infeasibility (planar_lcp/infeasibility.py): when no method certifies an island's LCP, the
 branch and bound decides whether it has a solution at all, with a certificate checked here independently of the
 code that made it.
 

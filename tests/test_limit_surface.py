@@ -1,4 +1,4 @@
-"""Issue H: table friction as the limit surface of the support pressure (docs/method.md, "Table friction").
+"""Table friction as the limit surface of the support pressure (docs/method.md, "Table friction").
 
 Oracles: the naive quadrature of Coulomb's law in tests/limit_surface_oracle.py (itself checked against closed forms
 in test_limit_surface_oracle.py) and the analytic motions of a body sliding or spinning on a table under uniform

@@ -1,4 +1,5 @@
-"""The limit-surface oracle (tests/limit_surface_oracle.py) against closed forms, so that issue H's tests can trust it.
+"""The limit-surface oracle (tests/limit_surface_oracle.py) against closed forms, so that the limit-surface tests
+can trust it.
 
 Uniform pressure: a disk spinning in place feels torque (2/3) mu m g R; any body sliding without spin feels mu m g
 opposite its velocity and no torque about its COM; a centred square of side a spinning feels
@@ -21,7 +22,7 @@ def test_disk_spinning_in_place_feels_two_thirds_mu_m_g_r():
     assert weights.sum() == pytest.approx(math.pi * R * R, rel=1e-13)
     fx, fy, tau = friction_wrench(nodes, weights, (0.0, 0.0, 3.0), MU, MASS, G)
     assert abs(fx) < 1e-12 and abs(fy) < 1e-12
-    # (the four default support points on the ring R / sqrt 2 give mu m g R / sqrt 2 instead: 6 % more, issue H)
+    # (the points model's four default support points on the ring R / sqrt 2 give mu m g R / sqrt 2 instead: 6 % more)
     assert tau == pytest.approx(-2.0 / 3.0 * MU * MASS * G * R, rel=1e-12)
 
 

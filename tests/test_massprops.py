@@ -260,7 +260,7 @@ def test_shipped_scene_inertias():
     com, inertia = body_mass_properties(load_scene("box_push").body("box"))
     np.testing.assert_allclose(com, [0.0, 0.0], atol=1e-15)
     assert inertia == pytest.approx((0.04 + 0.01) / 12, rel=1e-13)
-    # falling_rod keeps the seed paper's inertia, not the uniform-density one; a single centred capsule has its
+    # falling_rod keeps Stewart & Trinkle's inertia, not the uniform-density one; a single centred capsule has its
     # centre of mass exactly at the body-frame origin (no round-off).
     com, inertia = body_mass_properties(load_scene("falling_rod").body("rod"))
     assert inertia == 0.002

@@ -314,9 +314,10 @@ def test_a_settled_bin_is_statically_indeterminate():
 @pytest.mark.slow
 @pytest.mark.parametrize("make", [lambda: piles.tower(250), lambda: piles.wall(8, 12)])
 def test_sparse_answers_on_islands_of_up_to_2000_unknowns(make):
-    """The top of the issue's size range (LCPs of 50 to 2000 unknowns; the random piles reach about 1200): a tower
-    of 250 boxes (2000 unknowns) and a brick wall of 8 x 12 (2088; half-bandwidth 98, within SPARSE_MAX_BAND) at
-    rest, the sparse answer checked on the densely assembled LCP against dense Lemke's as in the tests above."""
+    """The top of the size range the sparse solver targets (LCPs of 50 to 2000 unknowns; the random piles reach about
+    1200): a tower of 250 boxes (2000 unknowns) and a brick wall of 8 x 12 (2088; half-bandwidth 98, within
+    SPARSE_MAX_BAND) at rest, the sparse answer checked on the densely assembled LCP against dense Lemke's as in the
+    tests above."""
     probs = island_problems(make(), 1, 1)
     assert len(probs) == 1
     ok, its, z, A, b, nci, nf = probs[0]

@@ -1,4 +1,4 @@
-"""plan-bench and tradeoff on Dask (issue I, item 1): a cluster started by hand (`dask scheduler`, two `dask worker`s on
+"""plan-bench and tradeoff on Dask: a cluster started by hand (`dask scheduler`, two `dask worker`s on
 127.0.0.1) gives the same runs as the local cluster, records the worker of each run, and a worker killed while it
 runs a plan does not lose the benchmark: its run is done again elsewhere and the command says so."""
 
@@ -178,7 +178,7 @@ def _deterministic(out):
 
 @pytest.mark.slow  # about 50 s: an interrupted benchmark, its --resume and an uninterrupted one
 def test_ctrl_c_keeps_the_finished_runs_and_resume_ends_as_an_uninterrupted_benchmark(tmp_path):
-    """Issue N, item 4: Ctrl-C (at a terminal: the whole process group) right after the first run is recorded
+    """Ctrl-C (at a terminal: the whole process group) right after the first run is recorded
     leaves it on disk with a partial summary and prints one line, no worker traceback; the same command with
     --resume runs only the other runs and ends with the outputs of an uninterrupted benchmark (the records'
     deterministic fields, the summaries, the log, the same files)."""
@@ -243,7 +243,7 @@ RESUME_HINT = "(give the benchmark's own settings to finish it, or another --out
 
 @pytest.mark.parametrize("what", ["task", "task file", "planners", "runs", "budget", "time budget"])
 def test_resume_of_another_benchmark_is_refused_before_any_work(finished_bench, tmp_path, what):
-    """Issue N, item 5: --resume with a different task (by name, or the same name with other content), planner
+    """--resume with a different task (by name, or the same name with other content), planner
     set, number of runs or budget: one line naming the file and each difference (the file's and the command's),
     exit status 2, nothing written."""
     task, out, args = finished_bench
@@ -298,7 +298,7 @@ def _with(args, change):
 
 
 def test_an_out_holding_runs_is_not_overwritten_without_resume(finished_bench):
-    """Issue N, item 5: the same benchmark again into an --out that holds its runs: one line naming --resume and
+    """The same benchmark again into an --out that holds its runs: one line naming --resume and
     another --out, exit status 2, nothing overwritten."""
     task, out, args = finished_bench
     before = _files(out)

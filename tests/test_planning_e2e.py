@@ -1,5 +1,5 @@
 """Planning commands end to end in subprocesses: a first run on a cold numba cache, the demo's failure path, replay
-in both simulators, bad plan files and Ctrl-C (issue 10). Skipped when ompl is not installed.
+in both simulators, bad plan files and Ctrl-C. Skipped when ompl is not installed.
 
 The cold-cache test gives its subprocess its OWN EMPTY NUMBA_CACHE_DIR: the suite's cache is warm by the time it
 runs, and the crash it guards against (state wrappers outliving an OMPL callback while numba compiles inside it)

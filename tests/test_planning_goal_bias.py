@@ -1,4 +1,4 @@
-"""push_t's RRT goal bias (issue I), which makes the 95%-cover goal reachable in a few thousand
+"""push_t's RRT goal bias, which makes the 95%-cover goal reachable in a few thousand
 iterations (the cover goal needs the T's pose within a few millimetres and degrees; goal samples get there best).
 
 The OMPL work runs in subprocesses, as in tests/test_planning.py (the cyclic GC must stay off while planning)."""

@@ -1,4 +1,4 @@
-"""The push_clutter planning task (issue I): a box pushed to a goal pose through four movable obstacles.
+"""The push_clutter planning task: a box pushed to a goal pose through four movable obstacles.
 
 The task's claims, each checked here: the obstacles differ in shape and mass and each stands in the box's straight
 way; the OMPL state holds every object's full physics state, so propagation is a pure function of it; an obstacle

@@ -1,4 +1,4 @@
-"""The push_table planning task (issue L): a box pushed across a cluttered table, through twelve movable obstacles,
+"""The push_table planning task: a box pushed across a cluttered table, through twelve movable obstacles,
 to a goal one of them stands on.
 
 The claims of scenes/push_table.toml's comments, each checked here: twelve obstacles of four kinds of shape and

@@ -1,4 +1,4 @@
-"""The pymunk bridge and `planar-lcp compare` (issue C).
+"""The pymunk bridge and `planar-lcp compare`.
 
 Oracles: our mass properties (planar_lcp.spec.massprops), exact area formulas (pymunk's shape areas against ours), free
 flight of our own integrator (the frame conventions), Coulomb's law for a sliding box (friction actually applied).

@@ -181,7 +181,7 @@ def test_demo(cold_demo):
     plan = check_json(out / "plan.json", ["task", "planner", "seed", "exact", "controls", "states"])
     assert plan["task"] == "push_box" and plan["exact"] is True
     assert "an exact plan in" in r.stdout
-    # the demo's plan is the shortened one behind docs/planning.md's figure (issue 25), bit for bit
+    # the demo's plan is the shortened one behind docs/planning.md's figure, bit for bit
     doc = json.loads((ROOT / "docs" / "figures" / "planning" / "push_box" / "plan.json").read_text())
     assert plan["shorten"]["enabled"] and plan["path_duration"] < plan["first_path_duration"]
     assert (plan["controls"], plan["steps"], plan["states"]) == (doc["controls"], doc["steps"], doc["states"])

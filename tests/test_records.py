@@ -1,4 +1,4 @@
-"""The record file of plan-bench and tradeoff (planar_lcp.experiments.records, issue N item 4): each run appended and
+"""The record file of plan-bench and tradeoff (planar_lcp.experiments.records): each run appended and
 fsynced as it arrives, read back exactly, a line cut short by a crash ignored with a note and cut off on resume, any
 other damage refused; the checks --resume and a new benchmark make before any work; the interrupt's one line."""
 

@@ -4,8 +4,8 @@ final penetration, and every island answer certified (no uncertified PGS fallbac
 as TOML, to be saved as a regression case.
 
 And what cannot be solved is reported as such: a kinematic pusher driving a box into a wall has no rigid-body
-solution (the pusher has no force limit), and the run stops with that cause, certified (planar_lcp.infeasibility;
-issue N). The jam set (`jam_scene`: a pusher, one or two objects, a block in the path) is the generator's scenes where
+solution (the pusher has no force limit), and the run stops with that cause, certified (planar_lcp.infeasibility).
+The jam set (`jam_scene`: a pusher, one or two objects, a block in the path) is the generator's scenes where
 that happens: each run is solved or certified to have no rigid solution, none is left unclassified.
 """
 
@@ -182,7 +182,7 @@ N_JAMS = 60
 
 @pytest.mark.parametrize("seed", range(N_JAMS))
 def test_a_jam_scene_is_solved_or_certified_to_have_no_rigid_solution(seed):
-    """Issue N: each run of the jam set, in every formulation, goes to its end or stops at a step whose contact LCP
+    """Each run of the jam set, in every formulation, goes to its end or stops at a step whose contact LCP
     is certified to have no solution (NoRigidSolution, naming the pusher and the block); a SimulationError of any
     other kind (a failure without a certificate) fails the test."""
     pytest.importorskip("scipy")
@@ -214,7 +214,7 @@ def test_the_jam_set_has_both_outcomes():
 
 @pytest.mark.parametrize("max_force", [0.1, 10.0, 1e4])
 def test_every_jam_scene_runs_to_its_end_with_a_force_limited_pusher(max_force):
-    """Issue N: the jam set with its pusher force-limited (a velocity servo): every run of every formulation goes to
+    """The jam set with its pusher force-limited (a velocity servo): every run of every formulation goes to
     its end, certified (no failed step), and the limit is reached in some of them: the servo's LCP has an answer
     where the prescribed pusher's has none."""
     limited = 0

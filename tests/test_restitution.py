@@ -1,4 +1,4 @@
-"""Restitution (issue J): Newton's impact law at the velocity level, checked against analytic mechanics.
+"""Restitution: Newton's impact law at the velocity level, checked against analytic mechanics.
 
 The model (docs/method.md, "Restitution"): a contact that free motion would close within the step (its row's constant
 b < 0) and that was approaching at the start of the step (v_n- < 0, start-of-step velocities) leaves with
@@ -11,7 +11,7 @@ starts a step at height phi >= 0 above the table with speed V and ends it at hei
     H_{k+1} - e^2 H_k = (1 - e^2) phi + e (1 - e) h V / 2,   0 <= phi < h (V + g h)
 
 up to the two apexes' sampling (2 g h^2): every bounce is at least e^2 of the previous one and at most that plus
-h V ((1 - e^2) + e (1 - e) / 2) + 2 g h^2 higher. That is the O(h) of the issue, with its constant derived.
+h V ((1 - e^2) + e (1 - e) / 2) + 2 g h^2 higher. That is the expected O(h) excess, with its constant derived.
 """
 
 import dataclasses

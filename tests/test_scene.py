@@ -368,7 +368,7 @@ def test_unknown_scene_name_lists_available():
         load_scene("falling_rodd")
     msg = str(e.value)
     assert msg.startswith("unknown scene 'falling_rodd': not a shipped scene in ")
-    # every shipped scene is listed, sorted (the planning tasks add scenes beyond issue B's eight)
+    # every shipped scene is listed, sorted (the planning tasks add scenes beyond the eight of SHIPPED)
     listed = msg.split("(available: ")[1].split(")")[0].split(", ")
     assert set(SHIPPED) <= set(listed) and listed == sorted(listed)
 
@@ -732,7 +732,7 @@ def test_scene_error_is_a_value_error():
 
 
 def test_the_issue_example_is_rejected_only_for_its_vertical_support_keys():
-    # The issue's schema listing puts support_* on a body in the vertical plane, which is an error.
+    # An example schema listing that puts support_* on a body in the vertical plane, which is an error.
     data = {
         "name": "falling_rod", "description": "...",
         "world": {"plane": "vertical", "gravity": [0.0, -9.81], "support_gravity": 9.81, "friction": 0.6,

@@ -1,4 +1,4 @@
-"""Issue N, force-limited kinematic bodies (`max_force`, `max_torque`): a velocity servo with a bounded impulse per step
+"""Force-limited kinematic bodies (`max_force`, `max_torque`): a velocity servo with a bounded impulse per step
 (docs/method.md, "Force-limited kinematic bodies"). Analytic oracles, every formulation and solver:
 
 - a pusher that drives a box into a wall stalls: it presses with exactly max_force, its velocity drops to zero;

@@ -1,8 +1,8 @@
-"""Shorter plans (issue 25, planners/shorten.py): the shortcutting keeps plans exact, replays bit for bit, is
-deterministic, and `--no-shorten` gives the planner's plan as it was before the issue, bit for bit.
+"""Shorter plans (planners/shorten.py): the shortcutting keeps plans exact, replays bit for bit, is
+deterministic, and `--no-shorten` gives the planner's plan as it was before shortening, bit for bit.
 
-The unit tests shorten the tip_box plan behind docs/planning.md's figure (made before issue 25 by `planar-lcp plan
-tip_box --seed 7 --iterations 5000`), which needs no OMPL; the end-to-end tests run the commands."""
+The unit tests shorten the tip_box plan behind docs/planning.md's figure (made before plans were shortened, by
+`planar-lcp plan tip_box --seed 7 --iterations 5000`), which needs no OMPL; the end-to-end tests run the commands."""
 
 import json
 import sqlite3
@@ -14,7 +14,7 @@ pytest.importorskip("shapely")
 
 from cli_helpers import ROOT, run_cli  # noqa: E402
 
-#: the plan made before issue 25: the golden of --no-shorten
+#: the plan made before plans were shortened: the golden of --no-shorten
 TIP_DOC_PLAN = ROOT / "docs" / "figures" / "planning" / "tip_box" / "plan.json"
 TIP_DOC_ARGS = ("plan", "tip_box", "--planner", "RRT", "--seed", "7", "--iterations", "5000", "--no-gif")
 
@@ -419,8 +419,9 @@ def test_the_push_primitive_turns_the_box_to_the_goal_angle():
     assert np.abs(U).max() <= tm.task.control_max
 
 
-#: the push_clutter plan behind docs/planning.md's figure, made before issue 25 (`planar-lcp plan push_clutter --seed 1
-#: --iterations 9000 --no-shorten`): the box's path 0.68 m where its start and goal are 0.47 m apart
+#: the push_clutter plan behind docs/planning.md's figure, made before plans were shortened (`planar-lcp plan
+#: push_clutter --seed 1 --iterations 9000 --no-shorten`): the box's path 0.68 m where its start and goal are 0.47 m
+#: apart
 CLUTTER_DOC_PLAN = ROOT / "docs" / "figures" / "planning" / "push_clutter" / "plan.json"
 CLUTTER_BUDGET = 800
 

@@ -54,7 +54,7 @@ def test_push_table_penetration_is_the_position_forms_linearization_error():
 
 
 def test_the_bins_penetration_stays_below_a_millimetre_at_its_step():
-    """Issue L's bound for the bin (penetration <= 1 mm) at the scene's h = 1/240 s, in every formulation, and exact
+    """The bound for the bin (penetration <= 1 mm) at the scene's h = 1/240 s, in every formulation, and exact
     once the pile rests. At 1/60 s the position form linearizes at q + h v, where a falling box is 3 cm into the disk
     below it and their contact has another normal than at the step's end: 12.6 mm deep (measured: 0.33 mm at 1/240 s,
     2.1e-5 m in the velocity form, 5.8e-8 m in the fixed-point form; docs/performance.md, "Piles")."""
@@ -124,7 +124,7 @@ def test_every_lemke_run_takes_the_one_rollout_kernel():
 
 
 def test_simulate_compiles_a_scene_once_for_the_same_settings():
-    """Issue M (set-up): `simulate` takes its model from `compiled_scene`, which remembers compile_scene's answer for a
+    """Set-up: `simulate` takes its model from `compiled_scene`, which remembers compile_scene's answer for a
     scene and its settings (a Model never changes after compile) and compiles again for other settings."""
     from planar_lcp.sim import compiled_scene
     sc = load_scene("box_push")
@@ -141,7 +141,7 @@ def test_simulate_compiles_a_scene_once_for_the_same_settings():
                                             ("box_tip", {"formulation": "fixed_point"}),
                                             ("push_t", {"warm_start": True})])
 def test_simulate_keeps_its_simulators_and_a_kept_one_runs_as_a_new_one(scene, options):
-    """Issue M (set-up): `simulate` gives its Simulator back for the next call with the same model and options.
+    """Set-up: `simulate` gives its Simulator back for the next call with the same model and options.
     Whatever the kept one ran before (another length, failed steps handed to the fallback kernel with res_tol = 0,
     the warm start's memory), its next run equals a new Simulator's bit for bit, every output."""
     from planar_lcp import sim as S
@@ -183,7 +183,7 @@ def _same_run(tr, sc, nsteps, **options):
 
 
 def test_simulate_keeps_its_run_setup_for_the_same_scene_object_and_arguments():
-    """Issue M (set-up): `simulate` keeps what it makes of its arguments (the validated settings, the options, the
+    """Set-up: `simulate` keeps what it makes of its arguments (the validated settings, the options, the
     model, the run-size check) for the next call with the same Scene object and the same arguments; any other
     argument, option or Scene makes (and checks) its own, and every run equals a fresh Simulator's bit for bit. A
     Scene that does not hash (lists: it can change) is never kept, and a bad argument fails on every call."""
@@ -224,7 +224,7 @@ def test_simulate_keeps_its_run_setup_for_the_same_scene_object_and_arguments():
 
 
 def test_simulate_reads_a_named_scene_file_once_per_version(tmp_path):
-    """Issue M (set-up): `simulate("box_push")` reads and validates the file once (then its run set-up is kept as a
+    """Set-up: `simulate("box_push")` reads and validates the file once (then its run set-up is kept as a
     Scene object's); an edited file (another modification time or size) is read again and run as edited; an unknown
     name still fails with load_scene's error."""
     import os

@@ -1,4 +1,4 @@
-"""Planning your own task (issue K) end to end: a task file written from nothing planned by `plan`, `plan-bench` and
+"""Planning your own task end to end: a task file written from nothing planned by `plan`, `plan-bench` and
 the planning API, plans that carry their task (replayed bit for bit after the file was edited, moved or deleted),
 and seeded random task files that plan without any error other than "no exact solution".
 

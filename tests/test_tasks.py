@@ -1,4 +1,4 @@
-"""Task files (issue K): a scene file's [task] table, its validation, its derived defaults, its goals and its
+"""Task files: a scene file's [task] table, its validation, its derived defaults, its goals and its
 workspace, tested without OMPL (tests/test_task_planning.py plans them).
 
 The oracles: the exact one-line message of each bad task file (the scene loader's style); goal tests against poses

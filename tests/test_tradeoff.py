@@ -181,7 +181,7 @@ def test_unknown_scene_is_an_error(capsys):
     assert "unknown scene 'nosuch'" in capsys.readouterr().err
 
 
-# --- issue N: a sweep that loses nothing (records.jsonl, --resume, Ctrl-C) ---------------------------------------
+# --- a sweep that loses nothing (records.jsonl, --resume, Ctrl-C) ------------------------------------------------
 
 #: the CSV columns a setting's seed-free simulation decides (all but the cost, a clock's)
 DETERMINISTIC_COLUMNS = [c for c in DOCUMENTED_COLUMNS if c != "cpu_s_per_sim_s"]
@@ -214,7 +214,7 @@ def quick_sweep(tmp_path_factory):
     (["--scenes", "falling_rod"], "the --quick sweep", "the full sweep (no --quick)"),
 ])
 def test_resume_of_another_sweep_is_refused_before_any_work(quick_sweep, argv, was, got):
-    """Issue N, item 5: --resume with other scenes or without --quick: one line naming the file and the difference
+    """--resume with other scenes or without --quick: one line naming the file and the difference
     (the file's and the command's), exit status 2, nothing written."""
     from cli_helpers import run_cli
     before = _files(quick_sweep)
@@ -254,7 +254,7 @@ def test_a_sweep_into_an_out_holding_rows_is_refused_and_resume_rewrites_it(quic
 
 @pytest.mark.slow  # about 70 s: the full falling_rod sweep interrupted, its --resume and an uninterrupted one
 def test_ctrl_c_keeps_the_finished_settings_and_resume_ends_as_an_uninterrupted_sweep(tmp_path):
-    """Issue N, item 4, for the trade-off sweep: Ctrl-C (at a terminal: the whole process group) after the first row
+    """For the trade-off sweep: Ctrl-C (at a terminal: the whole process group) after the first row
     is recorded leaves the finished rows on disk with a partial CSV, summary and plot and prints one line, no worker
     traceback; --resume runs only the others and ends with the rows of an uninterrupted sweep."""
     import re
