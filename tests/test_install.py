@@ -8,7 +8,7 @@ The slow test builds the wheel, installs it with its `plan` and `gym` extras in 
 folder (the versions of this environment's packages as constraints, so that pip takes what is already here) and
 runs the commands from another folder, on an empty numba cache. With $PLANAR_LCP_WHEEL_VENV set (.ci/run, which has
 just built the wheel, installed it in such a virtualenv and run the demo from another folder) it checks that
-virtualenv instead of building another, on the session's numba cache.
+virtualenv instead of building another, on the numba cache its demo ran on ($PLANAR_LCP_WHEEL_CACHE).
 """
 
 import csv
@@ -238,7 +238,9 @@ def test_a_wheel_installed_in_a_fresh_virtualenv_runs_from_any_folder(tmp_path):
     timings = {}
     reuse = os.environ.get("PLANAR_LCP_WHEEL_VENV")
     if reuse:
-        venv, cache = Path(reuse), os.environ.get("NUMBA_CACHE_DIR") or str(tmp_path / "numba")
+        # the cache its demo ran on (.ci/run), where its kernels are compiled
+        venv = Path(reuse)
+        cache = os.environ.get("PLANAR_LCP_WHEEL_CACHE") or os.environ.get("NUMBA_CACHE_DIR") or str(tmp_path / "numba")
     else:
         venv, cache = _build_and_install(tmp_path, timings), str(tmp_path / "numba")
     bin_ = venv / "bin"
