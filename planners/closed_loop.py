@@ -369,12 +369,16 @@ class PlanTracker:
 
     def __call__(self, x):
         c0 = time.thread_time()
+        u = self._decide(np.asarray(x, dtype=np.float64))
+        self.compute_s = time.thread_time() - c0
+        return u
+
+    def _decide(self, x):
+        """The control for observed state x, and self.phase set (the class docstring's steps)."""
         tm = self.tm
-        x = np.asarray(x, dtype=np.float64)
         if self.finishing:
             u = self.finisher(x)
             self.phase = "finish: " + self.finisher.phase
-            self.compute_s = time.thread_time() - c0
             return u
         N = len(self.uref)
         if self._target is not None:
@@ -387,7 +391,6 @@ class PlanTracker:
                     self.finishing = True
                     u = self.finisher(x)
                     self.phase = "finish: " + self.finisher.phase
-                self.compute_s = time.thread_time() - c0
                 return u
             # back on the plan (or the recovery took too long): tracking resumes at the target's index
             self._target = None
@@ -418,7 +421,6 @@ class PlanTracker:
             self.recoveries += 1
             u = self.recoverer(x)
             self.phase = "recover: " + self.recoverer.phase
-            self.compute_s = time.thread_time() - c0
             return u
         end = min(j + self.horizon, N)
         at_end = j + self.horizon >= N
@@ -449,7 +451,6 @@ class PlanTracker:
             self.phase = "finish: thinking"
         else:
             u = self._u(j, best[1] if best is not None else 0.0)
-        self.compute_s = time.thread_time() - c0
         return u
 
 
