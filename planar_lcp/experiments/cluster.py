@@ -121,8 +121,9 @@ def close_cluster(client, cluster, futures=(), quiet=False):
             if quiet:
                 try:
                     # a worker inside a run does not stop before the run's end (a planning run holds its one thread
-                    # for up to --time): a short grace, then its process is terminated (the default waits 4 s)
-                    cluster.sync(_stop_workers, cluster, STOP_GRACE_S)
+                    # for up to --time), and one still alive when the scheduler closes logs its failed heartbeat
+                    # with a traceback: stopped or failed, nothing a worker holds is kept, so each is killed
+                    cluster.sync(_kill_workers, cluster, STOP_GRACE_S)
                 except Exception:  # noqa: BLE001 - cluster.close() below stops whatever is left
                     pass
             cluster.close()
@@ -143,13 +144,27 @@ def _silence_distributed():
     warnings.filterwarnings("ignore", message=r"coroutine '.*' was never awaited", category=RuntimeWarning)
 
 
-#: seconds a local worker is given to stop by itself when a stopped benchmark closes its cluster
+#: seconds a local worker's nanny is given to see its killed process joined when a stopped command closes its cluster
 STOP_GRACE_S = 0.5
 
 
-async def _stop_workers(cluster, timeout):
+async def _kill_workers(cluster, timeout):
+    """SIGKILL each local worker process (a killed process prints nothing), its nanny told first that the cluster
+    closes, so that it does not start a new one, then close the nannies."""
     import asyncio
-    await asyncio.gather(*[w.close(timeout=timeout) for w in list(cluster.workers.values())], return_exceptions=True)
+    import os
+    import signal
+
+    nannies = list(cluster.workers.values())
+    for nanny in nannies:
+        nanny.close_gracefully(reason="planar-lcp-stopped")
+        pid = nanny.pid
+        if pid:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+    await asyncio.gather(*[nanny.close(timeout=timeout) for nanny in nannies], return_exceptions=True)
 
 
 @contextlib.contextmanager
