@@ -515,7 +515,7 @@ def shorten(tm, x0, controls, steps, seed, max_candidates=MAX_CANDIDATES, patien
         Called between candidates (and while a push candidate is built): True stops the shortening at once with the
         best plan so far, `stopped_by` "interrupted" (`plan` passes its Ctrl-C flag).
     trace : callable, optional
-        Called as trace(kind, accepted, shortener) after every simulated candidate (examples/shorten_rule.py).
+        Called as trace(kind, accepted, shortener) after every simulated candidate (examples/measurements/shorten_rule.py).
 
     Returns
     -------

@@ -252,7 +252,7 @@ class TaskModel:
 
         Returns (x_new, ok); the bodies' angles in x_new are wrapped to [-pi, pi). The planner calls this for every
         propagation, so it reuses its arrays (Simulator.rollout_into): 10 to 13 us less per call than `rollout`
-        (examples/propagation_cost.py)."""
+        (examples/measurements/propagation_cost.py)."""
         n, ip, nsteps = self.nobj, self.ip, int(nsteps)
         rec = self._recordings.get(nsteps)
         if rec is None:

@@ -1,5 +1,5 @@
 """The benchmark commands measure what they promise: alternating rounds of thread CPU time, ratios as the median of
-the per-round ratios with their spread, and the JSON fields the docs and examples/plot_performance.py read.
+the per-round ratios with their spread, and the JSON fields the docs and examples/measurements/plot_performance.py read.
 
 Functional checks only, never timing assertions: speed targets live in the benchmarks (docs/performance.md). The
 statistics are checked with a fake clock whose readings are known; the real runs are checked for completeness."""

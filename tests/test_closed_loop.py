@@ -4,7 +4,7 @@ Oracles: in our own simulator, unperturbed, the tracker's choice is the plan's o
 stays within the plan (the candidate without offset reproduces the reference exactly, distance 0), so the executed
 states equal the planner's bit for bit; perturbed_scene scales exactly the coefficients and masses it names; in a
 world the plan was not made in (pymunk, or ours with other friction and masses) the committed push_box plan misses
-its goal open loop and reaches it closed loop; examples/closed_loop_tasks.py's table is reproduced.
+its goal open loop and reaches it closed loop; examples/measurements/closed_loop_tasks.py's table is reproduced.
 """
 
 import math
@@ -106,7 +106,7 @@ def test_a_closed_loop_that_misses_exits_1_and_says_so(tmp_path):
 
 
 def test_the_table_of_open_and_closed_loops_is_reproduced(tmp_path):
-    """examples/closed_loop_tasks.py on one task (its three runs; a pushing task's closed loops are
+    """examples/measurements/closed_loop_tasks.py on one task (its three runs; a pushing task's closed loops are
     test_closed_loop_in_pymunk_reaches_the_goal_the_open_loop_misses's): the outcomes and step counts equal
     the committed results, the goal distances to 1e-3 (the controller's budget is counted in simulated steps, not
     seconds, so its choices do not depend on the machine's speed)."""
@@ -115,7 +115,7 @@ def test_the_table_of_open_and_closed_loops_is_reproduced(tmp_path):
     import subprocess
     import sys
     tasks = ("tip_left",)
-    r = subprocess.run([sys.executable, str(ROOT / "examples" / "closed_loop_tasks.py"), "--out", str(tmp_path),
+    r = subprocess.run([sys.executable, str(ROOT / "examples" / "measurements" / "closed_loop_tasks.py"), "--out", str(tmp_path),
                         "--tasks", *tasks], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0, r.stdout + r.stderr
 

@@ -120,7 +120,7 @@ def test_modules_and_names_in_the_docs_exist(page):
 
 @pytest.mark.parametrize("page", PAGES, ids=ids(PAGES))
 def test_example_scripts_named_in_the_docs_exist(page):
-    missing = [s for s in re.findall(r"python (examples/\w+\.py)", page.read_text()) if not (ROOT / s).is_file()]
+    missing = [s for s in re.findall(r"python (examples/[\w/]+\.py)", page.read_text()) if not (ROOT / s).is_file()]
     assert not missing, f"{page.name}: {missing}"
 
 

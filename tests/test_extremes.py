@@ -153,7 +153,7 @@ def test_fast_disk_against_a_thin_segment(speed):
     tr = simulate(sc)
     assert np.all(np.isfinite(tr.q)) and np.all(tr.stats["status"] == 0)
     stopped = tr.q[:, 0, 1].min() >= 0.05 + 0.0005 - 1e-6
-    # Measured (examples/tunnelling_threshold.py, docs/limits.md): the disk is caught while one step's motion h v is
+    # Measured (examples/measurements/tunnelling_threshold.py, docs/limits.md): the disk is caught while one step's motion h v is
     # below about r + thickness / 2 (the predicted pose q + h v stays on the near side of the segment's mid-line)
     # and passes through above it. 10 m/s (h v = 0.025 m < r) is caught; 100 m/s (h v = 0.25 m > 2 r) passes.
     if speed * h < 0.05:

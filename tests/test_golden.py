@@ -14,7 +14,7 @@ What is compared with the record, and why (docs/method.md, "Reproducibility"). A
 operations in the same order (numba compiles without fast-math or fused multiply-adds), but its C library's cos and
 sin may round some arguments the other way (glibc picks an FMA or an SSE2 build by the CPU: 6 to 7 in 10^4 differ).
 A run is compared with its record to 1e-12 only where such last-bit differences stay within 1e-12 to its end.
-Measured by `python examples/reproducibility.py` (each run again from initial poses moved by one unit in the last
+Measured by `python examples/measurements/reproducibility.py` (each run again from initial poses moved by one unit in the last
 place, and every island LCP along the run solved three ways) and by this suite run as on a baseline x86-64 CPU (the
 slow test below):
 
@@ -55,7 +55,7 @@ CASES = [(name, f, None) for name, _ in list_scenes() for f in FORMULATIONS] + \
 #: (four_disks)
 AMPLIFIED_TOL = 1e-6
 #: (scene, formulation, support model) -> the largest difference one-ulp perturbations of its initial poses grew to
-#: (`python examples/reproducibility.py`, 8 runs); no island LCP of these runs has two motions
+#: (`python examples/measurements/reproducibility.py`, 8 runs); no island LCP of these runs has two motions
 AMPLIFIED = {
     ("box_tip", "position", None): 1.5e-11, ("box_tip", "fixed_point", None): 5.0e-12,
     ("falling_rod", "position", None): 2.1e-12, ("falling_rod", "velocity", None): 2.4e-11,
@@ -198,7 +198,7 @@ def test_every_shipped_scene_has_golden_runs():
 
 
 def _reproducibility():
-    sys.path.insert(0, str(ROOT / "examples"))
+    sys.path.insert(0, str(ROOT / "examples" / "measurements"))
     try:
         import reproducibility
     finally:
@@ -208,7 +208,7 @@ def _reproducibility():
 
 @pytest.mark.slow
 def test_the_classification_holds():
-    """examples/reproducibility.py's one-ulp runs on every case (8 each, as the script: a minute or two): a
+    """examples/measurements/reproducibility.py's one-ulp runs on every case (8 each, as the script: a minute or two): a
     REPRODUCIBLE run stays within TOL, an AMPLIFIED one beyond it and within 10 times its listed growth, and each
     NOT_REPRODUCIBLE run needs its exemption (a run that stays within TOL belongs to REPRODUCIBLE: move it there)."""
     r = _reproducibility()
@@ -230,7 +230,7 @@ def test_the_classification_holds():
 @pytest.mark.slow
 def test_the_pyramids_impulses_have_several_solutions_and_its_motion_one():
     """The pyramid's piles are statically indeterminate (its LCPs' impulses are not unique), its motion is: why its
-    run is compared to 1e-12 while the bin's is not (examples/reproducibility.py's LCP census, every 10th step)."""
+    run is compared to 1e-12 while the bin's is not (examples/measurements/reproducibility.py's LCP census, every 10th step)."""
     r = _reproducibility()
     sim, nsteps = r.case_simulator("pyramid", "position", None)
     _, _, _, run = r.perturbation(sim, nsteps, runs=0)
@@ -241,9 +241,9 @@ def test_the_pyramids_impulses_have_several_solutions_and_its_motion_one():
 
 @pytest.mark.slow
 def test_the_reproducibility_script_prints_its_table():
-    """`python examples/reproducibility.py` (docs/method.md, "Reproducibility"), on one case: its row as a user reads
+    """`python examples/measurements/reproducibility.py` (docs/method.md, "Reproducibility"), on one case: its row as a user reads
     it, the table's columns as documented."""
-    r = subprocess.run([sys.executable, str(ROOT / "examples" / "reproducibility.py"), "--scenes", "tip_box",
+    r = subprocess.run([sys.executable, str(ROOT / "examples" / "measurements" / "reproducibility.py"), "--scenes", "tip_box",
                         "--formulations", "position"], capture_output=True, text=True, timeout=900, cwd=ROOT,
                        env=dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT),
                                                                                      os.environ.get("PYTHONPATH")]))))

@@ -367,13 +367,13 @@ def test_the_scripted_policy_command_prints_what_gym_md_says(tmp_path):
 
 def test_the_gym_commands_fail_in_one_line_without_gym_pusht():
     env = {k: v for k, v in os.environ.items() if k != "PLANAR_LCP_PUSHT_PYTHON"}
-    r = run(["examples/gym_side_by_side.py"], env=env)
+    r = run(["examples/measurements/gym_side_by_side.py"], env=env)
     assert r.returncode == 2 and r.stderr.count("\n") == 1
     assert "--pusht-python (or $PLANAR_LCP_PUSHT_PYTHON) must name the python" in r.stderr
     try:
         import gym_pusht  # noqa: F401
     except ImportError:
-        r = run(["examples/gym_speed.py", "--rounds", "1"])
+        r = run(["examples/measurements/gym_speed.py", "--rounds", "1"])
         assert r.returncode == 2 and r.stderr.count("\n") == 1 and "gym_pusht is not importable" in r.stderr
 
 
@@ -383,7 +383,7 @@ def test_side_by_side_with_gym_pusht_prints_gym_mds_table(tmp_path):
     rounding, the starts exactly, and the table in docs/gym.md is this command's output."""
     py = pusht_python()
     js = tmp_path / "sbs.json"
-    r = run(["examples/gym_side_by_side.py", "--pusht-python", py, "--json", str(js)])
+    r = run(["examples/measurements/gym_side_by_side.py", "--pusht-python", py, "--json", str(js)])
     assert r.returncode == 0, r.stderr
     start = GYM_MD.index("<!-- side-by-side table: the command's output (tests/test_gym.py checks it) -->\n")
     start = GYM_MD.index("\n", start) + 1
@@ -407,10 +407,10 @@ def test_speed_command_runs_beside_gym_pusht():
     probe = run(["-c", "import planners, gym_pusht"], python=py)
     if probe.returncode != 0:
         pytest.skip(f"planar_lcp is not installed in gym-pusht's virtualenv {py} (docs/gym.md, 'Speed')")
-    r = run(["examples/gym_speed.py", "--rounds", "2", "--steps", "20"], python=py)
+    r = run(["examples/measurements/gym_speed.py", "--rounds", "2", "--steps", "20"], python=py)
     assert r.returncode == 0, r.stderr
     assert r.stdout.count("ours / gym-pusht steps per second: median") == 2
-    assert "/work/venv_pusht/bin/python examples/gym_speed.py" in GYM_MD
+    assert "/work/venv_pusht/bin/python examples/measurements/gym_speed.py" in GYM_MD
 
 
 @pytest.mark.slow

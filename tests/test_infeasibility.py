@@ -132,12 +132,12 @@ def test_the_search_says_when_it_runs_out_of_branches():
 
 
 def test_the_jam_scan_example_runs_end_to_end():
-    """docs/method.md's jam table: `python examples/jam_scan.py` end to end, on a few seeds."""
+    """docs/method.md's jam table: `python examples/measurements/jam_scan.py` end to end, on a few seeds."""
     import subprocess
     import sys
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
-    run = subprocess.run([sys.executable, str(root / "examples" / "jam_scan.py"), "--seeds", "6"], capture_output=True,
+    run = subprocess.run([sys.executable, str(root / "examples" / "measurements" / "jam_scan.py"), "--seeds", "6"], capture_output=True,
                          text=True, timeout=900)
     assert run.returncode == 0, run.stderr
     rows = [line for line in run.stdout.splitlines() if line.startswith("| position") or line.startswith("| velocity")]

@@ -320,10 +320,10 @@ def test_box_pushed_off_centre_feels_the_quadrature_wrench_at_every_step():
 def test_points_model_converges_to_the_limit_surface():
     """A box sliding and spinning until it stops, with support_model = "points" on an n x n grid of cell-centre
     support points (the midpoint rule of the uniform pressure) and k directions: the final angle approaches the limit
-    surface's as n and k grow (examples/limit_surface_convergence.py prints the table in docs/method.md)."""
+    surface's as n and k grow (examples/measurements/limit_surface_convergence.py prints the table in docs/method.md)."""
     import sys
     from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "measurements"))
     from limit_surface_convergence import convergence
     rows = convergence([(2, 8), (4, 8), (4, 32)])
     angle_err = [r[4] for r in rows[1:]]

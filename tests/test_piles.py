@@ -225,12 +225,12 @@ def test_bench_pile_measures_both_simulators():
 
 @pytest.mark.slow
 def test_the_sparse_vs_dense_example_runs():
-    """docs/performance.md's table of the two paths: `python examples/sparse_vs_dense.py` end to end."""
+    """docs/performance.md's table of the two paths: `python examples/measurements/sparse_vs_dense.py` end to end."""
     import subprocess
     import sys
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
-    run = subprocess.run([sys.executable, str(root / "examples" / "sparse_vs_dense.py")], capture_output=True,
+    run = subprocess.run([sys.executable, str(root / "examples" / "measurements" / "sparse_vs_dense.py")], capture_output=True,
                          text=True, timeout=900, cwd=root)
     assert run.returncode == 0, run.stderr
     rows = [line for line in run.stdout.splitlines() if line.startswith("| ") and "scene" not in line]
@@ -336,13 +336,13 @@ def test_sparse_answers_on_islands_of_up_to_2000_unknowns(make):
 
 @pytest.mark.slow
 def test_the_sparse_threshold_example_runs():
-    """docs/performance.md's threshold table: `python examples/sparse_threshold.py --rounds 1` end to end; the
+    """docs/performance.md's threshold table: `python examples/measurements/sparse_threshold.py --rounds 1` end to end; the
     sparse path is faster on the towers it takes from 64 unknowns on."""
     import subprocess
     import sys
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
-    run = subprocess.run([sys.executable, str(root / "examples" / "sparse_threshold.py"), "--rounds", "1"],
+    run = subprocess.run([sys.executable, str(root / "examples" / "measurements" / "sparse_threshold.py"), "--rounds", "1"],
                          capture_output=True, text=True, timeout=1200, cwd=root)
     assert run.returncode == 0, run.stderr
     rows = {r.split(" | ")[0][2:]: [c.strip() for c in r.strip("|").split("|")]
@@ -419,13 +419,13 @@ def test_the_sparse_memory_keeps_runs_reproducible():
 
 @pytest.mark.slow
 def test_the_bin_penetration_example_runs():
-    """docs/performance.md's bin penetration table: `python examples/bin_penetration.py` end to end; at h = 1/240 s
+    """docs/performance.md's bin penetration table: `python examples/measurements/bin_penetration.py` end to end; at h = 1/240 s
     no step penetrates by 1 mm and the settled bin is exact."""
     import subprocess
     import sys
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
-    run = subprocess.run([sys.executable, str(root / "examples" / "bin_penetration.py")], capture_output=True,
+    run = subprocess.run([sys.executable, str(root / "examples" / "measurements" / "bin_penetration.py")], capture_output=True,
                          text=True, timeout=900, cwd=root)
     assert run.returncode == 0, run.stderr
     rows = [[c.strip() for c in r.strip("|").split("|")] for r in run.stdout.splitlines()
@@ -437,13 +437,13 @@ def test_the_bin_penetration_example_runs():
 
 @pytest.mark.slow
 def test_the_bin_time_split_example_runs():
-    """docs/performance.md's split of the bin's step: `python examples/bin_time_split.py` end to end; at every state
+    """docs/performance.md's split of the bin's step: `python examples/measurements/bin_time_split.py` end to end; at every state
     block Lemke certifies the largest island with the tableau's number of pivots (to a round-off tie: 5 %)."""
     import subprocess
     import sys
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
-    run = subprocess.run([sys.executable, str(root / "examples" / "bin_time_split.py")], capture_output=True,
+    run = subprocess.run([sys.executable, str(root / "examples" / "measurements" / "bin_time_split.py")], capture_output=True,
                          text=True, timeout=900, cwd=root)
     assert run.returncode == 0, run.stderr
     rows = [[c.strip() for c in r.strip("|").split("|")] for r in run.stdout.splitlines() if r.startswith("| step")]

@@ -106,14 +106,14 @@ def test_the_helper_starts_only_on_a_cold_cache(monkeypatch):
 
 @pytest.mark.slow
 def test_the_cold_start_example_runs_end_to_end():
-    """docs/performance.md's cold-start measurement: `python examples/cold_start.py` end to end (one round, one
+    """docs/performance.md's cold-start measurement: `python examples/measurements/cold_start.py` end to end (one round, one
     variant, a command that compiles nothing: the script's own work; the cold compilation it measures is the compile
     events example's, below)."""
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
     env = dict(os.environ)
     env.pop("NUMBA_DISABLE_JIT", None)
-    run = subprocess.run([sys.executable, str(root / "examples" / "cold_start.py"), "--rounds", "1", "--",
+    run = subprocess.run([sys.executable, str(root / "examples" / "measurements" / "cold_start.py"), "--rounds", "1", "--",
                           "scenes"], capture_output=True, text=True, env=env, timeout=900)
     assert run.returncode == 0, run.stderr
     assert "planar-lcp scenes, empty numba cache, wall clock, 1 alternating rounds:" in run.stdout
@@ -122,7 +122,7 @@ def test_the_cold_start_example_runs_end_to_end():
 
 @pytest.mark.slow
 def test_the_compile_events_example_logs_every_process(tmp_path):
-    """docs/performance.md's per-process compile figures: `python examples/compile_events.py` end to end on a cold
+    """docs/performance.md's per-process compile figures: `python examples/measurements/compile_events.py` end to end on a cold
     `simulate` (the command, its background compilation and that one's second process). Each process's compile
     events are exclusive (a function's time less the functions it compiled on the way), so their sum cannot exceed
     the process's CPU time; the background compiled the run's rollout kernel, which the command itself did not."""
@@ -131,7 +131,7 @@ def test_the_compile_events_example_logs_every_process(tmp_path):
     env = dict(os.environ)
     env.pop("NUMBA_DISABLE_JIT", None)
     out = tmp_path / "events.json"
-    run = subprocess.run([sys.executable, str(root / "examples" / "compile_events.py"), "--top", "3", "--json",
+    run = subprocess.run([sys.executable, str(root / "examples" / "measurements" / "compile_events.py"), "--top", "3", "--json",
                           str(out), "--", "simulate", "falling_rod", "--t-end", "0.01"], capture_output=True,
                          text=True, env=env, timeout=900)
     assert run.returncode == 0, run.stderr
@@ -155,7 +155,7 @@ def test_the_compile_events_example_logs_every_process(tmp_path):
 def test_the_compile_events_example_refuses_bad_arguments_before_running(args, message):
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
-    run = subprocess.run([sys.executable, str(root / "examples" / "compile_events.py"), *args], capture_output=True,
+    run = subprocess.run([sys.executable, str(root / "examples" / "measurements" / "compile_events.py"), *args], capture_output=True,
                          text=True, timeout=120)
     assert run.returncode == 2
     assert message in run.stderr

@@ -177,7 +177,7 @@ def test_the_episode_gif_command_runs(tmp_path, env_id):
     import sys
     from pathlib import Path
     root = Path(__file__).resolve().parent.parent
-    args = [sys.executable, str(root / "examples" / "pusht_episode_gif.py"), "--env", env_id, "--seed", "5000",
+    args = [sys.executable, str(root / "examples" / "measurements" / "pusht_episode_gif.py"), "--env", env_id, "--seed", "5000",
             "--every", "10", "--out", str(tmp_path / "e.gif")]
     if env_id.startswith("gym_pusht"):
         from test_gym import pusht_python
@@ -191,7 +191,7 @@ def test_the_episode_gif_command_runs(tmp_path, env_id):
 
 
 def test_closed_loop_mds_table_is_the_commands_output():
-    """docs/closed_loop.md's table is examples/closed_loop_table.py's output over the committed runs."""
+    """docs/closed_loop.md's table is examples/measurements/closed_loop_table.py's output over the committed runs."""
     import re
     import subprocess
     import sys
@@ -207,7 +207,7 @@ def test_closed_loop_mds_table_is_the_commands_output():
 
 
 def test_gym_pushts_t_is_identified_from_its_transitions():
-    """examples/identify_gym_pusht.py on two episodes of gym-pusht (its virtualenv): the fitted inertia and centre of
+    """examples/measurements/identify_gym_pusht.py on two episodes of gym-pusht (its virtualenv): the fitted inertia and centre of
     mass are gym-pusht's source's (3000 mm^2, 45 mm) within 2 % and 0.5 mm, from a start at 1500 and 35."""
     import re
     import subprocess
@@ -216,7 +216,7 @@ def test_gym_pushts_t_is_identified_from_its_transitions():
 
     from test_gym import pusht_python
     root = Path(__file__).resolve().parent.parent
-    r = subprocess.run([sys.executable, str(root / "examples" / "identify_gym_pusht.py"), "--pusht-python",
+    r = subprocess.run([sys.executable, str(root / "examples" / "measurements" / "identify_gym_pusht.py"), "--pusht-python",
                         pusht_python(), "--episodes", "2", "--actions", "100"], capture_output=True, text=True,
                        timeout=600)
     assert r.returncode == 0, r.stderr

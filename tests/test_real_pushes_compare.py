@@ -1,4 +1,4 @@
-"""examples/real_pushes_compare.py (docs/real_pushes.md, "How close we are") end to end on a few pushes of the MIT
+"""examples/measurements/real_pushes_compare.py (docs/real_pushes.md, "How close we are") end to end on a few pushes of the MIT
 pushing data set (read from ../shared; skipped cleanly when it is absent): its table holds the rows it promises, no
 butter push is fitted on, and its "defaults" row is the score of what `planar-lcp pushdata predict` writes for the
 same pushes (an independent path: the CLI's CSV through planar_lcp.experiments.pushdata.score)."""
@@ -23,7 +23,7 @@ def test_the_comparison_on_two_pushes_per_object(tmp_path):
     from planar_lcp.experiments.pushdata import mit, score
 
     out = tmp_path / "cmp"
-    r = subprocess.run([sys.executable, str(ROOT / "examples" / "real_pushes_compare.py"), "--data", str(DATA),
+    r = subprocess.run([sys.executable, str(ROOT / "examples" / "measurements" / "real_pushes_compare.py"), "--data", str(DATA),
                         "--out", str(out), "--models", "fitted,defaults", "--per-object", "2", "--every", "10"],
                        capture_output=True, text=True, timeout=900, cwd=ROOT, env=cli_env())
     assert r.returncode == 0, r.stdout + r.stderr

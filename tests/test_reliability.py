@@ -24,13 +24,13 @@ N_SCENES = 200
 # largest measured on this set is 2.4 mm (position form, a 12-body pile still moving at t_end).
 FINAL_PENETRATION_BOUND = 5e-3
 # Largest one-step energy gain on the vertical-plane scenes, relative to the run's initial energy E0 (ground as the
-# datum): the bounds docs/method.md states, each above the largest measured (python examples/random_scene_scan.py).
+# datum): the bounds docs/method.md states, each above the largest measured (python examples/measurements/random_scene_scan.py).
 # position 4.17 and fixed_point 0.51 (seeds 36 and 42: a body that moves more than its own size in one step is
 # linearized at a pose it never reaches); velocity 2.5e-3, all of it the projection's potential energy: its contact
 # impulses never add kinetic energy.
 ENERGY_GAIN_BOUND = {"position": 5.0, "fixed_point": 1.0, "velocity": 5e-3}
 IMPULSE_KE_GAIN_BOUND_VELOCITY = 1e-12
-# The same with e = 0.5 on every pair (python examples/restitution_measures.py, part 5): position 0.41 (seed 133),
+# The same with e = 0.5 on every pair (python examples/measurements/restitution_measures.py, part 5): position 0.41 (seed 133),
 # fixed_point 0.10 (seed 135), velocity 0.052 (seed 127). The velocity form's is friction's: a Newton impact with
 # friction can gain kinetic energy (docs/method.md, "Restitution"); with the friction set to 0 that seed gains
 # nothing. Its energy never rises above E0.

@@ -470,7 +470,7 @@ def test_push_candidates_are_deterministic_for_a_seed(clutter):
 
 
 def test_the_docs_before_and_after_table_is_what_its_command_gives():
-    """docs/planning.md "Shorter plans": the benchmark table is examples/bench_table.py --shorter's output on the
+    """docs/planning.md "Shorter plans": the benchmark table is examples/measurements/bench_table.py --shorter's output on the
     committed benchmark files, row for row (the command is the one the page gives)."""
     import re
     import subprocess

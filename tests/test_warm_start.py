@@ -283,13 +283,13 @@ def test_a_rollout_in_chunks_equals_one_kernel_call(name, opts):
 
 @pytest.mark.slow
 def test_the_scaling_warm_start_example_runs():
-    """docs/performance.md ("Scaling", the warm start): `python examples/scaling_warm_start.py` end to end, on the
+    """docs/performance.md ("Scaling", the warm start): `python examples/measurements/scaling_warm_start.py` end to end, on the
     dense path; every step but the first is warm-started on towers of 1 to 32 boxes."""
     import subprocess
     import sys
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
-    run = subprocess.run([sys.executable, str(root / "examples" / "scaling_warm_start.py")], capture_output=True,
+    run = subprocess.run([sys.executable, str(root / "examples" / "measurements" / "scaling_warm_start.py")], capture_output=True,
                          text=True, timeout=900, cwd=root)
     assert run.returncode == 0, run.stderr
     rows = {int(c[0]): [float(x) for x in c[1:]] for c in

@@ -13,7 +13,7 @@ One push (`read_push`): three streams, each with its own UNIX timestamps, about 
 - ``ft_wrench`` (t, fx, fy, torque): the force at the pusher, N (sensor offset not removed: up to 5 N).
 
 Times here are s from the push's first object sample (t = 0); the yaw is unwrapped. A few samples of a stream come
-out of time order (the stamps are arrival times; examples/pushdata_summary.py counts them): each stream is sorted by
+out of time order (the stamps are arrival times; examples/measurements/pushdata_summary.py counts them): each stream is sorted by
 time and a repeated time keeps its first sample.
 
 The object's outline file is not in its pose frame for every object; `object_model` registers it from where the
