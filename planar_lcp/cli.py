@@ -49,7 +49,7 @@ def _missing_optional(e):
 def _how_it_ran():
     """How a simulate() run's wall time is to be read: it ran as Python while this process's background compilation
     ran (a cold cache: engine/interpreted.py), or compiled, including any compilation."""
-    from planar_lcp import background
+    from planar_lcp.compilation import background
     if background.started() is not None:
         return "as Python while the kernels compile in the background"
     return "including any JIT compilation"
@@ -292,14 +292,15 @@ def _cmd_scenes(args):
 
 
 def _cmd_warmup(args):
-    """Compile every kernel a user can reach into numba's cache (planar_lcp/background.py, kernel set "all"), one
+    """Compile every kernel a user can reach into numba's cache (planar_lcp/compilation/background.py, kernel set "all"), one
     line per stage; nothing to do on a warm cache."""
     import time
 
     import numba
 
-    from planar_lcp.background import compilation_stages, compile_kernels, lock_file, Background
-    from planar_lcp.engine.compile_notice import uninstall_all
+    from planar_lcp.compilation.background import Background, lock_file
+    from planar_lcp.compilation.kernel_sets import compilation_stages, compile_kernels
+    from planar_lcp.compilation.notice import uninstall_all
     uninstall_all()              # this command's own line per stage says what compiles
     if numba.config.DISABLE_JIT:
         print("planar-lcp warmup: NUMBA_DISABLE_JIT is set: nothing is compiled")
@@ -618,7 +619,7 @@ def _main(argv):
         # Ctrl-C while the commands' modules load (about a second): the one line of any interrupt
         print("planar-lcp: error: interrupted (Ctrl-C); stopped", file=sys.stderr)
         return 130
-    from planar_lcp.engine.compile_notice import announce_compilation, uninstall
+    from planar_lcp.compilation.notice import announce_compilation, uninstall
     # one line on stderr before a cold numba cache's wait (nothing when the cache is warm)
     notice = announce_compilation(f"planar-lcp {args.command}")
     try:

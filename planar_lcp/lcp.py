@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planar_lcp.background import wait_for
+from planar_lcp.compilation.background import wait_for
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES, default_max_pivots, lcp_scale, lemke_solve
 
 #: Default tolerances (see docs/lcp.md for what each one governs).

@@ -26,7 +26,7 @@ from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STAT
 from planar_lcp.engine.interpreted import compiled, python_version
 from planar_lcp.engine.layout import ModelArrays, model_struct, step_work_bytes
 from planar_lcp.engine.limit_surface import unit_load_wrench
-from planar_lcp.background import start_background
+from planar_lcp.compilation.background import start_background
 
 
 @dataclass(frozen=True)
@@ -340,7 +340,7 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
                   qk0=arr(qk0, shape=(0, 3)), vk0=arr(vk0, shape=(0, 3)))
     if ls_bodies:
         _fill_fixed_columns(model, ls_bodies, nls)
-    # on a cold numba cache, the kernels compile in a background process from now on (planar_lcp/background.py)
+    # on a cold numba cache, the kernels compile in a background process from now on (planar_lcp/compilation/background.py)
     start_background()
     _check_start_overlaps(scene, model)
     return model

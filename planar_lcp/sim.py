@@ -29,7 +29,7 @@ from planar_lcp.spec.path import kinematic_velocities
 from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
 from planar_lcp.spec.scene import (SOLVERS, Scene, SceneError, load_scene, parse_scene, restitution_setting,
                                    scene_path, sim_settings, support_model_setting)
-from planar_lcp.background import start_background
+from planar_lcp.compilation.background import start_background
 from planar_lcp.frames import frame_state
 from planar_lcp.infeasibility import diagnose_step
 from planar_lcp.interrupt import raise_if_interrupted
@@ -152,7 +152,7 @@ class Simulator:
     qk, vk (nkin, 3) kinematic body poses (body frame) and velocities (the controls).
 
     On a cold numba cache (the kernel neither compiled in this process nor in numba's on-disk cache), the kernels
-    compile in a background process (planar_lcp/background.py) that this simulator starts, or joins when another
+    compile in a background process (planar_lcp/compilation/background.py) that this simulator starts, or joins when another
     process started it: a run then waits for it (Ctrl-C stops the wait at once; the compilation goes on for the next
     run), or, with python_while_cold, runs as Python meanwhile (`simulate`'s setting: the same results bit for bit,
     engine/interpreted.py) and switches to the compiled kernel when it is ready. Where no background process can run
@@ -175,7 +175,7 @@ class Simulator:
         self._step_rec = None       # `step`'s one-step recording, made on first use
         self._python_while_cold = python_while_cold
         self._python_rate = None    # steps per second of the kernel run as Python (a cold cache)
-        # the background compilation (planar_lcp/background.py) this simulator waits for or runs Python beside, or
+        # the background compilation (planar_lcp/compilation/background.py) this simulator waits for or runs Python beside, or
         # None: the kernel is compiled (or cached), or it compiles in this process at its first call
         self._ready = compiled(self._kernel)
         self._background = None if self._ready else start_background(self._kernel)

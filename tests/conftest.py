@@ -37,7 +37,7 @@ def cold_demo(tmp_path_factory):
     background compilation it started waited for: (the finished process, its --out directory, the cache). Tests
     that need what a user's first command leaves share it; one that writes to the cache copies it first."""
     pytest.importorskip("ompl")
-    from planar_lcp import background
+    from planar_lcp.compilation import background
     base = tmp_path_factory.mktemp("cold_demo")
     out, cache = base / "demo", base / "numba_cache"
     cache.mkdir()

@@ -1,5 +1,5 @@
 """Saying what is happening: one line before a cold numba cache's wait, nothing when the cache is warm
-(planar_lcp/engine/compile_notice.py). The cold runs themselves are the slow suite's (tests/test_readme_commands.py
+(planar_lcp/compilation/notice.py). The cold runs themselves are the slow suite's (tests/test_readme_commands.py
 `test_demo` and tests/test_planning_e2e.py `test_first_plan_on_a_cold_cache` check the line there)."""
 
 import io
@@ -8,8 +8,9 @@ import pytest
 from numba import njit
 
 from cli_helpers import run_cli
-from planar_lcp import background, engine
-from planar_lcp.engine.compile_notice import (BACKGROUND_NOTICE, NOTICE, CompileNotice, announce_background,
+from planar_lcp import engine
+from planar_lcp.compilation import background
+from planar_lcp.compilation.notice import (BACKGROUND_NOTICE, NOTICE, CompileNotice, announce_background,
                                               announce_compilation, uninstall)
 
 

@@ -1,4 +1,4 @@
-"""One compilation serves every scene (planar_lcp/background.py): no kernel's type depends on a scene's layout, the
+"""One compilation serves every scene (planar_lcp/compilation/background.py): no kernel's type depends on a scene's layout, the
 first run on an empty cache compiles what every later run with the defaults reaches, and `planar-lcp warmup` what
 any run reaches. Measured with numba's compile events, in subprocesses with caches of their own."""
 
@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from cli_helpers import python_compiling, run_cli
-from planar_lcp import background
-from planar_lcp.engine.compile_notice import BACKGROUND_NOTICE
+from planar_lcp.compilation import background
+from planar_lcp.compilation.notice import BACKGROUND_NOTICE
 
 pytestmark = pytest.mark.needs_jit
 

@@ -1,4 +1,4 @@
-"""A cold cache's first run as Python (planar_lcp/engine/interpreted.py, planar_lcp/background.py): the
+"""A cold cache's first run as Python (planar_lcp/engine/interpreted.py, planar_lcp/compilation/background.py): the
 same results as the compiled kernels bit for bit, the switch to them mid-run, the wait for them on a long run (the
 cold command line in a subprocess with its own empty cache: tests/test_compile_once.py)."""
 

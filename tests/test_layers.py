@@ -73,3 +73,79 @@ def test_imports_respect_the_layers(path):
             continue
         # `from planar_lcp import x` is recorded both as planar_lcp and as planar_lcp.x: judge the longer name
         assert layer(mod) in ALLOWED[me], f"{path} ({me}) imports {mod} ({layer(mod)})"
+
+
+def _runtime_nodes(tree):
+    """ast.walk without the bodies of `if TYPE_CHECKING:`."""
+    todo = [tree]
+    while todo:
+        node = todo.pop()
+        yield node
+        if isinstance(node, ast.If) and getattr(node.test, "id", None) == "TYPE_CHECKING":
+            todo.extend(node.orelse)
+            continue
+        todo.extend(ast.iter_child_nodes(node))
+
+
+def _import_graph():
+    """module -> the modules of planar_lcp and planners it imports (module level and inside functions); a package
+    named only as the place a module is imported from (`from planar_lcp.engine import step`) is not counted, nor an
+    import for type checkers only (`if TYPE_CHECKING:`), which never runs."""
+    roots = [PKG, PKG.parent / "planners"]
+    paths = {module_name(p): p for root in roots for p in sorted(root.rglob("*.py"))}
+    graph = {}
+    for name, path in paths.items():
+        tree = ast.parse(path.read_text(), filename=str(path))
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        out = set()
+        for node in _runtime_nodes(tree):
+            if isinstance(node, ast.Import):
+                out.update(a.name for a in node.names if a.name in paths)
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = package.split(".")
+                    base = base[:len(base) - (node.level - 1)]
+                    mod = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    mod = node.module
+                subs = {f"{mod}.{a.name}" for a in node.names} & paths.keys()
+                out.update(subs)
+                if len(subs) < len(node.names) and mod in paths:
+                    out.add(mod)
+        graph[name] = out - {name}
+    return graph
+
+
+def test_no_import_circle():
+    """No two modules of planar_lcp and planners import each other, directly or through others (Tarjan's strongly
+    connected components of the import graph, every import counted, those inside functions too)."""
+    graph = _import_graph()
+    index, low, stack, on, circles = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                circles.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    assert not circles, circles
+    assert graph["planar_lcp.engine.solvers.lemke"] >= {"planar_lcp.engine.solvers.block_lemke",
+                                                        "planar_lcp.engine.solvers.certificate"}

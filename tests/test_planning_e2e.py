@@ -16,7 +16,7 @@ pytest.importorskip("ompl")
 pytest.importorskip("shapely")
 
 from cli_helpers import interrupt_cli, run_cli  # noqa: E402
-from planar_lcp.engine.compile_notice import BACKGROUND_NOTICE, NOTICE  # noqa: E402
+from planar_lcp.compilation.notice import BACKGROUND_NOTICE, NOTICE  # noqa: E402
 
 pytestmark = pytest.mark.needs_jit     # cold compiles and timing
 

@@ -1,5 +1,5 @@
 """Cold start: the second process that compiles the island solvers' kernels while the first compiles the rest
-(planar_lcp/engine/precompile.py). What must hold: the kernels it caches are the ones the step asks for (the
+(planar_lcp/compilation/precompile.py). What must hold: the kernels it caches are the ones the step asks for (the
 same argument types, so the step loads them instead of compiling them again), the steps they make are bit for bit
 the steps of kernels compiled in-process, and it starts only on a cold cache."""
 
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from cli_helpers import _COMPILE_LISTENER
-from planar_lcp.engine import precompile
+from planar_lcp.compilation import precompile
 
 # Runs a snippet in a fresh process on the numba cache `cache`; prints a JSON list of the functions numba compiled
 # (cli_helpers' compile listener, the one python_compiling runs).
@@ -43,7 +43,7 @@ def test_the_helpers_kernels_are_the_ones_the_step_loads_and_step_alike(tmp_path
     (the test) process."""
     pytest.importorskip("shapely")
     from planar_lcp import simulate
-    helper = json.loads(_run("from planar_lcp.engine.precompile import HELPER_KINDS, compile_kinds\n"
+    helper = json.loads(_run("from planar_lcp.compilation.precompile import HELPER_KINDS, compile_kinds\n"
                              "compile_kinds(HELPER_KINDS)", tmp_path)[-1])
     ours = {f for f in helper if f.startswith("planar_lcp.") and "._drive" not in f and not _inline_overload(f)}
     assert {"planar_lcp.engine.solvers.lemke.lemke_kernel", "planar_lcp.engine.assemble.assemble_lcp",
@@ -99,7 +99,7 @@ def test_the_helper_starts_only_on_a_cold_cache(monkeypatch):
     assert isinstance(precompile.start_helper(), FakePopen)
     assert precompile.start_helper() is None                             # once per process
     (args, env), = started
-    assert args[1:] == ["-m", "planar_lcp.engine.precompile", *precompile.HELPER_KINDS]
+    assert args[1:] == ["-m", "planar_lcp.compilation.precompile", *precompile.HELPER_KINDS]
     assert set(precompile.HELPER_KINDS) == set(precompile._DRIVERS) | set(precompile._CALLS)   # every kind
     assert env[precompile.ENV_SWITCH] == "0"                             # the helper starts no helper
 
@@ -144,7 +144,7 @@ def test_the_compile_events_example_logs_every_process(tmp_path):
     names = {Path(p["argv"][0]).name: {e["name"] for e in p["events"]} for p in procs}
     assert "planar_lcp.engine.rollout.rollout_lemke" in names["background.py"]
     assert "planar_lcp.engine.rollout.rollout_lemke" not in names["planar-lcp"]
-    assert "background compilation (planar_lcp/background.py), pid" in run.stdout
+    assert "background compilation (planar_lcp/compilation/background.py), pid" in run.stdout
 
 
 @pytest.mark.parametrize("args, message", [

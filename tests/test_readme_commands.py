@@ -18,8 +18,8 @@ from pathlib import Path
 
 import pytest
 from cli_helpers import ROOT, cli_env, python_compiling, run_cli
-from planar_lcp.background import compilation_stages
-from planar_lcp.engine.compile_notice import BACKGROUND_NOTICE, NOTICE
+from planar_lcp.compilation.kernel_sets import compilation_stages
+from planar_lcp.compilation.notice import BACKGROUND_NOTICE, NOTICE
 
 README = ROOT / "README.md"
 

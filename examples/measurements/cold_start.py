@@ -1,6 +1,6 @@
 """Wall clock of a planar-lcp command on an empty numba cache, each run in a child process with a cache of its own,
 in alternating rounds over the variants given, and the time until a background compilation it started has ended
-(planar_lcp/background.py: simulate() on a cold cache): this tree with the second compiling process,
+(planar_lcp/compilation/background.py: simulate() on a cold cache): this tree with the second compiling process,
 without it (PLANAR_LCP_PRECOMPILE=0), and other source trees (--tree, e.g. a git worktree of an earlier commit).
 Used for docs/performance.md ("Compile time"):
 
@@ -17,7 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from planar_lcp.background import Background, lock_file
+from planar_lcp.compilation.background import Background, lock_file
 
 HERE = Path(__file__).resolve().parents[2]
 _MAIN = "import sys; from planar_lcp.cli import main; sys.argv[0] = 'planar-lcp'; sys.exit(main())"
@@ -40,7 +40,7 @@ def cold_run(tree, args, helper=True, env_extra=None, path_first=None):
         t0 = time.perf_counter()
         out = subprocess.run([sys.executable, "-c", _MAIN, *args], cwd=cwd, env=env, capture_output=True, text=True)
         dt = time.perf_counter() - t0
-        # a background compilation it started (planar_lcp/background.py; trees before it have none): the cache is
+        # a background compilation it started (planar_lcp/compilation/background.py; trees before it have none): the cache is
         # removed only after it, and no load is left over for the next run
         Background(None, lock_file(cache), 0.0).wait()
         compiled = time.perf_counter() - t0

@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 
-from planar_lcp.engine.compile_notice import COLD_START_SECONDS
+from planar_lcp.compilation.notice import COLD_START_SECONDS
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES, lemke_kernel, make_lemke_work
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, default_max_pivots, lemke
 from planar_lcp.experiments.lcp_corpus import load_corpus
@@ -260,7 +260,7 @@ STEP_SCENES = ("falling_rod", "box_push", "box_tip", "push_t")
 _STEP_COMPILE_SNIPPET = (
     "import time; t0, c0 = time.perf_counter(), time.process_time()\n"
     "import planar_lcp\n"
-    "from planar_lcp import background\n"
+    "from planar_lcp.compilation import background\n"
     "t1, c1 = time.perf_counter(), time.process_time()\n"
     "planar_lcp.simulate('falling_rod')\n"
     "t2, c2 = time.perf_counter(), time.process_time()\n"

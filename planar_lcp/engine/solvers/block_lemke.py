@@ -20,7 +20,7 @@ can split a tie differently. Round-off also accumulates in K^-1 and in the basic
 pivot's direction is checked on its own equations, and past DRIFT_TOL K^-1 and the values are made anew (an island
 whose K is then singular to working precision goes to the tableau). The answer is taken from them only if it
 already passes, else recomputed from (M, q) for the final basis
-(`lemke._solve_basic_z`), and certified by the residual test of `lemke_kernel` (`lcp_residual` within res_tol of
+(`certificate.solve_basic_z`), and certified by the residual test of `lemke_kernel` (`lcp_residual` within res_tol of
 `lcp_scale`). A problem it does not certify goes on to the tableau (lemke.py `solve_island_lemke`).
 
 Numba kernels, no allocation: the caller passes the work arrays (engine/layout.py `block_*`; `Kinv` and the values of
@@ -30,9 +30,9 @@ M's compressed columns borrow the tableau's buffer).
 import numpy as np
 from numba import njit
 
-from planar_lcp.engine.solvers.lemke import (STATUS_INACCURATE, STATUS_INVALID, STATUS_MAX_PIVOTS, STATUS_RAY,
-                                             STATUS_SOLVED, _solve_basic_z, lcp_residual, lcp_scale,
-                                             natural_residual)
+from planar_lcp.engine.solvers.certificate import (STATUS_INACCURATE, STATUS_INVALID, STATUS_MAX_PIVOTS,
+                                                   STATUS_RAY, STATUS_SOLVED, lcp_residual, lcp_scale,
+                                                   natural_residual, solve_basic_z)
 
 
 #: K^-1 is made anew (`_refactor`) when a direction's equations are off by more than this, relative to the scale
@@ -555,7 +555,7 @@ def _certify(M, q, k, Kinv, cols, rows, col_pos, col_val, col_row, col_start, xz
     n = q.shape[0]
     for i in range(n):
         z[i] = 0.0
-    m = np.int64(0)                     # not a literal: numba would compile _solve_basic_z for Literal[int](0) too
+    m = np.int64(0)                     # not a literal: numba would compile solve_basic_z for Literal[int](0) too
     for c in range(k):
         if cols[c] < n:
             z[cols[c]] = max(xz[c], 0.0)
@@ -563,7 +563,7 @@ def _certify(M, q, k, Kinv, cols, rows, col_pos, col_val, col_row, col_start, xz
             m += 1
     res = _residual_csc(col_val, col_row, col_start, q, z, w)
     if res > 1e-3 * res_tol * scale and _complementary_negativity(q, k, Kinv, cols, rows, col_pos) <= 2.0 * res:
-        ok, neg = _solve_basic_z(M, q, zb, m, zalt, lu, rhs, perm)
+        ok, neg = solve_basic_z(M, q, zb, m, zalt, lu, rhs, perm)
         if ok:
             res2 = max(_residual_csc(col_val, col_row, col_start, q, zalt, walt), -neg)
             if res2 < res:

@@ -27,61 +27,11 @@ from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, assemble_s
                                         island_is_elastic, island_problem_size, island_servo, record_impulses,
                                         record_servo_lag, servo_within_limits, support_column_count)
 from planar_lcp.engine.layout import Stat, matrix_view
+from planar_lcp.engine.solvers.certificate import (STATUS_INACCURATE, STATUS_INVALID, STATUS_MAX_PIVOTS,  # noqa: F401
+                                                   STATUS_NAMES, STATUS_NEEDS_SPACE, STATUS_RAY, STATUS_SOLVED,
+                                                   lcp_residual, lcp_scale, natural_residual, solve_basic_z)
+from planar_lcp.engine.solvers.block_lemke import block_lemke
 from planar_lcp.engine.solvers.sparse import solve_island_sparse
-
-STATUS_SOLVED = 0
-STATUS_RAY = 1
-STATUS_MAX_PIVOTS = 2
-STATUS_INVALID = 3
-STATUS_INACCURATE = 4
-STATUS_NEEDS_SPACE = 5   # the island solvers only: the island's dense problem is larger than the dense buffers
-
-STATUS_NAMES = ("solved", "ray_termination", "max_pivots", "invalid_input", "inaccurate", "needs_space")
-
-
-@njit(cache=True, inline='always')
-def natural_residual(z, w, n):
-    """Natural-map residual of (z, w = M z + q) over the first n entries: max_i |min(z_i, w_i)| plus infeasibility
-    max(0, -min z) + max(0, -min w). The one definition of the residual every certified answer is tested by."""
-    comp = 0.0
-    zneg = 0.0
-    wneg = 0.0
-    for i in range(n):
-        m = min(z[i], w[i])
-        if abs(m) > comp:
-            comp = abs(m)
-        if -z[i] > zneg:
-            zneg = -z[i]
-        if -w[i] > wneg:
-            wneg = -w[i]
-    return comp + zneg + wneg
-
-
-@njit(cache=True, _nrt=False)
-def lcp_residual(M, q, z, w):
-    """`natural_residual` of z, with `w` overwritten by M z + q computed from the ORIGINAL data, never taken from a
-    tableau."""
-    n = q.shape[0]
-    for i in range(n):
-        s = q[i]
-        for k in range(n):
-            s += M[i, k] * z[k]
-        w[i] = s
-    return natural_residual(z, w, n)
-
-
-@njit(cache=True, _nrt=False)
-def lcp_scale(M, q):
-    """max(1, max|M|, max|q|): the scale the residual tolerance is relative to."""
-    n = q.shape[0]
-    s = 1.0
-    for i in range(n):
-        if abs(q[i]) > s:
-            s = abs(q[i])
-        for k in range(n):
-            if abs(M[i, k]) > s:
-                s = abs(M[i, k])
-    return s
 
 
 @njit(cache=True, _nrt=False)
@@ -201,83 +151,24 @@ def _ratio_test(T, basis, n, j, piv_tol, ratio_tol, rhs_scale, cand):
 
 
 @njit(cache=True, _nrt=False)
-def _lu_solve_inplace(A, b, m, perm):
-    """Solve A[:m,:m] x = b[:m] by Gaussian elimination with partial pivoting, in place (x in b).
-
-    Returns False when a pivot is exactly zero (singular basis)."""
-    for k in range(m):
-        perm[k] = k
-    for k in range(m):
-        p = k
-        big = abs(A[k, k])
-        for i in range(k + 1, m):
-            if abs(A[i, k]) > big:
-                big = abs(A[i, k])
-                p = i
-        if big == 0.0:
-            return False
-        if p != k:
-            for c in range(m):
-                tmp = A[k, c]
-                A[k, c] = A[p, c]
-                A[p, c] = tmp
-            tmp = b[k]
-            b[k] = b[p]
-            b[p] = tmp
-        for i in range(k + 1, m):
-            f = A[i, k] / A[k, k]
-            if f != 0.0:
-                for c in range(k, m):
-                    A[i, c] -= f * A[k, c]
-                b[i] -= f * b[k]
-    for k in range(m - 1, -1, -1):
-        s = b[k]
-        for c in range(k + 1, m):
-            s -= A[k, c] * b[c]
-        b[k] = s / A[k, k]
-    return True
-
-
-@njit(cache=True, _nrt=False)
-def _solve_basic_z(M, q, zb, m, z, lu, rhs, perm):
-    """z_i for i in zb[:m] from M[Z, Z] z_Z = -q[Z] (w_i = 0 where z_i is basic), z_i = 0 elsewhere; the ORIGINAL
-    data. A tiny negative z_i from round-off is set to 0 (as in lemke_kernel's answer); a real one fails the residual.
-    Returns (solvable, most negative z_i before clipping, <= 0)."""
-    n = q.shape[0]
-    for r in range(m):
-        for c in range(m):
-            lu[r, c] = M[zb[r], zb[c]]
-        rhs[r] = -q[zb[r]]
-    if not _lu_solve_inplace(lu, rhs, m, perm):
-        return False, 0.0
-    neg = 0.0
-    for i in range(n):
-        z[i] = 0.0
-    for c in range(m):
-        z[zb[c]] = rhs[c] if rhs[c] > 0.0 else 0.0
-        neg = min(neg, rhs[c])
-    return True, neg
-
-
-@njit(cache=True, _nrt=False)
 def refine_from_basis(M, q, basis, n, z, lu, rhs, perm, zb, zmask):
     """Recompute the basic z of the final basis from the original M and q: the z_i that are basic solve
     M[Z, Z] z_Z = -q[Z]. For a complementary basis the rows with w_i = 0 are exactly Z; while the artificial variable
     is still basic one index has neither z_i nor w_i basic: z_i = 0 there and its w_i is left free, so a basis that
     ended with the artificial variable at (nearly) zero refines to the LCP's solution as well. Writes z (clipped at
-    0); returns (solvable, most negative basic z before clipping) as `_solve_basic_z`. zmask: (>=n,) int64 work."""
+    0); returns (solvable, most negative basic z before clipping) as `solve_basic_z`. zmask: (>=n,) int64 work."""
     for i in range(n):
         zmask[i] = 0
     for i in range(n):
         k = basis[i]
         if k >= n and k < 2 * n:
             zmask[k - n] = 1
-    m = np.int64(0)                     # not a literal: numba would compile _solve_basic_z for Literal[int](0) too
+    m = np.int64(0)                     # not a literal: numba would compile solve_basic_z for Literal[int](0) too
     for i in range(n):
         if zmask[i]:
             zb[m] = i
             m += 1
-    return _solve_basic_z(M, q, zb, m, z, lu, rhs, perm)
+    return solve_basic_z(M, q, zb, m, z, lu, rhs, perm)
 
 
 @njit(cache=True, _nrt=False)
@@ -289,12 +180,12 @@ def lemke_from_basis(M, q, zmask, res_tol, z, w, lu, rhs, perm, zb):
     accurate as a cold solve. Used as a warm start with the basis of the previous time step, where contact modes
     rarely change. Returns (accepted, residual); z, w hold the answer only when accepted.
     """
-    m = np.int64(0)                     # not a literal: numba would compile _solve_basic_z for Literal[int](0) too
+    m = np.int64(0)                     # not a literal: numba would compile solve_basic_z for Literal[int](0) too
     for i in range(q.shape[0]):
         if zmask[i]:
             zb[m] = i
             m += 1
-    ok, neg = _solve_basic_z(M, q, zb, m, z, lu, rhs, perm)
+    ok, neg = solve_basic_z(M, q, zb, m, z, lu, rhs, perm)
     if not ok:
         return False, np.inf
     res = max(lcp_residual(M, q, z, w), -neg)
@@ -503,10 +394,6 @@ def lemke_solve(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate):
     status, pivots, res = lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, basis, z, w,
                                        cand, lu, rhs, perm, zb, zalt, walt, prow, d)
     return z, w, status, pivots, res
-
-
-# block_lemke.py pivots with this module's certificate and basis solve: imported once they are defined
-from planar_lcp.engine.solvers.block_lemke import block_lemke  # noqa: E402
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -3,8 +3,8 @@
 numba compiles one function at a time in one thread, while the machine has a second core. The step's kernels split
 in two independent halves: the contacts and the rollout loop (the compiling process's) and the island solvers
 (assembly, Lemke and its certification, PGS, the large-island solvers, the impulses: this helper's).
-`start_helper()`, called by the background compilation (planar_lcp/background.py `compile_kernels`) before its
-first stage, starts `python -m planar_lcp.engine.precompile KIND ...` when the cache has not got the rollout
+`start_helper()`, called by the background compilation (planar_lcp/compilation/background.py `compile_kernels`) before its
+first stage, starts `python -m planar_lcp.compilation.precompile KIND ...` when the cache has not got the rollout
 kernel: that process compiles the island solvers' kernels into numba's on-disk cache, with exactly the argument
 types the step's pipeline gives them (the drivers below call them as `step_pipeline` does), and exits. When the
 compiling process's own compilation of the step reaches those kernels, numba's dispatcher finds them in the cache

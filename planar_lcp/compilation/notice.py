@@ -9,14 +9,14 @@ import sys
 
 from numba.core import event
 
-#: measured: the background compilation of the default set (planar_lcp/background.py) on an empty numba cache, 2 cores:
+#: measured: the background compilation of the default set (planar_lcp/compilation/background.py) on an empty numba cache, 2 cores:
 #: 47 to 50 s wall clock (docs/performance.md, "Compile time")
 COLD_START_SECONDS = 50
 
 NOTICE = (f"compiling the simulation kernels once (about {COLD_START_SECONDS} s on 2 cores); "
           "later runs start at once")
 
-#: A cold cache's background compilation started (planar_lcp/background.py): `simulate` goes on meanwhile as Python
+#: A cold cache's background compilation started (planar_lcp/compilation/background.py): `simulate` goes on meanwhile as Python
 #: (the same results), other runs wait for it
 BACKGROUND_NOTICE = (f"compiling the simulation kernels once, in a background process (about {COLD_START_SECONDS} s "
                      "on 2 cores); later runs start at once")

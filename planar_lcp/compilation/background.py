@@ -3,7 +3,7 @@
 No kernel's type depends on a scene: the model and work structs have the same fields for every scene (sizes are
 run-time values), and every Lemke run, whatever its plane, formulation, options, large islands, force-limited or
 turning kinematic bodies, takes the one rollout kernel `rollout_lemke` (engine/rollout.py). So one compilation
-serves every scene, and `compile_kernels` makes it on a small built-in scene.
+serves every scene, and `compile_kernels` (kernel_sets.py) makes it on a small built-in scene.
 
 What compiles, by set:
 
@@ -13,10 +13,11 @@ What compiles, by set:
 - "all" (`planar-lcp warmup`): "default", and the solver "pgs"'s rollout kernel and the kernels the solver "osqp"'s
   Python pipeline calls (where osqp is installed).
 
-A cold run (`Simulator`, `compile_scene`) calls `start_background()`: the process `python -m planar_lcp.background`
+A cold run (`Simulator`, `compile_scene`) calls `start_background()`: the process `python -m
+planar_lcp.compilation.kernel_sets`
 compiles the default set into numba's cache while the run goes on as Python (`simulate`) or waits for it (Ctrl-C
 stops the wait at once; the compilation goes on, so the next run finds the cache warm); its second core goes to the
-helper of engine/precompile.py, which compiles the island solvers meanwhile. One such process per cache directory at
+helper of compilation/precompile.py, which compiles the island solvers meanwhile. One such process per cache directory at
 a time, by a lock file there holding its pid; a run that finds one running waits for it instead of starting another.
 """
 
@@ -25,35 +26,16 @@ import subprocess
 import sys
 import time
 
-import numpy as np
-
-from planar_lcp.engine import cache_dir as engine_cache_dir, copying_inlined_ir_once
-from planar_lcp.engine.compile_notice import COLD_START_SECONDS, announce_background
+from planar_lcp.compilation.notice import COLD_START_SECONDS, announce_background
+from planar_lcp.compilation.precompile import may_start
+from planar_lcp.engine import cache_dir as engine_cache_dir
 from planar_lcp.engine.interpreted import compiled
-from planar_lcp.engine.precompile import may_start, start_helper
 
 #: the lock file's name in numba's cache directory
 BACKGROUND_LOCK = "planar_lcp_compiling.pid"
 
-#: the kernel sets of `compile_kernels`
-KERNEL_SETS = ("default", "all")
-
-#: The built-in scene the kernels compile on (a run's kernels are typed alike for every scene): a box pushed on a
-#: table (limit surface) by a force-limited disk against a wall, so that every stage of the step runs.
-SAMPLE_SCENE = {
-    "name": "compile_sample",
-    "world": {"plane": "horizontal", "support_gravity": 9.81, "friction": 0.3},
-    "sim": {"h": 0.01, "t_end": 0.05},
-    "bodies": [
-        {"name": "box", "type": "dynamic", "mass": 1.0, "position": [0.0, 0.0], "support_friction": 0.35,
-         "shapes": [{"type": "box", "width": 0.2, "height": 0.1}]},
-        {"name": "pusher", "type": "kinematic", "position": [-0.12, 0.02], "velocity": [0.1, 0.0],
-         "max_force": 50.0, "shapes": [{"type": "disk", "radius": 0.02}]},
-        {"name": "wall", "type": "static", "position": [0.3, 0.0],
-         "shapes": [{"type": "box", "width": 0.05, "height": 0.5}]},
-    ],
-}
-
+#: the background process: `python -m KERNEL_SETS_MODULE default`
+KERNEL_SETS_MODULE = "planar_lcp.compilation.kernel_sets"
 
 def lock_file(cache_dir):
     """The lock file of a background compilation into the numba cache `cache_dir`."""
@@ -116,7 +98,7 @@ def start_background(kernel=None):
     """On a cold cache, start the background compilation of the default set (module docstring), or join the one
     another process runs; `kernel`: the rollout kernel the caller needs (default `rollout_lemke`). Returns a
     `Background`, or None when there is nothing to wait for: the kernel is compiled or cached, it is not one the
-    background compiles, or no second process may compile (engine/precompile.py `may_start`: the JIT off, one CPU,
+    background compiles, or no second process may compile (compilation/precompile.py `may_start`: the JIT off, one CPU,
     PLANAR_LCP_PRECOMPILE=0) or numba has no cache directory; the caller then compiles in-process."""
     global _background
     kernel = default_kernel() if kernel is None else kernel
@@ -140,8 +122,9 @@ def start_background(kernel=None):
         os.makedirs(cache_dir, exist_ok=True)
         env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
         # a session of its own: a Ctrl-C at the terminal stops the run, not the compilation the next run needs
-        popen = subprocess.Popen([sys.executable, "-m", __name__, "default"], env=env, stdin=subprocess.DEVNULL,
-                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+        popen = subprocess.Popen([sys.executable, "-m", KERNEL_SETS_MODULE, "default"], env=env,
+                                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                 start_new_session=True)
     except OSError:
         return None
     _take_lock(lock, popen.pid)  # for it, now: it takes the lock as its own once it has imported numba
@@ -185,96 +168,3 @@ def _take_lock(lock, pid):
             f.write(str(pid))
         return True
     return False
-
-
-def sample_model():
-    """The built-in scene's Model (SAMPLE_SCENE)."""
-    from planar_lcp.model import compile_scene
-    from planar_lcp.spec.scene import parse_scene
-    return compile_scene(parse_scene(SAMPLE_SCENE, source="planar_lcp.background.SAMPLE_SCENE"))
-
-
-def compilation_stages(kernel_set="default"):
-    """The stages of `compile_kernels(kernel_set)`, in order: (label, function of no arguments)."""
-    if kernel_set not in KERNEL_SETS:
-        raise ValueError(f"kernel_set must be one of {', '.join(KERNEL_SETS)}, got {kernel_set!r}")
-    from planar_lcp.engine.contacts import contacts_at
-    from planar_lcp.engine.limit_surface import unit_load_wrench
-    from planar_lcp.sim import SimOptions, Simulator
-
-    state = {}
-
-    def structs():
-        model = state["model"] = sample_model()
-        model.struct
-        Simulator(model, SimOptions(h=0.01)).kwork
-
-    def contacts():
-        model = state["model"]
-        contacts_at(model.arrays, model.q0, model.qk0, 0.0, m=model.struct)
-        unit_load_wrench(model.struct, 0, 1.0, 0.0, 0.0, np.zeros(3))
-
-    def run(solver, formulations=("position",)):
-        def stage():
-            model = state["model"]
-            for formulation in formulations:
-                sim = Simulator(model, SimOptions(h=0.01, solver=solver, formulation=formulation))
-                sim.rollout(model.q0, model.v0, model.qk0, model.vk0[None], 1, record_contacts=True,
-                            trajectory_rows=True)
-        return stage
-
-    def checks():
-        from planar_lcp.engine.solvers.lemke import lcp_scale
-        from planar_lcp.lcp import lemke
-        A, b = np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0])
-        lcp_scale(A, b)
-        lemke(A, b)
-
-    stages = [("structs", structs), ("contacts", contacts), ("step (lemke)", run("lemke")), ("checks", checks)]
-    if kernel_set == "all":
-        stages.append(("step (pgs)", run("pgs")))
-        try:
-            import osqp  # noqa: F401
-        except ImportError:
-            pass
-        else:
-            # its step is Python calling kernels: the velocity form's projection among them
-            stages.append(("step (osqp)", run("osqp", ("position", "velocity"))))
-    return stages
-
-
-def compile_kernels(kernel_set="default", progress=None, helper=True):
-    """Compile `kernel_set` (module docstring) into numba's cache in this process, the helper process compiling the
-    island solvers meanwhile (`helper`: where it may start). progress: called as progress(label, done, total) after
-    each stage."""
-    global _inside
-    _inside = True
-    try:
-        if helper:
-            start_helper()
-        stages = compilation_stages(kernel_set)
-        # the kernels compiled for every later run: numba's inliner copying a callee's IR once (planar_lcp.engine)
-        with copying_inlined_ir_once():
-            for i, (label, stage) in enumerate(stages):
-                stage()
-                if progress is not None:
-                    progress(label, i + 1, len(stages))
-    finally:
-        _inside = False
-
-
-def _compile_in_background(kernel_set):
-    """The background process: `compile_kernels(kernel_set)` under the lock."""
-    lock = lock_file(engine_cache_dir())
-    if not _take_lock(lock, os.getpid()):
-        return
-    try:
-        compile_kernels(kernel_set)
-    finally:
-        os.unlink(lock)
-
-
-if __name__ == "__main__":
-    # the module's own copy, not __main__'s: the simulators it makes read its `_inside`
-    from planar_lcp.background import _compile_in_background as compile_in_background
-    compile_in_background(sys.argv[1] if len(sys.argv) > 1 else "default")

@@ -1,0 +1,121 @@
+"""What both Lemke variants (lemke.py's tableau, block_lemke.py's Schur-complement pivoting) share: the status codes,
+the certificate every answer is tested by (the natural-map residual of M z + q computed from the original data,
+relative to the problem's scale) and the solve of a basis's z from the original data.
+
+Numba kernels only, no allocation: the work arrays are passed in.
+"""
+
+from numba import njit
+
+STATUS_SOLVED = 0
+STATUS_RAY = 1
+STATUS_MAX_PIVOTS = 2
+STATUS_INVALID = 3
+STATUS_INACCURATE = 4
+STATUS_NEEDS_SPACE = 5   # the island solvers only: the island's dense problem is larger than the dense buffers
+
+STATUS_NAMES = ("solved", "ray_termination", "max_pivots", "invalid_input", "inaccurate", "needs_space")
+
+
+@njit(cache=True, inline='always')
+def natural_residual(z, w, n):
+    """Natural-map residual of (z, w = M z + q) over the first n entries: max_i |min(z_i, w_i)| plus infeasibility
+    max(0, -min z) + max(0, -min w). The one definition of the residual every certified answer is tested by."""
+    comp = 0.0
+    zneg = 0.0
+    wneg = 0.0
+    for i in range(n):
+        m = min(z[i], w[i])
+        if abs(m) > comp:
+            comp = abs(m)
+        if -z[i] > zneg:
+            zneg = -z[i]
+        if -w[i] > wneg:
+            wneg = -w[i]
+    return comp + zneg + wneg
+
+
+@njit(cache=True, _nrt=False)
+def lcp_residual(M, q, z, w):
+    """`natural_residual` of z, with `w` overwritten by M z + q computed from the ORIGINAL data, never taken from a
+    tableau."""
+    n = q.shape[0]
+    for i in range(n):
+        s = q[i]
+        for k in range(n):
+            s += M[i, k] * z[k]
+        w[i] = s
+    return natural_residual(z, w, n)
+
+
+@njit(cache=True, _nrt=False)
+def lcp_scale(M, q):
+    """max(1, max|M|, max|q|): the scale the residual tolerance is relative to."""
+    n = q.shape[0]
+    s = 1.0
+    for i in range(n):
+        if abs(q[i]) > s:
+            s = abs(q[i])
+        for k in range(n):
+            if abs(M[i, k]) > s:
+                s = abs(M[i, k])
+    return s
+
+
+@njit(cache=True, _nrt=False)
+def lu_solve_inplace(A, b, m, perm):
+    """Solve A[:m,:m] x = b[:m] by Gaussian elimination with partial pivoting, in place (x in b).
+
+    Returns False when a pivot is exactly zero (singular basis)."""
+    for k in range(m):
+        perm[k] = k
+    for k in range(m):
+        p = k
+        big = abs(A[k, k])
+        for i in range(k + 1, m):
+            if abs(A[i, k]) > big:
+                big = abs(A[i, k])
+                p = i
+        if big == 0.0:
+            return False
+        if p != k:
+            for c in range(m):
+                tmp = A[k, c]
+                A[k, c] = A[p, c]
+                A[p, c] = tmp
+            tmp = b[k]
+            b[k] = b[p]
+            b[p] = tmp
+        for i in range(k + 1, m):
+            f = A[i, k] / A[k, k]
+            if f != 0.0:
+                for c in range(k, m):
+                    A[i, c] -= f * A[k, c]
+                b[i] -= f * b[k]
+    for k in range(m - 1, -1, -1):
+        s = b[k]
+        for c in range(k + 1, m):
+            s -= A[k, c] * b[c]
+        b[k] = s / A[k, k]
+    return True
+
+
+@njit(cache=True, _nrt=False)
+def solve_basic_z(M, q, zb, m, z, lu, rhs, perm):
+    """z_i for i in zb[:m] from M[Z, Z] z_Z = -q[Z] (w_i = 0 where z_i is basic), z_i = 0 elsewhere; the ORIGINAL
+    data. A tiny negative z_i from round-off is set to 0 (as in lemke_kernel's answer); a real one fails the residual.
+    Returns (solvable, most negative z_i before clipping, <= 0)."""
+    n = q.shape[0]
+    for r in range(m):
+        for c in range(m):
+            lu[r, c] = M[zb[r], zb[c]]
+        rhs[r] = -q[zb[r]]
+    if not lu_solve_inplace(lu, rhs, m, perm):
+        return False, 0.0
+    neg = 0.0
+    for i in range(n):
+        z[i] = 0.0
+    for c in range(m):
+        z[zb[c]] = rhs[c] if rhs[c] > 0.0 else 0.0
+        neg = min(neg, rhs[c])
+    return True, neg
