@@ -258,18 +258,22 @@ def copy_warm_start(size_from, basic_z_from, size_to, basic_z_to):
 def save_warm_start(w, opt):
     """Keep the memories a step reads and writes (the dense warm start's bases with opt.warm_start, the sparse
     solver's modes per pair for islands it takes), for a step that is handed back to be run again."""
-    if opt.warm_start:
-        copy_warm_start(w.warm_size, w.warm_basic_z, w.warm_size_saved, w.warm_basic_z_saved)
-    if opt.sparse_min > 0:
-        copy_pair_modes(w.sparse_pair_mode, w.sparse_pair_saved)
+    _copy_memories(opt, w.warm_size, w.warm_basic_z, w.sparse_pair_mode,
+                   w.warm_size_saved, w.warm_basic_z_saved, w.sparse_pair_saved)
 
 
 @njit(cache=True, inline='always')
 def restore_warm_start(w, opt):
+    _copy_memories(opt, w.warm_size_saved, w.warm_basic_z_saved, w.sparse_pair_saved,
+                   w.warm_size, w.warm_basic_z, w.sparse_pair_mode)
+
+
+@njit(cache=True, inline='always')
+def _copy_memories(opt, size_from, basic_z_from, modes_from, size_to, basic_z_to, modes_to):
     if opt.warm_start:
-        copy_warm_start(w.warm_size_saved, w.warm_basic_z_saved, w.warm_size, w.warm_basic_z)
+        copy_warm_start(size_from, basic_z_from, size_to, basic_z_to)
     if opt.sparse_min > 0:
-        copy_pair_modes(w.sparse_pair_saved, w.sparse_pair_mode)
+        copy_pair_modes(modes_from, modes_to)
 
 
 @njit(cache=True, inline='always')

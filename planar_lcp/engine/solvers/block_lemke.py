@@ -32,7 +32,7 @@ from numba import njit
 
 from planar_lcp.engine.solvers.certificate import (STATUS_INACCURATE, STATUS_INVALID, STATUS_MAX_PIVOTS,
                                                    STATUS_RAY, STATUS_SOLVED, lcp_residual, lcp_scale,
-                                                   natural_residual, solve_basic_z)
+                                                   natural_residual, partial_pivot, solve_basic_z, swap_rows)
 
 
 #: K^-1 is made anew (`_refactor`) when a direction's equations are off by more than this, relative to the scale
@@ -52,6 +52,20 @@ def _add_column(col_val, col_row, col_start, s, f, dw):
     """dw += f M[:, s], from M's compressed columns (a contact couples only the contacts sharing a body with it)."""
     for e in range(col_start[s], col_start[s + 1]):
         dw[col_row[e]] += f * col_val[e]
+
+
+@njit(cache=True, inline='always')
+def _add_basic_columns(col_val, col_row, col_start, n, k, cols, zs, out):
+    """out += [M | e][:, S] zs: the basic z's columns (z0's is e, all ones) times their values zs[:k]."""
+    for c in range(k):
+        f = zs[c]
+        if f != 0.0:
+            s = cols[c]
+            if s == n:
+                for i in range(n):
+                    out[i] += f
+            else:
+                _add_column(col_val, col_row, col_start, s, f, out)
 
 
 @njit(cache=True, _nrt=False)
@@ -79,15 +93,7 @@ def _direction(M, col_val, col_row, col_start, n, k, Kinv, cols, rows, row_pos, 
             dw[i] = 1.0 if entering == n else 0.0
         if entering < n:
             _add_column(col_val, col_row, col_start, entering, 1.0, dw)
-    for c in range(k):
-        f = dz[c]
-        if f != 0.0:
-            s = cols[c]
-            if s == n:
-                for i in range(n):
-                    dw[i] += f
-            else:
-                _add_column(col_val, col_row, col_start, s, f, dw)
+    _add_basic_columns(col_val, col_row, col_start, n, k, cols, dz, dw)
 
 
 @njit(cache=True, _nrt=False)
@@ -218,22 +224,12 @@ def _refactor(M, col_val, col_row, col_start, q, n, k, Kinv, cols, rows, xz, xw,
     # lu is K with its rows permuted as eliminated; Kinv accumulates the same row operations (its rows then index
     # K's columns: the inverse)
     for c in range(k):
-        p = c
-        big = abs(lu[c, c])
-        for r in range(c + 1, k):
-            if abs(lu[r, c]) > big:
-                big = abs(lu[r, c])
-                p = r
+        p, big = partial_pivot(lu, c, k)
         if big <= SINGULAR_TOL * kmax:
             return False
         if p != c:
-            for t in range(k):
-                tmp = lu[c, t]
-                lu[c, t] = lu[p, t]
-                lu[p, t] = tmp
-                tmp = Kinv[c, t]
-                Kinv[c, t] = Kinv[p, t]
-                Kinv[p, t] = tmp
+            swap_rows(lu, c, p, k)
+            swap_rows(Kinv, c, p, k)
         piv = lu[c, c]
         for t in range(k):
             lu[c, t] /= piv
@@ -253,15 +249,7 @@ def _refactor(M, col_val, col_row, col_start, q, n, k, Kinv, cols, rows, xz, xw,
         xz[c] = s
     for i in range(n):
         xw[i] = q[i]
-    for c in range(k):
-        f = xz[c]
-        if f != 0.0:
-            s = cols[c]
-            if s == n:
-                for i in range(n):
-                    xw[i] += f
-            else:
-                _add_column(col_val, col_row, col_start, s, f, xw)
+    _add_basic_columns(col_val, col_row, col_start, n, k, cols, xz, xw)
     return True
 
 

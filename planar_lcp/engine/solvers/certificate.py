@@ -62,6 +62,28 @@ def lcp_scale(M, q):
     return s
 
 
+@njit(cache=True, inline='always')
+def partial_pivot(A, c, m):
+    """(r, |A[r, c]|) of the largest |A[r, c]| over rows r = c .. m-1, the first of ties: Gaussian elimination's
+    partial pivoting."""
+    p = c
+    big = abs(A[c, c])
+    for r in range(c + 1, m):
+        if abs(A[r, c]) > big:
+            big = abs(A[r, c])
+            p = r
+    return p, big
+
+
+@njit(cache=True, inline='always')
+def swap_rows(A, i, j, m):
+    """Exchange rows i and j of A[:, :m]."""
+    for c in range(m):
+        tmp = A[i, c]
+        A[i, c] = A[j, c]
+        A[j, c] = tmp
+
+
 @njit(cache=True, _nrt=False)
 def lu_solve_inplace(A, b, m, perm):
     """Solve A[:m,:m] x = b[:m] by Gaussian elimination with partial pivoting, in place (x in b).
@@ -70,19 +92,11 @@ def lu_solve_inplace(A, b, m, perm):
     for k in range(m):
         perm[k] = k
     for k in range(m):
-        p = k
-        big = abs(A[k, k])
-        for i in range(k + 1, m):
-            if abs(A[i, k]) > big:
-                big = abs(A[i, k])
-                p = i
+        p, big = partial_pivot(A, k, m)
         if big == 0.0:
             return False
         if p != k:
-            for c in range(m):
-                tmp = A[k, c]
-                A[k, c] = A[p, c]
-                A[p, c] = tmp
+            swap_rows(A, k, p, m)
             tmp = b[k]
             b[k] = b[p]
             b[p] = tmp
