@@ -7,7 +7,7 @@ Oracles:
 - overlapping cores: the penetration depth of two convex polygons by brute force in numpy,
   min over directions u of  max_B u.b - min_A u.a  (over all face normals, where the minimum is attained, and
   checked against 720 sampled directions); a point inside a polygon: shapely's distance to the boundary;
-- analytic configurations (box on a table, the seed's tilted rod, box stacks, a disk in a corner);
+- analytic configurations (box on a table, Stewart & Trinkle's tilted rod, box stacks, a disk in a corner);
 - invariances: swapping A and B, listing the vertices from another start, a rigid motion of the whole scene.
 """
 

@@ -75,7 +75,7 @@ def studies(tmp_path_factory):
 
 def test_restitution_reaches_every_run_and_the_rod_rebounds(studies):
     runs = studies["e05"]["runs"]
-    # the study's step sizes, the seed-arm run and the grid-phase runs: all of them
+    # the study's step sizes, the run with Stewart & Trinkle's friction arm and the grid-phase runs: all of them
     assert len(runs) >= 4 + 16
     for tr in runs:
         assert tr.scene.world.restitution == 0.5
@@ -86,7 +86,7 @@ def test_without_the_flag_the_rod_does_not_rebound(studies):
     runs = studies["default"]["runs"]
     assert len(runs) >= 4 + 16
     assert all(tr.scene.world.restitution == 0.0 for tr in runs)
-    # the first three runs are the study's step sizes, friction at the contact point (the seed's friction arm, run
+    # the first three runs are the study's step sizes, friction at the contact point (Stewart & Trinkle's friction arm, run
     # next, lifts the tip off the table after the impact: docs/falling-rod.md; not checked here)
     main_runs = runs[:3]
     assert [tr.options.h for tr in main_runs] == [0.0025, 0.00125, 0.000625]
@@ -110,7 +110,7 @@ def test_restitution_is_recorded_in_the_tables_and_titles(studies):
 
 
 def test_restitution_zero_is_the_default_study(studies):
-    """--restitution 0 runs the seed's inelastic model: the same numbers as no flag, bit for bit; only the note."""
+    """--restitution 0 runs Stewart & Trinkle's inelastic model: the same numbers as no flag, bit for bit; only the note."""
     d0, dz = studies["default"]["dir"], studies["e0"]["dir"]
     for name in ("events.csv", "convergence.csv", "convergence_phase.csv"):
         assert (dz / name).read_text() == (d0 / name).read_text(), name

@@ -125,7 +125,7 @@ def test_dat_reader_errors_name_the_file_and_field(tmp_path):
 
 
 def _stewart_trinkle_lcp(W, q, mu):
-    """Planar friction-contact problem -> LCP in (r_N, beta+, beta-, lambda) per contact (the seed's eqs. 15-20)."""
+    """Planar friction-contact problem -> LCP in (r_N, beta+, beta-, lambda) per contact (Stewart & Trinkle's eqs. 15-20)."""
     nc = len(mu)
     m = 4 * nc
     A = np.zeros((m, m))

@@ -29,7 +29,7 @@ def test_all_is_exactly_the_public_api():
 
 
 def test_free_fall_through_the_public_api_is_semi_implicit_euler():
-    """Before its first contact (t = 0.385 s) the seed's rod falls freely: v_n = v_0 + n h g and
+    """Before its first contact (t = 0.385 s) Stewart & Trinkle's rod falls freely: v_n = v_0 + n h g and
     q_n = q_0 + h (v_1 + ... + v_n) = q_0 + n h v_0 + h^2 g n (n + 1) / 2, the angle turning at the constant 4 rad/s."""
     scene = planar_lcp.load_scene("falling_rod")
     tr = planar_lcp.simulate(scene, t_end=0.3)

@@ -202,7 +202,7 @@ def test_no_frictionless_impact_gains_energy_and_frictional_ones_obey_the_stated
     dKE = -(1 - e) / (1 + e) c.W c / 2 <= 0 when the law binds everywhere; measured here: no step gains. With friction
     a step gains only where the friction impulse points along the slip before the impact: the slip reverses during
     the impact, the contact's normal and tangent being coupled through the body's effective mass (a rod striking at an
-    angle). That happens here, and is measured. e = 0 (the seed's gap rows, v_n+ <= 0 where c_n > 0) never gains:
+    angle). That happens here, and is measured. e = 0 (Stewart & Trinkle's gap rows, v_n+ <= 0 where c_n > 0) never gains:
     dKE = c.v+ - c.W c / 2 <= 0."""
     rng = np.random.default_rng(11)
     gains = {}

@@ -95,7 +95,7 @@ def test_rod_files_and_columns(rod_dir):
 def test_rod_first_contact_within_two_steps_before_the_exact_time(rod_dir):
     t_exact = exact_rod_impact()
     _, rows = read_csv(rod_dir / "events.csv")
-    assert len(rows) == 4          # three step sizes and the seed friction arm
+    assert len(rows) == 4          # three step sizes and Stewart & Trinkle's friction arm
     for r in rows:
         h, t_end_of_step = num(r["h"]), num(r["t_impact"])
         assert t_end_of_step >= t_exact - 2 * h - 1e-12, r      # at most two steps early
@@ -108,7 +108,7 @@ def test_rod_ends_at_rest_and_horizontal(rod_dir):
         th = num(r["theta_final"])
         assert min(abs(th - math.pi), abs(th), abs(th - 2 * math.pi)) < 1e-6, r
         assert math.isfinite(num(r["t_rest"])) and num(r["t_rest"]) < 0.7, r
-        # the seed's sequence: impact, slap-down, then rest
+        # Stewart & Trinkle's sequence: impact, slap-down, then rest
         assert num(r["t_impact"]) < num(r["t_slap_down"]) < num(r["t_rest"]), r
     tr = simulate("falling_rod", h=0.0025)
     x, y, th = tr.q[-1, 0]
@@ -153,7 +153,7 @@ def test_disk_impulse_reaches_the_last_disk_in_one_step(disk_dir):
         assert chain[0] > chain[1] > chain[2], (h, chain)
         # d1 is pushed down by the thrown disk's friction (seed 4.2): the table holds it
         assert cn[("d1", "table")] > 0, (h, cn)
-    # at the seed's figure step every contact, disk-disk and disk-table, carries an impulse in that one step
+    # at Stewart & Trinkle's figure step every contact, disk-disk and disk-table, carries an impulse in that one step
     assert all(num(r["cn"]) > 0 for r in by_h[0.0025]) and len(by_h[0.0025]) == 7
 
 

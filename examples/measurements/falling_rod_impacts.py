@@ -2,7 +2,7 @@
 
     python examples/measurements/falling_rod_impacts.py                    # e = 0 and e = 0.5 at h = 0.0025 (the strobe's step)
     python examples/measurements/falling_rod_impacts.py --h 0.00125 --e 0 0.5 1
-    python examples/measurements/falling_rod_impacts.py --seed-arm          # friction at the end-cap centre, as the seed's d
+    python examples/measurements/falling_rod_impacts.py --seed-arm          # friction at the end-cap centre, as Stewart & Trinkle's d
     python examples/measurements/falling_rod_impacts.py --e 1 --friction 0  # the scene's mu = 0.6 replaced
 
 A contact episode is a maximal run of steps with a normal impulse c_n > 0 (common.active_contacts); a bounce ends
@@ -114,7 +114,7 @@ def main():
     p.add_argument("--h", type=float, default=fr.STROBE_H)
     p.add_argument("--e", type=float, nargs="+", default=[0.0, 0.5])
     p.add_argument("--t-end", type=float, default=fr.T_END)
-    p.add_argument("--seed-arm", action="store_true", help="friction at the end-cap centre (the seed's d)")
+    p.add_argument("--seed-arm", action="store_true", help="friction at the end-cap centre (Stewart & Trinkle's d)")
     p.add_argument("--friction", type=float, help="the rod-table friction coefficient (default: the scene's 0.6)")
     a = p.parse_args()
     for e in a.e:

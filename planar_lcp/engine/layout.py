@@ -99,7 +99,7 @@ ls_disk_node_num  | i8    | ndisk      | -      | compile | its number of nodes
 ls_disk_table     | f8    | ntab x 2   | -      | compile | the unit disk's (Phi, G_x) by distance (spec `disk_table`)
 ls_disk_step      | float | -          | -      | compile | the table's distance step, radii
 ls_wrench         | f8    | nsup x K x 3 | -, m | compile | unit-load wrenches L(t_j) of the K fixed twists, COM frame
-seed_friction_arm | int   | -          | -      | compile | 1: contact friction at the shapes' core points (the seed's)
+seed_friction_arm | int   | -          | -      | compile | 1: contact friction at the shapes' core points (Stewart & Trinkle's)
 kin_max_force     | f8    | nkin       | N      | compile | a kinematic body's force limit (0: none, its velocity is prescribed)
 kin_max_torque    | f8    | nkin       | N m    | compile | its torque limit (0: none, its rotation is prescribed)
 """)

@@ -32,7 +32,7 @@ PLANES = ("vertical", "horizontal")
 SOLVERS = ("lemke", "pgs", "osqp")
 FORMULATIONS = ("position", "fixed_point", "velocity")
 #: How the table carries a body in the horizontal plane (docs/method.md, "Table friction"): its support pressure's
-#: limit surface (the default), or Coulomb friction at each support point (the seed-style reference model).
+#: limit surface (the default), or Coulomb friction at each support point (Stewart & Trinkle's reference model).
 SUPPORT_MODELS = ("limit_surface", "points")
 
 # Polygon vertex checks are relative to the polygon's size: a turn whose sine is below this is "collinear", two
@@ -217,7 +217,7 @@ class Scene:
 
     def restitution_between(self, name_a: str, name_b: str) -> float:
         """Newton's coefficient of restitution between two bodies: the `world.restitution_pairs` override if any,
-        else `world.restitution` (0: the seed's perfectly inelastic contact). Order-insensitive; KeyError if either
+        else `world.restitution` (0: Stewart & Trinkle's perfectly inelastic contact). Order-insensitive; KeyError if either
         name is not a body of the scene."""
         return self._pair_value(self.world.restitution_pairs, self.world.restitution, name_a, name_b)
 

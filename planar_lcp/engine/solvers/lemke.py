@@ -417,7 +417,7 @@ def lemke_solve(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate):
 #   inelastic     islands with restitution only: the same island with every pair's e = 0, in the formulation's rows
 #                 and then in the velocity form's. Newton's law can ask the impossible of a simultaneous impact (a body
 #                 struck towards a contact it cannot leave must still separate from both at once), and then its LCP has
-#                 no solution; the inelastic problem is the seed's, and the velocity form's always has one. The step
+#                 no solution; the inelastic problem is Stewart & Trinkle's, and the velocity form's always has one. The step
 #                 loses that island's bounce; `solved_inelastic` counts it.
 # When none is certified the step pipeline hands the island to its fallback (PGS: uncertified, the step is reported
 # as failed) or, in the variant without one, hands the step back to the caller.

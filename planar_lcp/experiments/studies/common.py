@@ -83,7 +83,7 @@ def run_steps(scene, hs, *, desc, **kwargs):
 def convergence(trajs, ref, t_end):
     """Stewart & Trinkle's Table 1 measures for each trajectory against the reference `ref`.
 
-    All norms are the infinity norm over every coordinate of every dynamic body (n = 3 nbody), as in the seed.
+    All norms are the infinity norm over every coordinate of every dynamic body (n = 3 nbody), as in Stewart & Trinkle.
     The comparison is at the common times t_i = i h, i = 0..round(t_end / h), of the coarser step h.
 
     - vel_err = integral over [0, t_end] of ||v_h(t) - v_ref(t)|| dt, pos_err = max_i ||q_h(t_i) - q_ref(t_i)||
@@ -291,7 +291,7 @@ def write_convergence(out, scene, trajs, hs, h_ref, t_end, *, title, bodies, des
     phase_rows, phase_ref = phase_averaged(scene, hs, t_end, desc=desc)
     write_csv(os.path.join(out, "convergence_phase.csv"), PHASE_COLUMNS, phase_rows)
     with open(os.path.join(out, "convergence.md"), "w") as f:
-        f.write(convergence_md(rows, f"{title}: errors and variations (analogue of the seed's Table 1)",
+        f.write(convergence_md(rows, f"{title}: errors and variations (analogue of Stewart & Trinkle's Table 1)",
                                note + CONVERGENCE_NOTE.format(t_end=t_end, h_ref=h_ref, bodies=bodies)))
         f.write("\n## The same errors averaged over the phase of the time grid\n\n")
         f.write(phase_md(phase_rows, phase_ref, t_end))

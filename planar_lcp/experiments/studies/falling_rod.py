@@ -2,7 +2,7 @@
 
 `planar-lcp study falling-rod --out DIR [--quick] [--restitution E]` writes strobe.png, vy.png, omega.png, vx.png,
 seed_arm.png, events.csv/.md and convergence.csv/.md (see docs/falling-rod.md). --restitution E replaces the scene's
-world.restitution (0: the seed's inelastic contact) in every run; events.md and convergence.md then state E, and the
+world.restitution (0: Stewart & Trinkle's inelastic contact) in every run; events.md and convergence.md then state E, and the
 figures' titles too when E > 0.
 """
 
@@ -16,7 +16,7 @@ from planar_lcp.viz import new_figure
 
 TITLE = "falling rod (seed 4.1)"
 SCENE = "falling_rod"
-STROBE_H = 0.0025          # the seed's Figure 2
+STROBE_H = 0.0025          # Stewart & Trinkle's Figure 2
 REST_TOL = 1e-6            # m/s and rad/s: "at rest"
 T_END = 1.0
 ZOOM = (0.36, 0.62)         # the velocity figures' zoom on impact, slap-down and rest (e = 0)
@@ -182,14 +182,14 @@ def plot_velocity(trajs, comp, path, label, seed_fig):
         ax.grid(True, color="0.9", lw=0.6)
     axes[0].legend(fontsize=8, loc="best")
     sfx = title_suffix(next(iter(trajs.values())).scene)
-    axes[0].set_title(f"{label} of the rod{sfx} (cf. the seed's {seed_fig})", fontsize=10)
+    axes[0].set_title(f"{label} of the rod{sfx} (cf. Stewart & Trinkle's {seed_fig})", fontsize=10)
     axes[1].set_title("zoom on impact, slap-down and rest", fontsize=10)
     fig.tight_layout()
     common.save_png(fig, path)
 
 
 def plot_seed_arm(ours, seed, path):
-    """vy, omega, vx at one h: friction at the contact point (ours) vs at the end-cap centre (the seed's d)."""
+    """vy, omega, vx at one h: friction at the contact point (ours) vs at the end-cap centre (Stewart & Trinkle's d)."""
     fig = new_figure((12, 3.8))
     for j, (comp, label) in enumerate(((1, "vy [m/s]"), (2, "omega [rad/s]"), (0, "vx [m/s]"))):
         ax = fig.add_subplot(1, 3, j + 1)

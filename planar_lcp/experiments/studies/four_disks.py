@@ -86,7 +86,7 @@ def analytic_times(scene):
 # ---------------------------------------------------------------------------------------------------------- figures
 
 def plot_trajectories(traj, path):
-    """Elevation view (the seed's Figure 7): the centres' paths and the disks at a few times."""
+    """Elevation view (Stewart & Trinkle's Figure 7): the centres' paths and the disks at a few times."""
     from planar_lcp.viz import draw_scene
 
     ev = events(traj)
