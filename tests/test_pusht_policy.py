@@ -198,7 +198,7 @@ def test_closed_loop_mds_table_is_the_commands_output():
     from pathlib import Path
     root = Path(__file__).resolve().parent.parent
     md = (root / "docs" / "closed_loop.md").read_text()
-    cmd = re.search(r"python (examples/closed_loop_table\.py [^`\n]*)", md).group(1)
+    cmd = re.search(r"python (examples/measurements/closed_loop_table\.py [^`\n]*)", md).group(1)
     args = cmd.split()
     r = subprocess.run([sys.executable, *args], capture_output=True, text=True, cwd=root, timeout=120)
     assert r.returncode == 0, r.stderr
