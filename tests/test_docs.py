@@ -152,9 +152,10 @@ def test_the_readme_layout_names_every_module_and_folder():
         assert list(ROOT.rglob(name.rstrip("/"))), f"README Layout names {name}, which does not exist"
 
 
-#: pages whose Python examples run elsewhere: docs/planning.md's needs its task file (tests/test_task_planning.py
-#: runs it)
-PY_BLOCKS_ELSEWHERE = {"planning.md"}
+#: pages whose Python examples run elsewhere, with more checks: docs/planning.md's needs its task file
+#: (tests/test_task_planning.py), docs/gym.md's (tests/test_gym.py), docs/closed_loop.md's first
+#: (tests/test_pusht_policy.py)
+PY_BLOCKS_ELSEWHERE = {"planning.md", "gym.md", "closed_loop.md"}
 #: a block that must not run as pasted (it needs a file a command writes, or a data set) is preceded by this comment,
 #: with the reason: `<!-- not run: needs plan.json, which planar-lcp plan writes -->`
 NOT_RUN = re.compile(r"<!-- not run: [^>]+-->\n*$")
