@@ -186,6 +186,8 @@ def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=
     progress : callable(evaluations_done) or None
     sim_options : keywords for `planar_lcp.simulate` (h, solver, support_model, ...).
 
+    Notes
+    -----
     The result is deterministic: the same inputs give the same values bit for bit.
     """
     from scipy.optimize import least_squares

@@ -62,6 +62,8 @@ class PushTPolicy:
     settle_mm, settle_speed : float
         The push starts once the pusher is this near its start point (mm) and this slow (mm/s).
 
+    Notes
+    -----
     Attributes (after each call): `compute_s`, the thread CPU time of the call; `replans`, the pushes chosen so far;
     `phase`, "approach" | "settle" | "push" | "idle".
     """

@@ -27,7 +27,7 @@ def _add_common(p):
     p.add_argument("--out", required=True, metavar="DIR", help="directory for the figures and tables (created)")
     p.add_argument("--quick", action="store_true",
                    help="two step sizes (0.0025, 0.00125) against a reference at h = 0.000625, instead of the "
-                        "seed's 0.02 ... 0.0025 against h = 0.00125")
+                        "paper's 0.02 ... 0.0025 against h = 0.00125")
 
 
 def _runner(module_name):
@@ -68,7 +68,8 @@ def register(subparsers):
     _add_common(fr)
     fr.add_argument("--restitution", type=restitution_value, metavar="E",
                     help="Newton's coefficient of restitution in [0, 1] of the rod-table contact, for every run of "
-                         "the study (default: the scene's, 0: Stewart & Trinkle's inelastic contact; docs/falling-rod.md)")
+                         "the study (default: the scene's; 0: Stewart & Trinkle's inelastic contact, "
+                         "docs/falling-rod.md)")
     fr.set_defaults(func=_runner("falling_rod"))
     fd = sub.add_parser("four-disks", help="section 4.2 in elevation: a thrown disk hits a row of three (Figure 6)",
                         description="Four disks over h = 0.02 ... 0.00125: trajectories, the impulses of the first "
