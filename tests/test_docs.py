@@ -81,11 +81,7 @@ def test_links_between_pages_resolve(page):
     assert not bad, f"{page.name}: broken links {bad}"
 
 
-#: performance.md records measurements of functions under the names they had when measured: its names are history
-NAMES_PAGES = [p for p in PAGES if p.name != "performance.md"]
-
-
-@pytest.mark.parametrize("page", NAMES_PAGES, ids=ids(NAMES_PAGES))
+@pytest.mark.parametrize("page", PAGES, ids=ids(PAGES))
 def test_modules_and_names_in_the_docs_exist(page):
     """`planar_lcp.a.b.name` imports; a `name_with_underscores` or `Name.attr` in backticks is defined somewhere in the
     sources (a function, a constant, a stats key, a test)."""

@@ -470,15 +470,15 @@ def test_push_candidates_are_deterministic_for_a_seed(clutter):
 
 
 def test_the_docs_before_and_after_table_is_what_its_command_gives():
-    """docs/planning.md "Shorter plans": the benchmark table is examples/measurements/bench_table.py --shorter's output on the
-    committed benchmark files, row for row (the command is the one the page gives)."""
+    """docs/planning.md "First and shortened plans": the benchmark table is examples/measurements/bench_table.py
+    --shorter's output on the committed benchmark files, row for row (the command is the one the page gives)."""
     import re
     import subprocess
     import sys
     from cli_helpers import cli_env
     text = (ROOT / "docs" / "planning.md").read_text()
-    sec = text[text.index("**Before and after: the benchmark of record's tasks and budgets**"):]
-    cmd = re.search(r"^python (examples/bench_table\.py --shorter .*)$", sec, re.M).group(1).split()
+    sec = text[text.index("\n### First and shortened plans\n"):]
+    cmd = re.search(r"^python (examples/measurements/bench_table\.py --shorter .*)$", sec, re.M).group(1).split()
     r = subprocess.run([sys.executable, *cmd], capture_output=True, text=True, cwd=ROOT, env=cli_env(), timeout=60)
     assert r.returncode == 0, r.stderr
     got = [line for line in r.stdout.splitlines() if line.startswith("|")]

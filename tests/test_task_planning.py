@@ -136,7 +136,7 @@ def test_the_docs_example_task_plans_as_the_docs_say(tmp_path):
     text = (ROOT / "docs" / "planning.md").read_text()
     sec = re.search(r"^## Plan your own task\n(.*?)^### Plan files", text, re.M | re.S).group(1)
     (tmp_path / "my_push.toml").write_text(re.search(r"```toml\n(.*?)```", sec, re.S).group(1))
-    commands = re.search(r"```\n(planar-lcp plan .*?)```", sec, re.S).group(1).strip().splitlines()
+    commands = re.search(r"```(?:sh)?\n(planar-lcp plan .*?)```", sec, re.S).group(1).strip().splitlines()
     assert [c.split()[1] for c in commands] == ["plan", "replay"]
     r = run_cli(*commands[0].split()[1:], cwd=tmp_path)
     assert r.returncode == 0, r.stdout + r.stderr
