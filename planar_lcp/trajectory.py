@@ -8,14 +8,10 @@ from __future__ import annotations
 
 import csv
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from planar_lcp.spec.scene import Scene
-
-if TYPE_CHECKING:  # sim.py imports this module
-    from planar_lcp.sim import SimOptions
 
 
 @dataclass
@@ -67,7 +63,7 @@ class Trajectory:
     kinematic_names: tuple
     stats: dict
     contacts: dict
-    options: SimOptions
+    options: object             # planar_lcp.sim.SimOptions, or a pymunk run's (see above)
     scene: Scene
     failures: list = field(default_factory=list)
 

@@ -78,7 +78,7 @@ class TaskModel:
         self.ip = 6 * self.nobj                  # the pusher's position is x[ip:ip + 2]
         self.h = float(scene.sim.h)
         self.steps_per_prop = int(round(task.step_duration / self.h))
-        # warm start: 2.5 to 3.5 times faster pushing steps (docs/performance.md); a rollout starts cold, so each
+        # warm start: faster pushing steps (docs/performance.md, "Per step, against pymunk"); a rollout starts cold, so each
         # propagation is still a pure function of its inputs and replays bit for bit
         self.sim = Simulator(model, SimOptions(h=self.h, solver=scene.sim.solver if scene.sim.solver != "osqp"
                                                else "lemke", formulation=scene.sim.formulation, warm_start=True))

@@ -149,3 +149,35 @@ def test_no_import_circle():
     assert not circles, circles
     assert graph["planar_lcp.engine.solvers.lemke"] >= {"planar_lcp.engine.solvers.block_lemke",
                                                         "planar_lcp.engine.solvers.certificate"}
+
+
+ROOM_NAMES = {"planners": "`planners/`", "experiments": "`planar_lcp/experiments/`", "cli": "`planar_lcp/cli.py`",
+              "viz": "`planar_lcp/viz.py`", "core": "core", "compilation": "`planar_lcp/compilation/`",
+              "spec": "`planar_lcp/spec/`", "geometry": "`planar_lcp/geometry.py`", "frames": "`planar_lcp/frames.py`",
+              "engine": "`planar_lcp/engine/`"}
+
+
+def _room(module):
+    parts = module.split(".")
+    if parts[0] == "planners":
+        return "planners"
+    if len(parts) > 1 and parts[1] in ROOM_NAMES:
+        return parts[1]
+    return "core"
+
+
+def test_architecture_md_draws_the_rooms_imports_as_they_are():
+    text = (PKG.parent / "docs" / "architecture.md").read_text()
+    section = text.split("## Rooms and their imports", 1)[1].split("\n## ", 1)[0]
+    by_label = {label: key for key, label in ROOM_NAMES.items()}
+    drawn = {}
+    for line in section.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")] if line.startswith("| ") else []
+        if len(cells) == 2 and cells[0] in by_label:
+            drawn[by_label[cells[0]]] = {c.strip() for c in cells[1].split(",") if c.strip()}
+    actual = {key: set() for key in ROOM_NAMES}
+    for a, imported in _import_graph().items():
+        for b in imported:
+            if _room(a) != _room(b):
+                actual[_room(a)].add(_room(b))
+    assert drawn == actual

@@ -262,7 +262,7 @@ def test_disks_never_gain_energy_even_elastic_with_friction():
 
 
 def row_scene(h, t_end, gap=1e-5, u=1.0):
-    """The seed's four balls on a line (section 4.2) without gravity or friction: a striker at speed u reaches the
+    """Stewart & Trinkle's four balls on a line (section 4.2) without gravity or friction: a striker at speed u reaches the
     first of three disks 1e-5 apart within the first step; all disks 1 kg, radius 0.1, e = 1."""
     x0 = 0.2 + 0.5 * u * h
     bodies = [{"name": "striker", "type": "dynamic", "mass": 1.0, "position": [0.0, 0.0], "velocity": [u, 0.0],

@@ -279,7 +279,7 @@ def test_bodies_interpenetrating_at_the_start_are_rejected():
 
 
 def test_seed_friction_arm_puts_the_friction_moment_arm_at_the_end_cap_centre():
-    """The seed's rod: d = [+-1, 0, +-(l/2) sin theta], i.e. friction applied at the end-cap centre. Our default
+    """Stewart & Trinkle's rod: d = [+-1, 0, +-(l/2) sin theta], i.e. friction applied at the end-cap centre. Our default
     applies it at the contact point (r lower still); seed_friction_arm reproduces Stewart & Trinkle's for comparison."""
     from planar_lcp.model import compile_scene
     from planar_lcp.spec.scene import load_scene

@@ -54,7 +54,7 @@ def _run(h, v, q=None):
 
 
 def test_velocity_error_integrates_the_step_function_of_the_time_stepping():
-    """The seed's integral of ||v_h(t) - v_ref(t)||_inf with v_h(t) = v_(k+1) over the step (t_k, t_k+1]: a run
+    """Stewart & Trinkle's integral of ||v_h(t) - v_ref(t)||_inf with v_h(t) = v_(k+1) over the step (t_k, t_k+1]: a run
     whose velocity is off by c from its first step on has the error c t_end exactly (a trapezoidal rule gives
     c (t_end - h / 2)), and an offset in the last step alone costs c h."""
     h, n, c = 0.01, 50, 0.3

@@ -3,7 +3,7 @@
 1. A 1 kg disk (r = 0.1 m) dropped from 1 m onto the table, mu = 0.5, h = 1e-3, each formulation: the apex ratios
    H_{k+1} / H_k of the first bounces against e^2, the kinetic energy kept at each impact (v+^2 / v-^2 against e^2),
    and the time the disk comes to rest against t_inf = t_0 (1 + e) / (1 - e), at h = 2e-3, 1e-3 and 5e-4.
-2. The seed's row of four disks (gaps 1e-5 m, striker at 1 m/s, e = 1, no friction or gravity): velocities after one
+2. Stewart & Trinkle's row of four disks (gaps 1e-5 m, striker at 1 m/s, e = 1, no friction or gravity): velocities after one
    step at h = 0.0025, and after the cascade at h = 1e-6.
 3. One step of 30 random rods landing (no gravity), e in {0.5, 1}, mu in {0, 0.3, 1}: the largest kinetic-energy
    change of a rod relative to its kinetic energy before the step (tests/test_restitution.py draws the same kind).

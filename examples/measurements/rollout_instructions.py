@@ -2,7 +2,7 @@
 instructions with valgrind, which counts the same whatever else the machine is doing. The step's cost is the count of
 N runs less the count of 0 (imports, compilation or cache loads, the warm-up run), divided by N. numba's code for this
 machine may use instructions valgrind cannot run (AVX-512), so the counts use code for a generic CPU in a cache of its
-own. Used for docs/performance.md ("What changed" and "Compile time"), in each source tree (PYTHONPATH=TREE):
+own. Used for docs/performance.md ("Reference counts" and "Compile time"), in each source tree (PYTHONPATH=TREE):
 
     for n in 0 100; do NUMBA_CACHE_DIR=/tmp/cg_cache NUMBA_CPU_NAME=haswell NUMBA_CPU_FEATURES="" \\
         valgrind --tool=callgrind --callgrind-out-file=/tmp/cg.$n python examples/measurements/rollout_instructions.py box_tip $n; done

@@ -1,10 +1,10 @@
 """A kernel run as plain Python: the first run on a cold numba cache, while the kernels compile in the background.
 
-numba compiles the step for 25 to 35 s on a cold cache (docs/performance.md, "Compile time"); the same source run
-by CPython takes a small scene's 400 steps in 0.1 to 0.3 s. `python_version(kernel)` is the kernel's Python function
-with every numba dispatcher it calls replaced by that dispatcher's Python function, recursively: exactly what
-NUMBA_DISABLE_JIT=1 runs, in a process whose other kernels stay compiled. It takes the namedtuples of the kernels'
-arrays (`Model.arrays`, `Simulator.work`) where the compiled kernel takes their structs.
+numba compiles the default kernel set for about 50 s on a cold cache (docs/performance.md, "Compile time"); the same
+source run by CPython takes a small scene's 400 steps in 0.1 to 0.3 s. `python_version(kernel)` is the kernel's
+Python function with every numba dispatcher it calls replaced by that dispatcher's Python function, recursively:
+exactly what NUMBA_DISABLE_JIT=1 runs, in a process whose other kernels stay compiled. It takes the namedtuples of
+the kernels' arrays (`Model.arrays`, `Simulator.work`) where the compiled kernel takes their structs.
 
 Why the answers are the compiled kernel's bit for bit: both evaluate the same IEEE double operations in the same
 order (numba compiles without fast-math: no reassociation, no fused multiply-adds), and the kernels call only

@@ -411,8 +411,8 @@ def lemke_solve(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate):
 #                 ~1e-7 of its column that blows the tableau up and ends on a false ray; rejecting such pivots solves it
 #   velocity      position forms only: the same island (same contacts, same geometry) with the velocity form's
 #                 normal rows, n.v+ >= -max(phi, 0)/h: no drift correction in this step and no linearization about
-#                 v_hat. With no kinematic body in the island, Lemke processes this LCP (Anitescu & Potra 1997; the
-#                 seed's section 3.3; docs/method.md), while the position form's need not have a solution (a body
+#                 v_hat. With no kinematic body in the island, Lemke processes this LCP (Anitescu & Potra 1997; Stewart &
+#                 Trinkle's section 3.3; docs/method.md), while the position form's need not have a solution (a body
 #                 pressed into a corner it cannot leave in one step) or can end Lemke on a secondary ray
 #   inelastic     islands with restitution only: the same island with every pair's e = 0, in the formulation's rows
 #                 and then in the velocity form's. Newton's law can ask the impossible of a simultaneous impact (a body

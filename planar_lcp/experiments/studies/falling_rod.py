@@ -77,7 +77,7 @@ def exact_impact_time(scene):
 
 
 def events(traj):
-    """The seed's events, read from the contact impulses and the velocities of one run.
+    """Stewart & Trinkle's events, read from the contact impulses and the velocities of one run.
 
     Every time is the END t[k+1] of the step k (from t[k] to t[k+1]) in which the event happens: the first time at
     which the state shows it.
@@ -136,7 +136,7 @@ def events(traj):
 # ---------------------------------------------------------------------------------------------------------- figures
 
 def plot_strobe(traj, path, every=8):
-    """The seed's Figure 2: the rod every `every` steps until it rests (and at the end), time at the + end."""
+    """Stewart & Trinkle's Figure 2: the rod every `every` steps until it rests (and at the end), time at the + end."""
     from planar_lcp.viz import draw_scene
 
     half, r = rod_geometry(traj.scene)
@@ -194,7 +194,7 @@ def plot_seed_arm(ours, seed, path):
     for j, (comp, label) in enumerate(((1, "vy [m/s]"), (2, "omega [rad/s]"), (0, "vx [m/s]"))):
         ax = fig.add_subplot(1, 3, j + 1)
         ax.plot(ours.t, ours.v[:, 0, comp], color="tab:blue", lw=1.2, label="contact point (ours)")
-        ax.plot(seed.t, seed.v[:, 0, comp], color="tab:orange", lw=1.2, ls="--", label="end-cap centre (seed's d)")
+        ax.plot(seed.t, seed.v[:, 0, comp], color="tab:orange", lw=1.2, ls="--", label="end-cap centre (Stewart & Trinkle's d)")
         ax.set_xlim(0.3, 0.7 if ours.scene.world.restitution == 0 else zoom_window({0: ours})[1])
         ax.set_xlabel("t [s]")
         ax.set_ylabel(label)

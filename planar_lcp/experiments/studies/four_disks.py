@@ -113,7 +113,7 @@ def plot_trajectories(traj, path):
 
 
 def plot_impulses(traj, path):
-    """The seed's Figure 6: every contact impulse of the cascade step, normal and friction parts as arrows.
+    """Stewart & Trinkle's Figure 6: every contact impulse of the cascade step, normal and friction parts as arrows.
 
     Arrows start at the contact point, just inside the body they act on: cn n (red) and ft t (blue) on body A, their
     negatives on body B (none on the static table). Poses are those at the start of the step.
