@@ -191,8 +191,17 @@ def _inlined_kernel():
 
 def _normalised_llvm(text):
     """LLVM IR without what differs between two compilations of the same code: the dispatchers' serial numbers in
-    names, the global block-label counter, comments."""
+    names (also inside a mangled name's length-prefixed ABI tag, B<length>v<serial>, whose length changes with the
+    serial's digits, and so does the length of a string constant that holds such a name), the global block-label
+    counter, comments."""
     import re
+    parts, pos = [], 0
+    for m in re.finditer(r"B(\d+)(?=v\d)", text):
+        if m.start() >= pos:
+            parts += [text[pos:m.start()], "Bv"]
+            pos = m.end() + int(m.group(1))
+    text = "".join(parts) + text[pos:]
+    text = re.sub(r"\[\d+ x i8\](?= c\")", "[n x i8]", text)
     text = re.sub(r"\s*;.*", "", text)
     text = re.sub(r"_v\d+|v\d+B", "v", text)
     labels = {}
