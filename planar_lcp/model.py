@@ -168,6 +168,284 @@ def _fill_fixed_columns(model, bodies, nls):
             kernel(m, s, float(t[0]), float(t[1]), float(t[2]), arrays.ls_wrench[s, j])
 
 
+@dataclass
+class _BodyTables:
+    """Per-body tables and the dynamic bodies' mass properties, in scene order (the first stage's output)."""
+
+    kind: np.ndarray            # (nbody,) int64: BODY_DYNAMIC / BODY_KINEMATIC / BODY_STATIC
+    slot: np.ndarray            # (nbody,) int64: index among the bodies of its kind; -1 for a static body
+    static_pose: np.ndarray     # (nbody, 3): a static body's pose, zeros for the others
+    dyn_names: list
+    dyn_mass: list
+    dyn_inertia: list           # about the COM
+    com_local: list             # (2,) arrays: the COM in the body frame
+    q0: list                    # initial COM poses
+    v0: list                    # initial COM velocities
+
+
+@dataclass
+class _KinematicData:
+    """The kinematic bodies in scene order: initial poses, prescribed velocities and servo limits (0: none)."""
+
+    names: list
+    qk0: list
+    vk0: list
+    max_force: list
+    max_torque: list
+
+
+@dataclass
+class _ShapeArrays:
+    """Every shape in scene order (a body's shapes in its order): the ragged core vertices flattened with
+    address/count, a half-plane's world point and unit normal (zeros for the other shapes)."""
+
+    body: list
+    kind: list
+    vert_adr: list
+    vert_num: list
+    radius: list
+    hp_point: list
+    hp_normal: list
+    verts: list                 # core vertices, COM frame for a dynamic body's shapes
+
+
+@dataclass
+class _Pairs:
+    """Candidate shape pairs (A dynamic and never a half-plane) with their friction and restitution."""
+
+    a: list
+    b: list
+    mu: list
+    e: list
+
+
+@dataclass
+class _TableSettings:
+    """The table-friction settings after the overrides, checked."""
+
+    plane: int                  # PLANE_HORIZONTAL / PLANE_VERTICAL
+    fric_dirs: np.ndarray       # (k, 2) unit directions of the support points' friction
+    support_code: int           # index in SUPPORT_MODELS
+    twists: int                 # fixed twists of a limit-surface element
+    resolution: int
+
+
+@dataclass
+class _Support:
+    """The table's support elements (horizontal plane): points with known normal loads, or one limit-surface element
+    per dynamic body; and the in-plane gravity (zero on a table)."""
+
+    dyn: list
+    local: list                 # element position relative to the COM
+    load: list
+    mu: list
+    ls: dict                    # the limit-surface lists (`_add_limit_surface`)
+    ls_bodies: list             # the bodies with a limit-surface element, in element order
+    gravity: np.ndarray
+
+
+def _flat(x, dtype=float, shape=None):
+    """x as a contiguous array; an empty one with `shape` (so that (0, 2) stays two-dimensional)."""
+    a = np.asarray(x, dtype=dtype)
+    if shape is not None and a.size == 0:
+        a = a.reshape(shape)
+    return np.ascontiguousarray(a)
+
+
+def _body_tables(bodies) -> _BodyTables:
+    """Bodies -> body tables: each body's kind, its slot among its kind, a static body's pose, and each dynamic
+    body's mass, inertia and COM (spec/massprops.py) with its initial COM pose and velocity."""
+    nbody = len(bodies)
+    t = _BodyTables(kind=np.empty(nbody, np.int64), slot=np.full(nbody, -1, np.int64),
+                    static_pose=np.zeros((nbody, 3)), dyn_names=[], dyn_mass=[], dyn_inertia=[], com_local=[],
+                    q0=[], v0=[])
+    kinds = {"dynamic": BODY_DYNAMIC, "static": BODY_STATIC, "kinematic": BODY_KINEMATIC}
+    nkin = 0
+    for i, b in enumerate(bodies):
+        t.kind[i] = kinds[b.type]
+        pose = np.array([b.position[0], b.position[1], b.angle], dtype=float)
+        if b.type == "dynamic":
+            t.slot[i] = len(t.dyn_names)
+            t.dyn_names.append(b.name)
+            com, inertia = body_mass_properties(b)
+            com = np.asarray(com, dtype=float)
+            t.com_local.append(com)
+            t.dyn_mass.append(float(b.mass))
+            t.dyn_inertia.append(float(inertia))
+            rc = rotation(b.angle) @ com
+            t.q0.append([pose[0] + rc[0], pose[1] + rc[1], pose[2]])
+            t.v0.append([*com_velocity(b.angle, b.velocity, b.angular_velocity, com), b.angular_velocity])
+        elif b.type == "kinematic":
+            t.slot[i] = nkin
+            nkin += 1
+        else:
+            t.static_pose[i] = pose
+    return t
+
+
+def _kinematic_data(bodies) -> _KinematicData:
+    """Bodies -> the kinematic bodies' data: body-frame initial poses, prescribed velocities, and the servo limits
+    of a force-limited body (0.0 where the scene gives none)."""
+    k = _KinematicData(names=[], qk0=[], vk0=[], max_force=[], max_torque=[])
+    for b in bodies:
+        if b.type != "kinematic":
+            continue
+        k.names.append(b.name)
+        k.qk0.append(np.array([b.position[0], b.position[1], b.angle], dtype=float))
+        k.vk0.append([b.velocity[0], b.velocity[1], b.angular_velocity])
+        k.max_force.append(b.max_force or 0.0)
+        k.max_torque.append(b.max_torque or 0.0)
+    return k
+
+
+def _shape_arrays(bodies, bt: _BodyTables) -> _ShapeArrays:
+    """Shapes -> shape arrays: a dynamic body's core vertices moved to its COM frame (the others keep their body
+    frame), a half-plane placed in the world once (it belongs to a static body)."""
+    sh = _ShapeArrays(body=[], kind=[], vert_adr=[], vert_num=[], radius=[], hp_point=[], hp_normal=[], verts=[])
+    for i, b in enumerate(bodies):
+        shift = bt.com_local[bt.slot[i]] if bt.kind[i] == BODY_DYNAMIC else np.zeros(2)
+        for s in b.shapes:
+            sh.body.append(i)
+            if s.type == "halfplane":
+                sh.kind.append(SHAPE_HALFPLANE)
+                R = rotation(bt.static_pose[i, 2])
+                sh.hp_point.append(R @ np.asarray(s.point, float) + bt.static_pose[i, :2])
+                n = R @ np.asarray(s.normal, float)
+                sh.hp_normal.append(n / np.linalg.norm(n))
+                sh.vert_adr.append(len(sh.verts))
+                sh.vert_num.append(0)
+                sh.radius.append(0.0)
+            else:
+                sh.kind.append(SHAPE_CORE)
+                core = np.asarray(s.core_vertices_body(), float).reshape(-1, 2) - shift
+                sh.vert_adr.append(len(sh.verts))
+                sh.vert_num.append(core.shape[0])
+                sh.verts.extend(core.tolist())
+                sh.radius.append(float(s.radius))
+                sh.hp_point.append([0.0, 0.0])
+                sh.hp_normal.append([0.0, 0.0])
+    return sh
+
+
+def _candidate_pairs(scene, bt: _BodyTables, sh: _ShapeArrays) -> _Pairs:
+    """Shapes -> candidate pairs: shapes of different bodies, at least one dynamic, in (s1 < s2) order; side A is the
+    dynamic one and never a half-plane (engine/islands.py relies on it). Raises SceneError for two half-planes."""
+    bodies = scene.bodies
+    p = _Pairs(a=[], b=[], mu=[], e=[])
+    nshape = len(sh.body)
+    for s1 in range(nshape):
+        for s2 in range(s1 + 1, nshape):
+            b1, b2 = sh.body[s1], sh.body[s2]
+            if b1 == b2:
+                continue
+            k1, k2 = bt.kind[b1], bt.kind[b2]
+            if k1 != BODY_DYNAMIC and k2 != BODY_DYNAMIC:
+                continue
+            a, b_ = s1, s2
+            if k1 != BODY_DYNAMIC or sh.kind[s1] == SHAPE_HALFPLANE:
+                a, b_ = s2, s1
+            if sh.kind[a] == SHAPE_HALFPLANE:
+                raise SceneError(f"{scene.source}: shapes of bodies '{bodies[b1].name}' and '{bodies[b2].name}': "
+                                 f"no contact model for half-plane against half-plane")
+            name_a, name_b = bodies[sh.body[a]].name, bodies[sh.body[b_]].name
+            p.a.append(a)
+            p.b.append(b_)
+            p.mu.append(scene.friction_between(name_a, name_b))
+            p.e.append(scene.restitution_between(name_a, name_b))
+    return p
+
+
+def _table_settings(scene, friction_directions, support_model, limit_surface_twists,
+                    limit_surface_resolution) -> _TableSettings:
+    """The compile_scene overrides over the scene's [sim] and world keys -> the checked table-friction settings.
+    Raises ValueError for a bad value, checked in this order: friction directions, support model, resolution."""
+    plane = PLANE_HORIZONTAL if scene.world.plane == "horizontal" else PLANE_VERTICAL
+    k = int(friction_directions if friction_directions is not None else scene.sim.friction_directions)
+    if k < 3:
+        raise ValueError(f"friction_directions must be >= 3 (the directions must positively span the plane), got {k}")
+    ang = 2.0 * np.pi * np.arange(k) / k
+    fric_dirs = np.column_stack([np.cos(ang), np.sin(ang)])
+    support = support_model if support_model is not None else scene.world.support_model
+    if support not in SUPPORT_MODELS:
+        raise ValueError(f"support_model must be one of {SUPPORT_MODELS}, got {support!r}")
+    nls = int(limit_surface_twists if limit_surface_twists is not None else scene.sim.limit_surface_twists)
+    res = int(limit_surface_resolution if limit_surface_resolution is not None
+              else scene.sim.limit_surface_resolution)
+    if res < 1:
+        raise ValueError(f"limit_surface_resolution must be >= 1, got {res}")
+    return _TableSettings(plane=plane, fric_dirs=fric_dirs, support_code=SUPPORT_MODELS.index(support), twists=nls,
+                          resolution=res)
+
+
+def _support_elements(scene, bt: _BodyTables, ts: _TableSettings) -> _Support:
+    """Bodies, mass properties and settings -> the table's support elements. On the horizontal plane each dynamic
+    body rests on support points sharing its weight m g (positions relative to the COM), or on one limit-surface
+    element carrying all of it; in the vertical plane there is no table, only gravity."""
+    sup = _Support(dyn=[], local=[], load=[], mu=[], ls_bodies=[], gravity=None,
+                   ls=dict(edge_adr=[], edge_num=[], edge_scale=[], node_adr=[], node_num=[], far_adr=[], far_num=[],
+                           disk_adr=[], disk_num=[], disks=[], disk_node_adr=[], disk_node_num=[], size=[],
+                           edges=[], nodes=[]))
+    if ts.plane != PLANE_HORIZONTAL:
+        sup.gravity = np.asarray(scene.world.gravity, float)
+        return sup
+    g = float(scene.world.support_gravity)
+    for i, b in enumerate(scene.bodies):
+        if bt.kind[i] != BODY_DYNAMIC:
+            continue
+        slot = bt.slot[i]
+        if ts.support_code == SUPPORT_POINTS:
+            pts, w, mu = support_points(b, scene.world)
+            for p, wi in zip(pts - bt.com_local[slot], w):
+                sup.dyn.append(slot)
+                sup.local.append(p)
+                sup.load.append(bt.dyn_mass[slot] * g * wi)
+                sup.mu.append(float(mu))
+            continue
+        sup.dyn.append(slot)
+        sup.local.append(np.zeros(2))
+        sup.load.append(bt.dyn_mass[slot] * g)
+        sup.mu.append(support_friction(b, scene.world))
+        _add_limit_surface(sup.ls, b, ts.resolution)
+        sup.ls_bodies.append(b)
+    sup.gravity = np.zeros(2)
+    return sup
+
+
+def _model_arrays(scene, bt: _BodyTables, kin: _KinematicData, sh: _ShapeArrays, pairs: _Pairs,
+                  ts: _TableSettings, sup: _Support, seed_friction_arm) -> ModelArrays:
+    """The stages' lists -> the kernels' flat arrays (engine/layout.py MODEL_LAYOUT): int64 indices, float64 values,
+    C-contiguous, empty ragged arrays keeping their trailing dimension. ls_wrench is left zero for
+    `_fill_fixed_columns`."""
+    ls = sup.ls
+    return ModelArrays(
+        plane=ts.plane, gravity=_flat(sup.gravity), damping=float(scene.world.damping), body_kind=bt.kind,
+        body_slot=bt.slot, static_pose=bt.static_pose,
+        dyn_body=_flat(np.flatnonzero(bt.kind == BODY_DYNAMIC), np.int64),
+        dyn_mass=_flat(bt.dyn_mass), dyn_inertia=_flat(bt.dyn_inertia),
+        dyn_inv_mass=_flat(1.0 / np.asarray(bt.dyn_mass, float)),
+        shape_body=_flat(sh.body, np.int64), shape_kind=_flat(sh.kind, np.int64),
+        shape_vert_adr=_flat(sh.vert_adr, np.int64), shape_vert_num=_flat(sh.vert_num, np.int64),
+        shape_radius=_flat(sh.radius), hp_point_w=_flat(sh.hp_point, shape=(0, 2)),
+        hp_normal_w=_flat(sh.hp_normal, shape=(0, 2)), vert_local=_flat(sh.verts, shape=(0, 2)),
+        pair_a=_flat(pairs.a, np.int64), pair_b=_flat(pairs.b, np.int64), pair_mu=_flat(pairs.mu),
+        pair_e=_flat(pairs.e),
+        sup_dyn=_flat(sup.dyn, np.int64), sup_local=_flat(sup.local, shape=(0, 2)), sup_load=_flat(sup.load),
+        sup_mu=_flat(sup.mu), fric_dirs=_flat(ts.fric_dirs), seed_friction_arm=int(bool(seed_friction_arm)),
+        support_model=ts.support_code, sup_edge_adr=_flat(ls["edge_adr"], np.int64),
+        sup_edge_num=_flat(ls["edge_num"], np.int64), sup_edge_scale=_flat(ls["edge_scale"]),
+        sup_node_adr=_flat(ls["node_adr"], np.int64), sup_node_num=_flat(ls["node_num"], np.int64),
+        sup_far_adr=_flat(ls["far_adr"], np.int64), sup_far_num=_flat(ls["far_num"], np.int64),
+        sup_size=_flat(ls["size"]), ls_edge=_flat(np.concatenate(ls["edges"]) if ls["edges"] else [], shape=(0, 4)),
+        ls_node=_flat(np.concatenate(ls["nodes"]) if ls["nodes"] else [], shape=(0, 3)),
+        sup_disk_adr=_flat(ls["disk_adr"], np.int64), sup_disk_num=_flat(ls["disk_num"], np.int64),
+        ls_disk=_flat(ls["disks"], shape=(0, 3)), ls_disk_node_adr=_flat(ls["disk_node_adr"], np.int64),
+        ls_disk_node_num=_flat(ls["disk_node_num"], np.int64), ls_disk_table=disk_table().copy(),
+        ls_disk_step=float(DISK_TABLE_STEP),
+        ls_wrench=np.zeros((len(sup.ls_bodies), ts.twists if ts.support_code == SUPPORT_LIMIT_SURFACE else 0, 3)),
+        kin_max_force=_flat(kin.max_force), kin_max_torque=_flat(kin.max_torque),
+    )
+
+
 def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=False, support_model=None,
                   limit_surface_twists=None, limit_surface_resolution=None) -> Model:
     """Flatten a validated Scene into a Model. `friction_directions`, `limit_surface_twists` and
@@ -179,167 +457,20 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
     only; the moment arm to the contact point is the physically right one).
 
     Raises SceneError if bodies interpenetrate at the start by more than START_OVERLAP_TOL."""
-    bodies = scene.bodies
-    nbody = len(bodies)
-    body_kind = np.empty(nbody, np.int64)
-    body_slot = np.full(nbody, -1, np.int64)
-    static_pose = np.zeros((nbody, 3))
-    dyn_names, kin_names = [], []
-    dyn_mass, dyn_inertia, com_local, q0, v0, qk0, vk0 = [], [], [], [], [], [], []
-    kin_max_force, kin_max_torque = [], []
-    kinds = {"dynamic": BODY_DYNAMIC, "static": BODY_STATIC, "kinematic": BODY_KINEMATIC}
-    for i, b in enumerate(bodies):
-        body_kind[i] = kinds[b.type]
-        pose = np.array([b.position[0], b.position[1], b.angle], dtype=float)
-        if b.type == "dynamic":
-            body_slot[i] = len(dyn_names)
-            dyn_names.append(b.name)
-            com, inertia = body_mass_properties(b)
-            com = np.asarray(com, dtype=float)
-            com_local.append(com)
-            dyn_mass.append(float(b.mass))
-            dyn_inertia.append(float(inertia))
-            rc = rotation(b.angle) @ com
-            q0.append([pose[0] + rc[0], pose[1] + rc[1], pose[2]])
-            v0.append([*com_velocity(b.angle, b.velocity, b.angular_velocity, com), b.angular_velocity])
-        elif b.type == "kinematic":
-            body_slot[i] = len(kin_names)
-            kin_names.append(b.name)
-            qk0.append(pose)
-            vk0.append([b.velocity[0], b.velocity[1], b.angular_velocity])
-            kin_max_force.append(b.max_force or 0.0)
-            kin_max_torque.append(b.max_torque or 0.0)
-        else:
-            static_pose[i] = pose
-
-    # shapes
-    shape_body, shape_kind, vadr, vnum, radius, hp_p, hp_n, verts = [], [], [], [], [], [], [], []
-    for i, b in enumerate(bodies):
-        shift = com_local[body_slot[i]] if body_kind[i] == BODY_DYNAMIC else np.zeros(2)
-        for s in b.shapes:
-            shape_body.append(i)
-            if s.type == "halfplane":
-                shape_kind.append(SHAPE_HALFPLANE)
-                R = rotation(static_pose[i, 2])
-                hp_p.append(R @ np.asarray(s.point, float) + static_pose[i, :2])
-                n = R @ np.asarray(s.normal, float)
-                hp_n.append(n / np.linalg.norm(n))
-                vadr.append(len(verts))
-                vnum.append(0)
-                radius.append(0.0)
-            else:
-                shape_kind.append(SHAPE_CORE)
-                core = np.asarray(s.core_vertices_body(), float).reshape(-1, 2) - shift
-                vadr.append(len(verts))
-                vnum.append(core.shape[0])
-                verts.extend(core.tolist())
-                radius.append(float(s.radius))
-                hp_p.append([0.0, 0.0])
-                hp_n.append([0.0, 0.0])
-
-    # candidate shape pairs: different bodies, at least one dynamic; A is never a half-plane
-    pa, pb, pmu, pe = [], [], [], []
-    nshape = len(shape_body)
-    for s1 in range(nshape):
-        for s2 in range(s1 + 1, nshape):
-            b1, b2 = shape_body[s1], shape_body[s2]
-            if b1 == b2:
-                continue
-            k1, k2 = body_kind[b1], body_kind[b2]
-            if k1 != BODY_DYNAMIC and k2 != BODY_DYNAMIC:
-                continue
-            a, b_ = s1, s2
-            # put the dynamic body first (and never a half-plane as A)
-            if k1 != BODY_DYNAMIC or shape_kind[s1] == SHAPE_HALFPLANE:
-                a, b_ = s2, s1
-            if shape_kind[a] == SHAPE_HALFPLANE:
-                raise SceneError(f"{scene.source}: shapes of bodies '{bodies[b1].name}' and '{bodies[b2].name}': "
-                                 f"no contact model for half-plane against half-plane")
-            pa.append(a)
-            pb.append(b_)
-            pmu.append(scene.friction_between(bodies[shape_body[a]].name, bodies[shape_body[b_]].name))
-            pe.append(scene.restitution_between(bodies[shape_body[a]].name, bodies[shape_body[b_]].name))
-
-    # horizontal plane: support points with known normal loads
-    plane = PLANE_HORIZONTAL if scene.world.plane == "horizontal" else PLANE_VERTICAL
-    k = int(friction_directions if friction_directions is not None else scene.sim.friction_directions)
-    if k < 3:
-        raise ValueError(f"friction_directions must be >= 3 (the directions must positively span the plane), got {k}")
-    ang = 2.0 * np.pi * np.arange(k) / k
-    fric_dirs = np.column_stack([np.cos(ang), np.sin(ang)])
-    support = support_model if support_model is not None else scene.world.support_model
-    if support not in SUPPORT_MODELS:
-        raise ValueError(f"support_model must be one of {SUPPORT_MODELS}, got {support!r}")
-    support_code = SUPPORT_MODELS.index(support)
-    nls = int(limit_surface_twists if limit_surface_twists is not None else scene.sim.limit_surface_twists)
-    res = int(limit_surface_resolution if limit_surface_resolution is not None
-              else scene.sim.limit_surface_resolution)
-    if res < 1:
-        raise ValueError(f"limit_surface_resolution must be >= 1, got {res}")
-    sup_dyn, sup_local, sup_load, sup_mu = [], [], [], []
-    ls = dict(edge_adr=[], edge_num=[], edge_scale=[], node_adr=[], node_num=[], far_adr=[], far_num=[], disk_adr=[],
-              disk_num=[], disks=[], disk_node_adr=[], disk_node_num=[], size=[], edges=[], nodes=[])
-    ls_bodies = []
-    if plane == PLANE_HORIZONTAL:
-        g = float(scene.world.support_gravity)
-        for i, b in enumerate(bodies):
-            if body_kind[i] != BODY_DYNAMIC:
-                continue
-            slot = body_slot[i]
-            if support_code == SUPPORT_POINTS:
-                pts, w, mu = support_points(b, scene.world)
-                for p, wi in zip(pts - com_local[slot], w):
-                    sup_dyn.append(slot)
-                    sup_local.append(p)
-                    sup_load.append(dyn_mass[slot] * g * wi)
-                    sup_mu.append(float(mu))
-                continue
-            # limit surface: one element per body, its whole load m g
-            sup_dyn.append(slot)
-            sup_local.append(np.zeros(2))
-            sup_load.append(dyn_mass[slot] * g)
-            sup_mu.append(support_friction(b, scene.world))
-            _add_limit_surface(ls, b, res)
-            ls_bodies.append(b)
-        gravity = np.zeros(2)
-    else:
-        gravity = np.asarray(scene.world.gravity, float)
-
-    def arr(x, dtype=float, shape=None):
-        a = np.asarray(x, dtype=dtype)
-        if shape is not None and a.size == 0:
-            a = a.reshape(shape)
-        return np.ascontiguousarray(a)
-
-    arrays = ModelArrays(
-        plane=plane, gravity=arr(gravity), damping=float(scene.world.damping), body_kind=body_kind,
-        body_slot=body_slot, static_pose=static_pose,
-        dyn_body=arr(np.flatnonzero(body_kind == BODY_DYNAMIC), np.int64),
-        dyn_mass=arr(dyn_mass), dyn_inertia=arr(dyn_inertia), dyn_inv_mass=arr(1.0 / np.asarray(dyn_mass, float)),
-        shape_body=arr(shape_body, np.int64), shape_kind=arr(shape_kind, np.int64),
-        shape_vert_adr=arr(vadr, np.int64), shape_vert_num=arr(vnum, np.int64), shape_radius=arr(radius),
-        hp_point_w=arr(hp_p, shape=(0, 2)), hp_normal_w=arr(hp_n, shape=(0, 2)), vert_local=arr(verts, shape=(0, 2)),
-        pair_a=arr(pa, np.int64), pair_b=arr(pb, np.int64), pair_mu=arr(pmu), pair_e=arr(pe),
-        sup_dyn=arr(sup_dyn, np.int64), sup_local=arr(sup_local, shape=(0, 2)), sup_load=arr(sup_load),
-        sup_mu=arr(sup_mu), fric_dirs=arr(fric_dirs), seed_friction_arm=int(bool(seed_friction_arm)),
-        support_model=support_code, sup_edge_adr=arr(ls["edge_adr"], np.int64),
-        sup_edge_num=arr(ls["edge_num"], np.int64), sup_edge_scale=arr(ls["edge_scale"]),
-        sup_node_adr=arr(ls["node_adr"], np.int64), sup_node_num=arr(ls["node_num"], np.int64),
-        sup_far_adr=arr(ls["far_adr"], np.int64), sup_far_num=arr(ls["far_num"], np.int64),
-        sup_size=arr(ls["size"]), ls_edge=arr(np.concatenate(ls["edges"]) if ls["edges"] else [], shape=(0, 4)),
-        ls_node=arr(np.concatenate(ls["nodes"]) if ls["nodes"] else [], shape=(0, 3)),
-        sup_disk_adr=arr(ls["disk_adr"], np.int64), sup_disk_num=arr(ls["disk_num"], np.int64),
-        ls_disk=arr(ls["disks"], shape=(0, 3)), ls_disk_node_adr=arr(ls["disk_node_adr"], np.int64),
-        ls_disk_node_num=arr(ls["disk_node_num"], np.int64), ls_disk_table=disk_table().copy(),
-        ls_disk_step=float(DISK_TABLE_STEP),
-        ls_wrench=np.zeros((len(ls_bodies), nls if support_code == SUPPORT_LIMIT_SURFACE else 0, 3)),
-        kin_max_force=arr(kin_max_force), kin_max_torque=arr(kin_max_torque),
-    )
-    model = Model(scene=scene, arrays=arrays, dyn_names=tuple(dyn_names), kin_names=tuple(kin_names),
-                  com_local=arr(com_local, shape=(0, 2)), q0=arr(q0, shape=(0, 3)), v0=arr(v0, shape=(0, 3)),
-                  qk0=arr(qk0, shape=(0, 3)), vk0=arr(vk0, shape=(0, 3)))
-    if ls_bodies:
-        _fill_fixed_columns(model, ls_bodies, nls)
+    bt = _body_tables(scene.bodies)
+    kin = _kinematic_data(scene.bodies)
+    shapes = _shape_arrays(scene.bodies, bt)
+    pairs = _candidate_pairs(scene, bt, shapes)
+    settings = _table_settings(scene, friction_directions, support_model, limit_surface_twists,
+                               limit_surface_resolution)
+    support = _support_elements(scene, bt, settings)
+    arrays = _model_arrays(scene, bt, kin, shapes, pairs, settings, support, seed_friction_arm)
+    model = Model(scene=scene, arrays=arrays, dyn_names=tuple(bt.dyn_names), kin_names=tuple(kin.names),
+                  com_local=_flat(bt.com_local, shape=(0, 2)), q0=_flat(bt.q0, shape=(0, 3)),
+                  v0=_flat(bt.v0, shape=(0, 3)), qk0=_flat(kin.qk0, shape=(0, 3)), vk0=_flat(kin.vk0, shape=(0, 3)))
+    if support.ls_bodies:
+        # the fixed twists' load wrenches are computed by the kernels themselves, so they need the model
+        _fill_fixed_columns(model, support.ls_bodies, settings.twists)
     # on a cold numba cache, the kernels compile in a background process from now on (planar_lcp/compilation/background.py)
     start_background()
     _check_start_overlaps(scene, model)

@@ -261,9 +261,62 @@ def _as_task_error(fn, *args):
         raise TaskError(str(e)) from None
 
 
+@dataclass(frozen=True)
+class _Roles:
+    """What the bodies are in a task: the object, the pusher, the movable obstacles and the bodies that follow a path,
+    with the object's and the pusher's sizes (`body_extent`)."""
+
+    object: str
+    pusher: str
+    obstacles: tuple
+    moving: tuple
+    horizon: float
+    extent: dict                # the object's, about its centre of mass
+    pusher_extent: dict         # the pusher's, about its body-frame origin
+
+
+@dataclass(frozen=True)
+class _Control:
+    """The planner, its budget and the control: how fast the pusher goes, how long one control is held."""
+
+    description: str
+    planner: str
+    time: float
+    control_max: float
+    step_duration: float
+    min_steps: int
+    max_steps: int
+
+
+@dataclass(frozen=True)
+class _Bounds:
+    """Where the bodies may go and how fast."""
+
+    workspace: tuple
+    pusher_workspace: tuple
+    speed_max: float
+    omega_max: float
+
+
 def parse_task(document: dict, source: str = "<dict>", name: str | None = None, display: str | None = None) -> Task:
     """Validate a scene document with a [task] table; see `load_task`. `name` defaults to the scene's name; messages
     name `display` when given (a plan file's copy of a task), else the source."""
+    # the stages run in this order so that a file with several errors is told the same first one
+    scene, shown, v = _task_scene(document, source, display)
+    t = scene.task
+    roles = _roles(v, scene, t)
+    goal = _parse_goal(v, t, roles.extent)
+    control = _control(v, t, scene, roles.extent)
+    bounds = _bounds(v, t, scene, roles, goal, control.control_max)
+    goal_bias = _goal_bias(v, t, goal)
+    scene = _with_pusher_max_force(v, t, scene, roles.pusher)
+    return _derived_task(document, scene, t, name, shown, roles, goal, control, bounds, goal_bias)
+
+
+def _task_scene(document, source, display):
+    """The document -> its Scene (parsed by the scene loader, its errors as TaskErrors naming `display` when given),
+    the name reports give the task's source, and the validator whose messages name the file. Checks that there is a
+    [task] table and that its keys are known."""
     if not isinstance(document, dict):
         raise TaskError(f"{display or source}: the scene must be a table, got {type(document).__name__}")
     try:
@@ -279,12 +332,17 @@ def parse_task(document: dict, source: str = "<dict>", name: str | None = None, 
     # how reports name the task: a shipped file as scenes/NAME.toml, another relative to the working directory
     shown = source if source.startswith("<") or display else display_source(scene)
     v = _TaskValidator(display or shown)
-    t = scene.task
-    v.keys("task", t, TASK_KEYS)
+    v.keys("task", scene.task, TASK_KEYS)
+    return scene, shown, v
+
+
+def _roles(v, scene, t) -> _Roles:
+    """task.object and task.pusher -> the bodies' roles: the object (a dynamic body), the pusher (a kinematic body
+    without a path), every other dynamic body an obstacle, every other kinematic body still or on a path; the bodies
+    that move along a path and when the last one stops; the object's and the pusher's sizes."""
     bodies = {b.name: b for b in scene.bodies}
     obj = _body_of_type(v, t, "object", "dynamic", scene.bodies)
     pusher = _body_of_type(v, t, "pusher", "kinematic", scene.bodies)
-    dynamic = [b.name for b in scene.bodies if b.type == "dynamic"]
     for b in scene.bodies:
         # the planner drives the pusher; another kinematic body stands still or follows a `path`, which the
         # planning state's time then places (a constant velocity would need an unbounded time)
@@ -297,12 +355,16 @@ def parse_task(document: dict, source: str = "<dict>", name: str | None = None, 
                    f"velocity {list(b.velocity)}, angular_velocity {b.angular_velocity}")
     moving = tuple(b.name for b in scene.bodies if b.path is not None and len(b.path) >= 2)
     horizon = max((float(b.path[-1][0]) for b in scene.bodies if b.name in moving), default=0.0)
-    obstacles = tuple(n for n in dynamic if n != obj)
-    extent = body_extent(bodies[obj])
-    pusher_extent = body_extent(bodies[pusher], about_origin=True)
-    h = scene.sim.h
-    goal = _parse_goal(v, t, extent)
+    obstacles = tuple(b.name for b in scene.bodies if b.type == "dynamic" and b.name != obj)
+    return _Roles(object=obj, pusher=pusher, obstacles=obstacles, moving=moving, horizon=horizon,
+                  extent=body_extent(bodies[obj]), pusher_extent=body_extent(bodies[pusher], about_origin=True))
 
+
+def _control(v, t, scene, extent) -> _Control:
+    """description, planner, time, control_max, step_duration and control_steps -> their values, each given one
+    checked or its default: the scene's description, DEFAULT_PLANNER, 60 s, twice the object's circumradius per s,
+    the multiple of the scene's h nearest DEFAULT_STEP, 1..10 steps."""
+    h = scene.sim.h
     description = v.string("task.description", t["description"]) if "description" in t else scene.description
     planner = v.choice("task.planner", t["planner"], PLANNERS) if "planner" in t else DEFAULT_PLANNER
     time = v.bounded("task.time", t["time"], MAX_TIME) if "time" in t else 60.0
@@ -326,18 +388,24 @@ def parse_task(document: dict, source: str = "<dict>", name: str | None = None, 
             v.fail(f"task.control_steps must be [min, max] with min <= max, got {list(cs)}")
     else:
         lo, hi = 1, 10
+    return _Control(description=description, planner=planner, time=time, control_max=control_max,
+                    step_duration=step, min_steps=lo, max_steps=hi)
 
+
+def _bounds(v, t, scene, roles, goal, control_max) -> _Bounds:
+    """workspace, pusher_workspace, speed_max and omega_max -> their values, given or derived from the scene, the
+    goal and the control; checks that the goal lies inside the workspace."""
     if "workspace" in t:
         workspace = v.region("task.workspace", t["workspace"])
     else:
-        workspace = _default_workspace(scene, obj, goal, extent)
+        workspace = _default_workspace(scene, roles.object, goal, roles.extent)
     if "pusher_workspace" in t:
         pusher_workspace = v.region("task.pusher_workspace", t["pusher_workspace"])
     else:
         # the pusher must be able to reach every side of a body that touches the workspace's edge
-        g = 2.0 * pusher_extent["circumradius"]
+        g = 2.0 * roles.pusher_extent["circumradius"]
         pusher_workspace = ((workspace[0][0] - g, workspace[0][1] + g), (workspace[1][0] - g, workspace[1][1] + g))
-    _check_goal_in_workspace(v, goal, workspace, bodies[obj])
+    _check_goal_in_workspace(v, goal, workspace, scene.body(roles.object))
 
     if "speed_max" in t:
         speed_max = v.positive("task.speed_max", t["speed_max"])
@@ -346,36 +414,53 @@ def parse_task(document: dict, source: str = "<dict>", name: str | None = None, 
         if scene.world.plane == "vertical":         # room to fall across the workspace
             height = workspace[1][1] - workspace[1][0]
             speed_max = max(speed_max, math.sqrt(2.0 * math.hypot(*scene.world.gravity) * height))
+    L = roles.extent["circumradius"]
     omega_max = v.positive("task.omega_max", t["omega_max"]) if "omega_max" in t else speed_max / L
+    return _Bounds(workspace=workspace, pusher_workspace=pusher_workspace, speed_max=speed_max, omega_max=omega_max)
+
+
+def _goal_bias(v, t, goal) -> float:
+    """task.goal_bias, checked in [0, 1), or its default for the goal's kind."""
     if "goal_bias" in t:
         goal_bias = v.number("task.goal_bias", t["goal_bias"])
         if not 0.0 <= goal_bias < 1.0:
             v.fail(f"task.goal_bias must be in [0, 1), got {goal_bias!r}")
-    else:
-        # a cover goal needs the pose within millimetres and degrees, which goal samples reach best (push_t:
-        # docs/planning.md, "Faster planning")
-        goal_bias = 0.3 if goal.min_cover is not None else 0.1
+        return goal_bias
+    # a cover goal needs the pose within millimetres and degrees, which goal samples reach best (push_t:
+    # docs/planning.md, "Faster planning")
+    return 0.3 if goal.min_cover is not None else 0.1
 
-    if "pusher_max_force" in t:
-        # the pusher as a force-limited velocity servo (docs/method.md): a push into a jam stalls instead of having
-        # no solution. The body's own max_force, if any, is what this replaces.
-        limit = v.positive("task.pusher_max_force", t["pusher_max_force"])
-        if limit > MAX_SERVO_FORCE:
-            v.fail(f"task.pusher_max_force must be at most {MAX_SERVO_FORCE:g} N (a physical bound), got {limit!r}")
-        i = [b.name for b in scene.bodies].index(pusher)
-        bodies_list = list(scene.bodies)
-        bodies_list[i] = dataclasses.replace(bodies_list[i], max_force=limit)
-        scene = dataclasses.replace(scene, bodies=tuple(bodies_list))
 
+def _with_pusher_max_force(v, t, scene, pusher):
+    """The scene with task.pusher_max_force, when given, as the pusher's max_force; the scene itself otherwise."""
+    if "pusher_max_force" not in t:
+        return scene
+    # the pusher as a force-limited velocity servo (docs/method.md): a push into a jam stalls instead of having
+    # no solution. The body's own max_force, if any, is what this replaces.
+    limit = v.positive("task.pusher_max_force", t["pusher_max_force"])
+    if limit > MAX_SERVO_FORCE:
+        v.fail(f"task.pusher_max_force must be at most {MAX_SERVO_FORCE:g} N (a physical bound), got {limit!r}")
+    i = [b.name for b in scene.bodies].index(pusher)
+    bodies_list = list(scene.bodies)
+    bodies_list[i] = dataclasses.replace(bodies_list[i], max_force=limit)
+    return dataclasses.replace(scene, bodies=tuple(bodies_list))
+
+
+def _derived_task(document, scene, t, name, shown, roles, goal, control, bounds, goal_bias) -> Task:
+    """The checked values -> the Task, with the defaults derived from them: OMPL's distance weights, KPIECE1's cell,
+    the time's weight, and the document (paths inlined) with its hash."""
     document = _inline_paths(document, scene)
+    extent = roles.extent
     return Task(name=name if name is not None else scene.name, scene=scene, source=shown, document=document,
-                sha256=document_sha256(document), object=obj, pusher=pusher, obstacles=obstacles,
-                description=description, planner=planner, time=time, control_max=control_max, step_duration=step,
-                min_steps=lo, max_steps=hi, workspace=workspace, pusher_workspace=pusher_workspace,
-                speed_max=speed_max, omega_max=omega_max, goal_bias=goal_bias, goal=goal,
-                weights=derived_weights(extent, step), obstacle_weight=0.05, kpiece_cell=L / 3.0,
-                object_extent=extent, given=frozenset(t), moving=moving, horizon=horizon,
-                time_weight=derived_time_weight(scene, moving, extent))
+                sha256=document_sha256(document), object=roles.object, pusher=roles.pusher,
+                obstacles=roles.obstacles, description=control.description, planner=control.planner,
+                time=control.time, control_max=control.control_max, step_duration=control.step_duration,
+                min_steps=control.min_steps, max_steps=control.max_steps, workspace=bounds.workspace,
+                pusher_workspace=bounds.pusher_workspace, speed_max=bounds.speed_max, omega_max=bounds.omega_max,
+                goal_bias=goal_bias, goal=goal, weights=derived_weights(extent, control.step_duration),
+                obstacle_weight=0.05, kpiece_cell=extent["circumradius"] / 3.0, object_extent=extent,
+                given=frozenset(t), moving=roles.moving, horizon=roles.horizon,
+                time_weight=derived_time_weight(scene, roles.moving, extent))
 
 
 def derived_weights(extent, step_duration):
