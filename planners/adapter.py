@@ -217,11 +217,10 @@ class Problem:
         # the space, not `si`: a checker that held the SpaceInformation that holds the checker would be a
         # reference cycle through C++ that nothing frees (nanobind's "leaked instances" at exit)
         def is_valid(state):
-            if not space.satisfiesBounds(state):
-                return False
-            x = read_state(state, tm.nobj, tm.timed)
-            del state                            # no wrapper may outlive this call (module docstring)
-            return tm.valid(x)
+            inside = space.satisfiesBounds(state)
+            x = read_state(state, tm.nobj, tm.timed) if inside else None
+            del state                            # no wrapper may outlive this call, on either path (module docstring)
+            return inside and tm.valid(x)
 
         self._is_valid = is_valid
         ss.setStateValidityChecker(is_valid)
