@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from ompl import base as ob
 
-from planar_lcp.cli import raised_while_interrupted
+from planar_lcp.cli_support import raised_while_interrupted
 from planar_lcp.experiments.cluster import (SchedulerLost, close_cluster, host_info, local_jobs, lost_scheduler_message,
                                             open_cluster, retried_runs, sigint_ignored, worker_address)
 from planar_lcp.experiments.records import (RECORDS, STOPPED, BenchmarkInterrupted, RecordWriter, prepare, read_records,

@@ -9,7 +9,7 @@ import math
 import sys
 from pathlib import Path
 
-from planar_lcp.cli import finite_number, one_line_errors
+from planar_lcp.cli_support import finite_number, one_line_errors
 
 from planar_lcp.spec.task import MAX_RUNS, MAX_SEED, MAX_TIME
 
@@ -427,7 +427,7 @@ def cmd_replay(args):
 
 
 def cmd_bench(args):
-    from planar_lcp.cli import require
+    from planar_lcp.cli_support import require
     from planar_lcp.experiments.cluster import SchedulerLost, SchedulerUnreachable
     from planar_lcp.experiments.records import RecordFileError
 
@@ -467,7 +467,7 @@ def cmd_bench(args):
 def cmd_pusht_eval(args):
     import os
 
-    from planar_lcp.cli import require
+    from planar_lcp.cli_support import require
     require("gymnasium")
     if args.jobs is not None or args.scheduler is not None:
         require("distributed")

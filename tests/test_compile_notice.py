@@ -89,7 +89,8 @@ def test_a_long_simulate_command_shows_a_progress_bar_and_a_short_one_does_not(m
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
     assert cli.main(["simulate", "box_tip", "--t-end", "0.5"]) == 0
     assert "simulate box_tip" not in capsys.readouterr().err          # shorter than the delay: nothing
-    monkeypatch.setattr(cli, "PROGRESS_DELAY_S", 0.0)
+    import planar_lcp.cli_support as cli_support
+    monkeypatch.setattr(cli_support, "PROGRESS_DELAY_S", 0.0)
     assert cli.main(["simulate", "box_tip", "--t-end", "0.5"]) == 0
     err = capsys.readouterr().err
     assert "simulate box_tip" in err and "step" in err, err

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from planar_lcp.cli import OPTIONAL_PACKAGES
+from planar_lcp.cli_support import OPTIONAL_PACKAGES
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 
-from planar_lcp.cli import require
+from planar_lcp.cli_support import require
 
 
 def main(argv):

@@ -25,7 +25,7 @@ def _command_line(args):
 
 
 def _cmd_compare(args):
-    from planar_lcp.cli import SIMULATE_FLAGS, InputError, prepare_output_dir
+    from planar_lcp.cli_support import SIMULATE_FLAGS, InputError, prepare_output_dir
     from planar_lcp.experiments.compare import fmt, run_compare
     from planar_lcp.sim import SimulationError
     from planar_lcp.spec.scene import SceneError, load_scene, restitution_setting, sim_settings
@@ -64,7 +64,7 @@ def _cmd_compare(args):
 
 
 def register(subparsers):
-    from planar_lcp.cli import finite_number, one_line_errors
+    from planar_lcp.cli_support import finite_number, one_line_errors
 
     c = one_line_errors(subparsers.add_parser(
         "compare", help="run a scene in planar_lcp and in pymunk with the same time step; plots, GIF, report",

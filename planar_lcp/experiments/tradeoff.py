@@ -35,7 +35,7 @@ import sys
 import time
 from pathlib import Path
 
-from planar_lcp.cli import raised_while_interrupted
+from planar_lcp.cli_support import raised_while_interrupted
 from planar_lcp.experiments.accuracy import table1_errors
 from planar_lcp.experiments.cluster import (SchedulerLost, SchedulerUnreachable, close_cluster, local_jobs,
                                             lost_scheduler_message, open_cluster, sigint_ignored)
@@ -440,7 +440,7 @@ def plot_pareto(rows, path, title):
 
 
 def _cmd(args):
-    from planar_lcp.cli import InputError, prepare_output_dir, require
+    from planar_lcp.cli_support import InputError, prepare_output_dir, require
     from planar_lcp.spec.scene import list_scenes
     require("distributed")                 # the runs are Dask tasks: checked before any work
     known = [n for n, _ in list_scenes()]
@@ -492,7 +492,7 @@ def register(sub):
                    "limit surface K=6 and 14 and points k=8, one timed run")
     p.add_argument("--out", default="tradeoff", metavar="DIR", help="output directory (default ./tradeoff)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    from planar_lcp.cli import finite_number
+    from planar_lcp.cli_support import finite_number
     p.add_argument("--jobs", type=finite_number(int, 0, True), default=None, metavar="J",
                    help="worker processes of the local Dask cluster (default: CPUs)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",

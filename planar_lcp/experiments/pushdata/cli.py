@@ -56,7 +56,7 @@ def _error(prog, message, status=2):
 def _check_push_file(path):
     """A push file given on the command line: it exists, is a file, ends in .h5 and is named as the data set's are.
     InputError otherwise."""
-    from planar_lcp.cli import InputError
+    from planar_lcp.cli_support import InputError
     from planar_lcp.experiments.pushdata.mit import PushDataError, parse_push_name
 
     p = Path(path)
@@ -74,7 +74,7 @@ def _check_push_file(path):
 
 
 def _no_repeated_names(files):
-    from planar_lcp.cli import InputError
+    from planar_lcp.cli_support import InputError
     seen = {}
     for f in files:
         if f.name in seen:
@@ -86,7 +86,7 @@ def _no_repeated_names(files):
 def _load(files):
     """(pushes, models): each file read (`mit.read_push`) and its object registered (`mit.object_model`, once per
     object). InputError naming the file for one that cannot be read or registered."""
-    from planar_lcp.cli import InputError
+    from planar_lcp.cli_support import InputError
     from planar_lcp.experiments.pushdata import mit
 
     pushes, models = [], []
@@ -104,7 +104,7 @@ def _load(files):
 def _scenes(pushes, models, params):
     """The scene document and the recording of each push (`mit.push_scene` with `params`, `mit.push_recording`);
     InputError naming the file where one cannot be made (e.g. a start overlap deeper than the reconciliation takes)."""
-    from planar_lcp.cli import InputError
+    from planar_lcp.cli_support import InputError
     from planar_lcp.experiments.pushdata import mit
 
     docs, recs = [], []
@@ -224,7 +224,7 @@ def _summary_lines(results):
 
 
 def _cmd_predict(args):
-    from planar_lcp.cli import InputError, MissingPackage
+    from planar_lcp.cli_support import InputError, MissingPackage
     try:
         return _predict(args)
     except InputError as e:
@@ -234,10 +234,10 @@ def _cmd_predict(args):
 
 
 def _predict(args):
-    from planar_lcp.cli import ProgressBar, check_output_file, prepare_output_dir, require
+    from planar_lcp.cli_support import ProgressBar, check_output_file, prepare_output_dir, require
     from planar_lcp.experiments.pushdata import mit
     from planar_lcp.experiments.pushdata.model_file import ModelFileError, read_model
-    from planar_lcp.cli import InputError
+    from planar_lcp.cli_support import InputError
 
     prog = f"{PROG} predict"
     require("h5py", "scipy")
@@ -429,7 +429,7 @@ def fit_setup(pushes, models, names, start, via_setters=()):
 def collect_push_files(dirs):
     """Every *.h5 below the folders `dirs` (recursively), sorted by path, each once. InputError for a folder that
     does not exist, is a file or holds none."""
-    from planar_lcp.cli import InputError
+    from planar_lcp.cli_support import InputError
     files = {}
     for d in dirs:
         p = Path(d)
@@ -458,7 +458,7 @@ def _command_line(args):
 
 
 def _parse_params(text):
-    from planar_lcp.cli import InputError
+    from planar_lcp.cli_support import InputError
     from planar_lcp.experiments.pushdata.mit import DEFAULT_PARAMS
     known = [k for k in DEFAULT_PARAMS if k not in NOT_FITTED]
     names = [n.strip() for n in text.split(",")]
@@ -480,7 +480,7 @@ class _FitProgress:
     runs, and the evaluations (parameter points) done."""
 
     def __init__(self, n_runs):
-        from planar_lcp.cli import ProgressBar
+        from planar_lcp.cli_support import ProgressBar
         self.bar, self.runs, self.n_runs = ProgressBar(f"{PROG} fit", unit="run"), 0, n_runs
 
     def run_done(self):
@@ -531,7 +531,7 @@ def _predict_job(doc, recording):
 
 
 def _cmd_fit(args):
-    from planar_lcp.cli import InputError, MissingPackage
+    from planar_lcp.cli_support import InputError, MissingPackage
     from planar_lcp.experiments.cluster import SchedulerLost, SchedulerUnreachable
     try:
         return _fit(args)
@@ -542,7 +542,7 @@ def _cmd_fit(args):
 
 
 def _fit(args):
-    from planar_lcp.cli import InputError, check_output_file, require
+    from planar_lcp.cli_support import InputError, check_output_file, require
     from planar_lcp.experiments.pushdata import mit
     from planar_lcp.experiments.pushdata.model_file import ModelFileError, read_model
 
@@ -683,7 +683,7 @@ def _report_fit(args, names, start, pushes, result, fit_names, bounds, fitted, p
 def register(subparsers):
     import argparse
 
-    from planar_lcp.cli import finite_number, one_line_errors
+    from planar_lcp.cli_support import finite_number, one_line_errors
 
     p = one_line_errors(subparsers.add_parser(
         "pushdata", help="recorded pushes (the MIT pushing data set): predict them, fit the model's friction",

@@ -220,7 +220,7 @@ class Push:
 
 
 def _h5py():
-    from planar_lcp.cli import require
+    from planar_lcp.cli_support import require
     require("h5py")                     # the extra 'pushdata': one line naming it when missing
     import h5py
     return h5py

@@ -34,7 +34,7 @@ def _runner(module_name):
     def run(args):
         import importlib
 
-        from planar_lcp.cli import InputError, prepare_output_dir
+        from planar_lcp.cli_support import InputError, prepare_output_dir
         try:
             prepare_output_dir(args.out, "--out")
         except InputError as e:
@@ -59,7 +59,7 @@ def register(subparsers):
                               description="Reproduce Stewart & Trinkle's section 4 experiments: figures, event tables "
                                           "and the Table 1 error measures over step sizes.")
     sub = s.add_subparsers(dest="study", required=True, metavar="STUDY")
-    from planar_lcp.cli import one_line_errors
+    from planar_lcp.cli_support import one_line_errors
 
     fr = one_line_errors(sub.add_parser(
         "falling-rod", help="section 4.1: the spinning rod dropped on a table (Figures 2-5)",
