@@ -275,29 +275,6 @@ class _Roles:
     pusher_extent: dict         # the pusher's, about its body-frame origin
 
 
-@dataclass(frozen=True)
-class _Control:
-    """The planner, its budget and the control: how fast the pusher goes, how long one control is held."""
-
-    description: str
-    planner: str
-    time: float
-    control_max: float
-    step_duration: float
-    min_steps: int
-    max_steps: int
-
-
-@dataclass(frozen=True)
-class _Bounds:
-    """Where the bodies may go and how fast."""
-
-    workspace: tuple
-    pusher_workspace: tuple
-    speed_max: float
-    omega_max: float
-
-
 def parse_task(document: dict, source: str = "<dict>", name: str | None = None, display: str | None = None) -> Task:
     """Validate a scene document with a [task] table; see `load_task`. `name` defaults to the scene's name; messages
     name `display` when given (a plan file's copy of a task), else the source."""
@@ -307,7 +284,7 @@ def parse_task(document: dict, source: str = "<dict>", name: str | None = None, 
     roles = _roles(v, scene, t)
     goal = _parse_goal(v, t, roles.extent)
     control = _control(v, t, scene, roles.extent)
-    bounds = _bounds(v, t, scene, roles, goal, control.control_max)
+    bounds = _bounds(v, t, scene, roles, goal, control["control_max"])
     goal_bias = _goal_bias(v, t, goal)
     scene = _with_pusher_max_force(v, t, scene, roles.pusher)
     return _derived_task(document, scene, t, name, shown, roles, goal, control, bounds, goal_bias)
@@ -360,9 +337,9 @@ def _roles(v, scene, t) -> _Roles:
                   extent=body_extent(bodies[obj]), pusher_extent=body_extent(bodies[pusher], about_origin=True))
 
 
-def _control(v, t, scene, extent) -> _Control:
-    """description, planner, time, control_max, step_duration and control_steps -> their values, each given one
-    checked or its default: the scene's description, DEFAULT_PLANNER, 60 s, twice the object's circumradius per s,
+def _control(v, t, scene, extent) -> dict:
+    """description, planner, time, control_max, step_duration and control_steps -> the Task's fields of that name
+    (control_steps: min_steps, max_steps), each given one checked or its default: the scene's description, DEFAULT_PLANNER, 60 s, twice the object's circumradius per s,
     the multiple of the scene's h nearest DEFAULT_STEP, 1..10 steps."""
     h = scene.sim.h
     description = v.string("task.description", t["description"]) if "description" in t else scene.description
@@ -388,12 +365,12 @@ def _control(v, t, scene, extent) -> _Control:
             v.fail(f"task.control_steps must be [min, max] with min <= max, got {list(cs)}")
     else:
         lo, hi = 1, 10
-    return _Control(description=description, planner=planner, time=time, control_max=control_max,
-                    step_duration=step, min_steps=lo, max_steps=hi)
+    return dict(description=description, planner=planner, time=time, control_max=control_max,
+                step_duration=step, min_steps=lo, max_steps=hi)
 
 
-def _bounds(v, t, scene, roles, goal, control_max) -> _Bounds:
-    """workspace, pusher_workspace, speed_max and omega_max -> their values, given or derived from the scene, the
+def _bounds(v, t, scene, roles, goal, control_max) -> dict:
+    """workspace, pusher_workspace, speed_max and omega_max -> the Task's fields of that name, given or derived from the scene, the
     goal and the control; checks that the goal lies inside the workspace."""
     if "workspace" in t:
         workspace = v.region("task.workspace", t["workspace"])
@@ -416,7 +393,7 @@ def _bounds(v, t, scene, roles, goal, control_max) -> _Bounds:
             speed_max = max(speed_max, math.sqrt(2.0 * math.hypot(*scene.world.gravity) * height))
     L = roles.extent["circumradius"]
     omega_max = v.positive("task.omega_max", t["omega_max"]) if "omega_max" in t else speed_max / L
-    return _Bounds(workspace=workspace, pusher_workspace=pusher_workspace, speed_max=speed_max, omega_max=omega_max)
+    return dict(workspace=workspace, pusher_workspace=pusher_workspace, speed_max=speed_max, omega_max=omega_max)
 
 
 def _goal_bias(v, t, goal) -> float:
@@ -453,11 +430,8 @@ def _derived_task(document, scene, t, name, shown, roles, goal, control, bounds,
     extent = roles.extent
     return Task(name=name if name is not None else scene.name, scene=scene, source=shown, document=document,
                 sha256=document_sha256(document), object=roles.object, pusher=roles.pusher,
-                obstacles=roles.obstacles, description=control.description, planner=control.planner,
-                time=control.time, control_max=control.control_max, step_duration=control.step_duration,
-                min_steps=control.min_steps, max_steps=control.max_steps, workspace=bounds.workspace,
-                pusher_workspace=bounds.pusher_workspace, speed_max=bounds.speed_max, omega_max=bounds.omega_max,
-                goal_bias=goal_bias, goal=goal, weights=derived_weights(extent, control.step_duration),
+                obstacles=roles.obstacles, **control, **bounds,
+                goal_bias=goal_bias, goal=goal, weights=derived_weights(extent, control["step_duration"]),
                 obstacle_weight=0.05, kpiece_cell=extent["circumradius"] / 3.0, object_extent=extent,
                 given=frozenset(t), moving=roles.moving, horizon=roles.horizon,
                 time_weight=derived_time_weight(scene, roles.moving, extent))
