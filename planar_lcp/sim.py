@@ -553,7 +553,7 @@ def _load_scene_once(name_or_path):
 #: Idle simulators of `simulate`, by (id of the model, options): a call takes one (or makes one) and gives it back, so
 #: that a sweep of short runs does not allocate and wrap the work buffers every call (about 100 µs of the call).
 #: A rollout depends on its inputs only (it forgets the warm-start memory and writes every buffer a step reads
-#: before reading it), so a kept simulator runs as a new one, bit for bit (tests/test_sim_scenes.py). Each entry
+#: before reading it), so a kept simulator runs as a new one, bit for bit (tests/simulation/test_sim_scenes.py). Each entry
 #: holds its model, so the id stays that model's; at most IDLE_SIMULATORS entries, none whose buffers exceed
 #: IDLE_SIMULATOR_BYTES.
 _idle_simulators = OrderedDict()

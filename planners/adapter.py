@@ -15,7 +15,7 @@ with the task's distance weights `Task.weights = (w_pos, w_ang, w_vel, w_pus)` (
 
 (|.| Euclidean, dtheta the shorter way round), plus for each obstacle w_obs |dxy| + w_obs w_ang / w_pos |dtheta| +
 w_vel |dv| (w_obs = Task.obstacle_weight), and Task.time_weight |dt| for a timed task. SE2 is itself compound (R^2
-weight 1, SO2 weight 0.5): it enters with weight w_pos and its SO2 part with w_ang / w_pos. tests/test_planning.py
+weight 1, SO2 weight 0.5): it enters with weight w_pos and its SO2 part with w_ang / w_pos. tests/planning/test_planning.py
 checks this formula against OMPL.
 
 Controls: R^2, the pusher velocity (m/s). Each propagate() call is ONE jitted rollout of

@@ -31,7 +31,7 @@ cannot be built from the 2.0.1 wheel: docs/planning.md). `shorten` rewrites such
   parameters (gains, speed, the side it goes round, the order of the legs, b) are drawn from the shortener's
   Generator.
 - A candidate is simulated from X[a] only: the states before a are unchanged and the simulator is deterministic, so
-  this equals a re-simulation from the start bit for bit (tests/test_shorten.py checks it on the final plan). It is
+  this equals a re-simulation from the start bit for bit (tests/planning/test_shorten.py checks it on the final plan). It is
   accepted only when every propagation step succeeds, every state is admissible (`TaskModel.admissible`: the
   validity the planner checks after each propagation step), the goal holds at the end and the plan has fewer
   steps. A stretch that leaves the object farther from where the rest of the plan expects it than the goal's

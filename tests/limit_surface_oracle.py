@@ -5,7 +5,7 @@ For a body moving with twist (vx, vy, omega) about its centre of mass, the frict
 (COM frame) is -mu p v(r) / |v(r)|, with v(r) = (vx - omega r_y, vy + omega r_x) and p = m g / area. The wrench
 (fx, fy, torque about the COM) is its integral over the region. Gauss-Legendre nodes in both directions of each
 region (a disk in polar coordinates, a rectangle in x and y); the integrand is bounded and smooth except at the
-centre of rotation, so refining the nodes shows the accuracy reached (tests/test_limit_surface_oracle.py).
+centre of rotation, so refining the nodes shows the accuracy reached (tests/simulation/test_limit_surface_oracle.py).
 Deliberately independent of planar_lcp: it is what the simulator's limit-surface model will be checked against.
 """
 

@@ -1,5 +1,5 @@
 """Roll gym-pusht's PushT-v0 out from given start states with given actions: the peer's half of the side-by-side
-runs (examples/measurements/gym_side_by_side.py, tests/test_gym.py). Runs in gym-pusht's own virtualenv (it pins pymunk < 7, which
+runs (examples/measurements/gym_side_by_side.py, tests/environments/test_gym.py). Runs in gym-pusht's own virtualenv (it pins pymunk < 7, which
 ours does not allow), so it imports nothing of planar_lcp.
 
     $PLANAR_LCP_PUSHT_PYTHON examples/measurements/gym_pusht_rollout.py < episodes.json > trajectories.json

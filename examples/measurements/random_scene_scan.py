@@ -1,7 +1,7 @@
 """The random-scene set (planar_lcp.spec.random_scenes) under each formulation: aborted runs, non-finite states, final
 penetration, the largest per-step energy gain and where it comes from, and how the islands were solved.
 
-    python examples/measurements/random_scene_scan.py [N_SCENES]        (default 200, as tests/test_reliability.py)
+    python examples/measurements/random_scene_scan.py [N_SCENES]        (default 200, as tests/simulation/test_reliability.py)
 
 Energy is measured with the ground (y = 0) as the datum, relative to the run's initial energy E0 (> 0: every body
 starts above the ground), and split by `planar_lcp.trajectory.energy_changes` into what the contact impulses add to the

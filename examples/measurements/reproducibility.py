@@ -2,7 +2,7 @@
 
     python examples/measurements/reproducibility.py [--scenes NAME ...] [--formulations ...] [--every K] [--no-lcps]
 
-Runs each shipped scene as tests/test_golden.py records it (the scene's [sim], each formulation, and the horizontal
+Runs each shipped scene as tests/simulation/test_golden.py records it (the scene's [sim], each formulation, and the horizontal
 scenes with support_model = "points" too), then:
 
 1. **Last-bit perturbations** (what another machine's floating point does to a run): the same run from initial poses
@@ -136,7 +136,7 @@ def examine(A, b, nci, nf, nsi, k, rng):
 
 
 def cases(scenes=None, formulations=None):
-    """tests/test_golden.py's cases: every shipped scene x formulation, the horizontal ones with "points" too."""
+    """tests/simulation/test_golden.py's cases: every shipped scene x formulation, the horizontal ones with "points" too."""
     names = [n for n, _ in list_scenes()]
     forms = formulations or list(FORMULATIONS)
     horizontal = sorted(n for n in names if load_scene(n).world.plane == "horizontal")
@@ -152,7 +152,7 @@ PERTURBED_RUNS = 8
 
 
 def case_simulator(name, formulation, support_model):
-    """The Simulator and step count tests/test_golden.py records a case with."""
+    """The Simulator and step count tests/simulation/test_golden.py records a case with."""
     sc = load_scene(name)
     s = sc.sim
     sim = Simulator(compile_scene(sc, support_model=support_model), SimOptions(

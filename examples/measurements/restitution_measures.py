@@ -6,10 +6,10 @@
 2. Stewart & Trinkle's row of four disks (gaps 1e-5 m, striker at 1 m/s, e = 1, no friction or gravity): velocities after one
    step at h = 0.0025, and after the cascade at h = 1e-6.
 3. One step of 30 random rods landing (no gravity), e in {0.5, 1}, mu in {0, 0.3, 1}: the largest kinetic-energy
-   change of a rod relative to its kinetic energy before the step (tests/test_restitution.py draws the same kind).
+   change of a rod relative to its kinetic energy before the step (tests/simulation/test_restitution.py draws the same kind).
 4. The shipped falling rod at e = 0.9 (an open contact that the step's impacts drive in may end the step inside):
    the deepest penetration at the end of a step, per h.
-5. The 200 seeded random scenes (tests/test_reliability.py) at e = 0.5, each formulation: failed runs, island solves
+5. The 200 seeded random scenes (tests/simulation/test_reliability.py) at e = 0.5, each formulation: failed runs, island solves
    that fell back to e = 0 (solved_inelastic), the largest one-step energy gain / E0 (vertical plane; energy with the
    ground as datum) and the largest rise of the energy above E0.
 """

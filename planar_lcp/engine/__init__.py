@@ -102,7 +102,7 @@ _install_cache_locator()
 # cache spent 4 to 5 s of the step's 12 to 15 s of compiling there (numba issues #8989 and #9204 name the same
 # copies). One deep copy of all the blocks with one memo gives the same blocks, variables and statements (the blocks
 # then share one copy of the scope, as the callee's own blocks share one scope), so the same IR and machine code
-# (tests/test_golden.py bit for bit). Applied only where the installed numba's source has those lines exactly.
+# (tests/simulation/test_golden.py bit for bit). Applied only where the installed numba's source has those lines exactly.
 # The lines as they stand in the method's source once dedented (copy_ir is nested in inline_ir's body).
 _PER_BLOCK_COPY = """        kernel_copy.blocks = {}
         for block_label, block in the_ir.blocks.items():

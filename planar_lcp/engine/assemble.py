@@ -15,7 +15,7 @@ Static and kinematic bodies carry no unknowns: their velocity enters the constan
 """
 
 # math.cos, math.sin (not np.cos, np.sin): the C library's in Python as compiled, so the kernels run as Python give
-# the compiled bits (tests/test_interpreted_bits.py)
+# the compiled bits (tests/compilation/test_interpreted_bits.py)
 
 import math
 

@@ -80,7 +80,7 @@ Known limits
 
 # np.hypot, not math.hypot: CPython's math.hypot is its own algorithm, numba's and NumPy's np.hypot call the C
 # library's; and x * x, not x ** 2 (the C pow in Python): the kernels run as Python give the compiled bits
-# (tests/test_interpreted_bits.py)
+# (tests/compilation/test_interpreted_bits.py)
 
 import numpy as np
 from numba import njit

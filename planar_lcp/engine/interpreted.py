@@ -10,8 +10,8 @@ Why the answers are the compiled kernel's bit for bit: both evaluate the same IE
 order (numba compiles without fast-math: no reassociation, no fused multiply-adds), and the kernels call only
 functions that are the C library's in both: `math.cos`, `math.sin`, `math.asinh`, `math.log2` and `np.hypot`
 (numpy's own `np.arcsinh` and CPython's own `math.hypot` are not, and gave other last bits), and square by
-multiplying (`x ** 2` is `pow` in CPython). tests/test_interpreted.py holds it on the shipped scenes (every array
-of the Trajectory and of the model), tests/test_interpreted_bits.py under NUMBA_DISABLE_JIT=1 and function by
+multiplying (`x ** 2` is `pow` in CPython). tests/compilation/test_interpreted.py holds it on the shipped scenes (every array
+of the Trajectory and of the model), tests/compilation/test_interpreted_bits.py under NUMBA_DISABLE_JIT=1 and function by
 function.
 """
 

@@ -23,7 +23,7 @@ L = sqrt(p^2 + s^2)):
 Edges shared by two pieces cancel. The edge terms grow as |c|^3 while their sum grows as |c|, so for a centre of
 rotation farther than FAR_RATIO body sizes (and a translation) the polygon pieces are integrated by their "far"
 Gauss nodes instead: there the integrand is analytic over the whole body and a few nodes per triangle are exact to
-round-off (tests/test_limit_surface.py checks the two agree where they meet).
+round-off (tests/simulation/test_limit_surface.py checks the two agree where they meet).
 
 Full disks: Phi and G depend only on c's distance from the centre, tabulated once for the unit disk and scaled
 (R^3 Phi(d / R), R^2 G(d / R)); beyond the table (8 radii) and for translations, the disk's polar Gauss nodes.
@@ -126,7 +126,7 @@ def _edges_phi_g(edges, lo, hi, cx, cy):
         lb = np.sqrt(p * p + sb * sb)
         ap = abs(p)
         # math.asinh, not np.arcsinh: NumPy's own SIMD arcsinh differs from the C library's, which numba calls for
-        # both, so the kernels run as Python would not give the compiled bits (tests/test_interpreted_bits.py)
+        # both, so the kernels run as Python would not give the compiled bits (tests/compilation/test_interpreted_bits.py)
         asa = math.asinh(sa / ap)
         asb = math.asinh(sb / ap)
         phi += (p * (sb * lb - sa * la) + p * p * p * (asb - asa)) / 6.0

@@ -51,7 +51,7 @@ PAIRWISE_BLOCK = 128
 def pairwise_sum(a, lo, n):
     """a[lo] + ... + a[lo + n - 1] as numpy's pairwise summation adds them (what `np.sum` of a row does: sequential
     below 8 terms, 8 partial sums up to a block of PAIRWISE_BLOCK, halves above), so that the Trajectory's energy is
-    `planar_lcp.trajectory.energy` bit for bit (tests/test_sim_scenes.py)."""
+    `planar_lcp.trajectory.energy` bit for bit (tests/simulation/test_sim_scenes.py)."""
     if n < 8:
         res = -0.0
         for i in range(lo, lo + n):

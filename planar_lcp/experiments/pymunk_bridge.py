@@ -40,7 +40,7 @@ Mapping (docs/pymunk-comparison.md says more):
   (10 by default) with no coupling beyond what the sweeps converge to, and the clamp projects in impulse space,
   so a sliding point's force converges to the direction of K_s^-1 (-v_s) (K_s the point's inverse
   effective-mass matrix, impulse -> velocity change) rather than -v_s: box_push's 0.2 x 0.1 m box sliding
-  without spin decelerates at 0.976 mu g, not mu g (tests/test_pymunk_bridge.py). pymunk cannot represent the
+  without spin decelerates at 0.976 mu g, not mu g (tests/commands/test_pymunk_bridge.py). pymunk cannot represent the
   limit surface of a uniform pressure (`support_model = "limit_surface"` in planar_lcp), nor a set of
   support-point forces coupled by maximal dissipation in one rigid solve (our LCP). The older set-up, one pivot
   at the COM plus a GearJoint (pymunk's tank.py), capped force and torque separately and left the box of
@@ -419,7 +419,7 @@ def simulate_pymunk(scene, *, t_end=None, h=None, **settings) -> Trajectory:
     Note Chipmunk's order within `space.step(h)`: positions are integrated FIRST with the velocities of the end of
     the previous step (q+ = q + h v), then collisions are detected and velocities updated and solved. Ours updates
     velocities first and positions with the new velocities (q+ = q + h v+). In free flight both velocity sequences
-    are identical and pymunk's positions lag ours by one velocity update (tests/test_pymunk_bridge.py).
+    are identical and pymunk's positions lag ours by one velocity update (tests/commands/test_pymunk_bridge.py).
 
     `settings` go to `build_space` (iterations, collision_slop, collision_bias).
     """

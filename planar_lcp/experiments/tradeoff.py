@@ -15,7 +15,7 @@ would score the limit surface against a modelling artefact. With the limit-surfa
 the points model's modelling error, and the limit-surface rows measure the discretization error of h and K. Why
 K = 62: every step re-centres one twist on the current slip twist, so the fixed twists matter only when the slip
 twist changes within a step, which is rare at h_ref.
-tests/test_tradeoff.py checks both: K = 6 gives the K = 62 reference to round-off, and K = 254 moves it by less than
+tests/commands/test_tradeoff.py checks both: K = 6 gives the K = 62 reference to round-off, and K = 254 moves it by less than
 half the error of the finest swept default setting.
 
 Per setting: the velocity error, the integral over [0, t_end] of ||v_h - v_ref|| dt, and the sup-norm position error

@@ -55,7 +55,7 @@ def _sector_nodes(c, r, a0, a1, n):
 
 #: Gauss points per direction on each fan triangle of a polygon piece for twists whose centre of rotation is far from
 #: the body (engine/limit_surface.py FAR_RATIO): there the integrand is analytic over the body and the closed form
-#: would lose digits to cancellation. tests/test_limit_surface.py measures the agreement where the two meet.
+#: would lose digits to cancellation. tests/simulation/test_limit_surface.py measures the agreement where the two meet.
 FAR_RESOLUTION = 3
 
 
@@ -200,7 +200,7 @@ def disk_table():
     Phi = integral rho^3 / 3 dtheta, G_x = integral cos(theta) rho^2 / 2 dtheta (the trapezoid rule: periodic and
     analytic, 2048 points); for d >= 1, with sin(psi) = sin(phi) / d and X = sqrt(d^2 - sin^2 phi) over
     phi in [-pi/2, pi/2] (Gauss-Legendre, 96 points): Phi = integral 2/3 cos^2(phi) (3 X^2 + cos^2 phi) / X dphi,
-    G_x = -2/d integral X cos^2(phi) dphi. tests/test_limit_surface.py checks it against the naive oracle."""
+    G_x = -2/d integral X cos^2(phi) dphi. tests/simulation/test_limit_surface.py checks it against the naive oracle."""
     d = np.arange(0.0, DISK_TABLE_MAX + 0.5 * DISK_TABLE_STEP, DISK_TABLE_STEP)
     out = np.empty((len(d), 2))
     inside = d < 1.0

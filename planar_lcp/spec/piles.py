@@ -1,7 +1,7 @@
 """Large contact islands as scene dicts: towers, pyramids and walls of boxes, bins of mixed shapes, random piles.
 
 Each function returns a scene dict (`parse_scene` reads it; `random_scenes.scene_to_toml` writes it as a file). The
-shipped scenes `tower`, `pyramid` and `bin` are files written by these functions (tests/test_piles.py checks that they
+shipped scenes `tower`, `pyramid` and `bin` are files written by these functions (tests/simulation/test_piles.py checks that they
 still are). Units: m, kg, s.
 
 All are in the vertical plane, friction 0.5, h = 1/60 s (the rate Box2D's comparison runs at) unless a function is
@@ -123,7 +123,7 @@ def bin_scene(n, seed=0, t_end=2.0, size=0.1, h=H):
 
 def random_pile(seed, n=None):
     """A seeded random pile: a tower, pyramid, wall or bin of a random size (16 to 100 bodies) a few steps from
-    rest: the large islands of the sparse solver's oracle (tests/test_sparse_islands.py)."""
+    rest: the large islands of the sparse solver's oracle (tests/simulation/test_piles.py)."""
     rng = np.random.default_rng(seed)
     kind = int(rng.integers(4))
     if kind == 0:

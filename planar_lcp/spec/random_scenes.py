@@ -17,7 +17,7 @@ reported as certified, planar_lcp.infeasibility) and others slide past the block
 The same seed always gives the same scene (numpy's default_rng). Bodies start separated (a grid with a clearance).
 
 `random_task(seed)` is a scene with a [task] table (docs/scene-format.md, "Task files"): planning problems nobody
-wrote by hand, valid by construction, with the derived defaults unless a key is drawn (tests/test_tasks.py plans
+wrote by hand, valid by construction, with the derived defaults unless a key is drawn (tests/planning/test_tasks.py plans
 each of them).
 """
 
@@ -124,7 +124,7 @@ def push_scene(rng, seed):
     rails = rng.random() < 0.5
     # With rails the pusher moves parallel to them and they stand farther from its path than two objects can span:
     # a kinematic pusher that drives a body against a static one has no rigid-body solution (a jam: the pusher has
-    # no force limit; tests/test_reliability.py shows it is reported as such), and this set tests the solver.
+    # no force limit; tests/simulation/test_reliability.py shows it is reported as such), and this set tests the solver.
     heading = 0.0 if rails else rng.uniform(-0.2, 0.2)
     bodies.append({"name": "pusher", "type": "kinematic", "position": [-1.6 * size - r_pusher, float(lateral)],
                    "velocity": [speed, float(heading * speed)], "shapes": [{"type": "disk", "radius": r_pusher}]})

@@ -215,7 +215,7 @@ def _equilibrate(M, n, d, r):
         for i in range(n):
             if r[i] > 0.0:
                 d[i] /= np.sqrt(r[i])
-    # math.log2, not np.log2: NumPy's SIMD log2 differs from the C library's (tests/test_interpreted_bits.py)
+    # math.log2, not np.log2: NumPy's SIMD log2 differs from the C library's (tests/compilation/test_interpreted_bits.py)
     for i in range(n):
         d[i] = 2.0 ** np.round(math.log2(d[i]))
 
