@@ -142,21 +142,12 @@ def shorten_seconds(text):
 
 
 def _perturbation(text):
-    """--perturb mu=F,mass=G (either or both): {"mu": F, "mass": G}, positive finite factors."""
-    out = {}
-    for part in text.split(","):
-        key, eq, val = part.partition("=")
-        key = key.strip()
-        if not eq or key not in ("mu", "mass") or key in out:
-            raise argparse.ArgumentTypeError(f"must be mu=F,mass=G (factors, either or both), got {text!r}")
-        try:
-            f = float(val)
-        except ValueError:
-            f = float("nan")
-        if not (math.isfinite(f) and f > 0):
-            raise argparse.ArgumentTypeError(f"{key} must be a positive finite factor, got {val.strip()!r}")
-        out[key] = f
-    return out
+    """--perturb's argparse type (planar_lcp.spec.scene.parse_perturbation)."""
+    from planar_lcp.spec.scene import parse_perturbation
+    try:
+        return parse_perturbation(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def _err(cmd, msg, code=2):

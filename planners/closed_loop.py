@@ -97,7 +97,11 @@ class PushController:
     # ---- deciding ---------------------------------------------------------------------------------------------
     def __call__(self, x):
         c0 = time.thread_time()
-        x = np.asarray(x, dtype=np.float64)
+        u = self._decide(np.asarray(x, dtype=np.float64))
+        self.compute_s = time.thread_time() - c0
+        return u
+
+    def _decide(self, x):
         push = self._push
         if push is not None and not self._on_track(push, x):
             push = self._push = None
@@ -107,7 +111,6 @@ class PushController:
                 push = self._choose(x)
                 if push is PENDING:
                     self.phase = "thinking"
-                    self.compute_s = time.thread_time() - c0
                     return np.zeros(2)
                 self._push = push
                 self.replans += 1
@@ -120,7 +123,6 @@ class PushController:
         if u is None:
             self.phase = "idle"
             u = np.zeros(2)
-        self.compute_s = time.thread_time() - c0
         return u
 
     def _on_track(self, push, x):

@@ -75,8 +75,8 @@ def main(argv=None):
     ap.add_argument("--perturb", default="mu=0.8,mass=1.2")
     ap.add_argument("--tasks", nargs="*", default=None, help="only these tasks (names)")
     args = ap.parse_args(argv)
-    from planners.cli import _perturbation
-    perturb = _perturbation(args.perturb)
+    from planar_lcp.spec.scene import parse_perturbation
+    perturb = parse_perturbation(args.perturb)
     args.out.mkdir(parents=True, exist_ok=True)
     tasks = [t for t in task_list() if args.tasks is None or t[0] in args.tasks]
     t0 = time.monotonic()

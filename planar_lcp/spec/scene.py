@@ -1041,6 +1041,25 @@ def _check_support_points(v: _Validator, path: str, points: tuple, shapes: tuple
                    f"[{lo[1]:.6g}, {hi[1]:.6g}] (the bounding box of its shapes, body frame, m), got {_show_vec(p)}")
 
 
+def parse_perturbation(text: str) -> dict:
+    """"mu=F,mass=G" (either or both; `planar-lcp replay --perturb`) -> {"mu": F, "mass": G}, positive finite factors
+    for `perturbed_scene`; ValueError naming what is wrong."""
+    out = {}
+    for part in text.split(","):
+        key, eq, val = part.partition("=")
+        key = key.strip()
+        if not eq or key not in ("mu", "mass") or key in out:
+            raise ValueError(f"must be mu=F,mass=G (factors, either or both), got {text!r}")
+        try:
+            f = float(val)
+        except ValueError:
+            f = float("nan")
+        if not (math.isfinite(f) and f > 0):
+            raise ValueError(f"{key} must be a positive finite factor, got {val.strip()!r}")
+        out[key] = f
+    return out
+
+
 def perturbed_scene(scene: Scene, friction: float = 1.0, mass: float = 1.0) -> Scene:
     """The scene with every Coulomb coefficient (world.friction, world.friction_pairs, each body's
     support_friction) times `friction` and every dynamic body's mass (and a given inertia) times `mass`: the world

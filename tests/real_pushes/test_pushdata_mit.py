@@ -269,7 +269,7 @@ def test_a_missing_h5py_names_the_extra(tmp_path):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=env,
                        timeout=300)
     assert r.returncode != 0
-    assert r.stderr.splitlines()[-1] == ("planar_lcp.cli.MissingPackage: h5py is not installed; it comes with the "
+    assert r.stderr.splitlines()[-1] == ("planar_lcp.cli_support.MissingPackage: h5py is not installed; it comes with the "
                                          "extra 'pushdata': pip install \"planar-lcp[pushdata]\" (in a checkout: pip "
                                          "install -e \".[pushdata]\"; the extra 'dev' installs every extra)")
 
