@@ -1,6 +1,6 @@
 """What each process of a planar-lcp command compiles on an empty numba cache, and when: numba's compile events in
 every process the command starts (the command itself, the second compiling process compilation/precompile.py, the
-background compilation planar_lcp/compilation/background.py), each function's exclusive compile time (thread CPU time, less the
+background compilation planar_lcp/compilation/kernel_sets.py), each function's exclusive compile time (thread CPU time, less the
 functions compiled on the way), the kernels each process loaded from the cache instead, and each process's start,
 wall clock and CPU time. Used for docs/performance.md ("Compile time"):
 
@@ -89,7 +89,8 @@ def role(argv):
     """Which of the command's processes wrote a log, by its argv[0]."""
     first = Path(argv[0]).name if argv else "?"
     return {"precompile.py": "second compiling process (compilation/precompile.py)",
-            "background.py": "background compilation (planar_lcp/compilation/background.py)"}.get(first, "the command")
+            "kernel_sets.py": "background compilation (planar_lcp/compilation/kernel_sets.py)",
+            "background.py": "background compilation (background.py)"}.get(first, "the command")
 
 
 def run_logged(tree, args):

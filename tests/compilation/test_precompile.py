@@ -138,13 +138,13 @@ def test_the_compile_events_example_logs_every_process(tmp_path):
     assert "simulate falling_rod --t-end 0.01, empty numba cache:" in run.stdout
     procs = json.loads(out.read_text())
     roles = [Path(p["argv"][0]).name for p in procs]
-    assert "background.py" in roles and "precompile.py" in roles, roles
+    assert "kernel_sets.py" in roles and "precompile.py" in roles, roles
     for p in procs:
         assert sum(e["cpu"] for e in p["events"]) <= p["cpu"] + 0.05, (p["argv"], p["cpu"])
     names = {Path(p["argv"][0]).name: {e["name"] for e in p["events"]} for p in procs}
-    assert "planar_lcp.engine.rollout.rollout_lemke" in names["background.py"]
+    assert "planar_lcp.engine.rollout.rollout_lemke" in names["kernel_sets.py"]
     assert "planar_lcp.engine.rollout.rollout_lemke" not in names["planar-lcp"]
-    assert "background compilation (planar_lcp/compilation/background.py), pid" in run.stdout
+    assert "background compilation (planar_lcp/compilation/kernel_sets.py), pid" in run.stdout
 
 
 @pytest.mark.parametrize("args, message", [

@@ -44,7 +44,7 @@ from planar_lcp.engine.layout import Stat
 from planar_lcp.trajectory import energy
 
 GOLDEN_DIR = Path(__file__).resolve().parent / "golden"
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 FORMULATIONS = ("position", "fixed_point", "velocity")
 TOL = 1e-12
 HORIZONTAL = {name for name, _ in list_scenes() if load_scene(name).world.plane == "horizontal"}
