@@ -72,7 +72,7 @@ def main(argv=None):
         return 2
 
     import planners  # noqa: F401  (registers planar_lcp/PushT-v0)
-    from planners.envs import place_corners, t_box_corners
+    from planners.environments.push_t import place_corners, t_box_corners
 
     env = gym.make("planar_lcp/PushT-v0", obs_type="environment_state_agent_pos", visualization_width=args.size,
                    visualization_height=args.size)

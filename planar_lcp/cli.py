@@ -8,9 +8,9 @@ import math
 import signal
 import sys
 
-from planar_lcp.cli_support import (SIMULATE_FLAGS, InputError, MissingPackage, ProgressBar,  # noqa: F401
-                                    check_output_file, finite_number, missing_optional, one_line_errors,
-                                    prepare_output_dir, raised_while_interrupted, require)
+from planar_lcp.cli_support import (SIMULATE_FLAGS, InputError, MissingPackage, ProgressBar, check_output_file,
+                                    finite_number, missing_optional, one_line_errors, raised_while_interrupted,
+                                    require)
 from planar_lcp.interrupt import catch_sigint, clear, interrupted, raise_if_interrupted
 
 def _how_it_ran():
@@ -29,7 +29,7 @@ def cmd_demo(args):
     import numpy as np
 
     from planar_lcp.lcp import lemke
-    from planar_lcp.experiments.lcp_corpus import find_corpus_dir, load_corpus
+    from planar_lcp.benchmarks.lcp_corpus import find_corpus_dir, load_corpus
     from planar_lcp.sim import SimulationError, simulate
     from planar_lcp.viz import plot_trajectory
 
@@ -129,7 +129,7 @@ def cmd_bench(args):
     except InputError as e:
         print(f"planar-lcp bench: error: {e}", file=sys.stderr)
         return 2
-    from planar_lcp.experiments.bench import run_bench
+    from planar_lcp.benchmarks.bench import run_bench
     run_bench(args.what, json_path=args.json, **options)
     return 0
 
@@ -137,7 +137,7 @@ def cmd_bench(args):
 def _bench_options(args):
     """Before any work: each option given applies to the benchmark chosen, the sizes are distinct and at most
     MAX_SCALING_SIZE, the JSON file can be written. Returns run_bench's keyword arguments."""
-    from planar_lcp.experiments.bench import MAX_SCALING_SIZE, SETTLE_BUDGET_S, STEP_BUDGET_S
+    from planar_lcp.benchmarks.bench import MAX_SCALING_SIZE, SETTLE_BUDGET_S, STEP_BUDGET_S
     for dest, users in BENCH_OPTION_USERS.items():
         if getattr(args, dest) is not None and args.what not in users:
             flag = "--" + dest.replace("_", "-")
@@ -319,8 +319,8 @@ def _simulate(args):
 
 #: Modules that add subcommands: each has `register(subparsers)`, which adds its parsers with set_defaults(func=...)
 #: and must import heavy or optional libraries (matplotlib, pymunk, ompl) only inside the command's function.
-COMMAND_MODULES = ["planar_lcp.experiments.compare_cli", "planar_lcp.experiments.studies",
-                   "planar_lcp.experiments.tradeoff", "planar_lcp.experiments.pushdata.cli"]
+COMMAND_MODULES = ["planar_lcp.studies.compare_cli", "planar_lcp.studies.study_cli",
+                   "planar_lcp.benchmarks.tradeoff", "planar_lcp.studies.pushdata.cli"]
 #: Other installed packages add subcommands the same way through this entry-point group (`register(subparsers)`):
 #: planners (plan, replay, plan-bench) does, in pyproject.toml. planar_lcp itself never names them.
 COMMAND_ENTRY_POINTS = "planar_lcp.commands"
@@ -355,7 +355,7 @@ def build_parser():
                    help="where to write the demo's files (default ./planar_lcp_demo)")
     d.set_defaults(func=cmd_demo)
 
-    from planar_lcp.experiments.bench import (PILE_SCALING_SIZES, PILE_SCENES, SCALING_KINDS, SCALING_SIZES,
+    from planar_lcp.benchmarks.bench import (PILE_SCALING_SIZES, PILE_SCENES, SCALING_KINDS, SCALING_SIZES,
                                               SETTLE_BUDGET_S, STEP_BUDGET_S)
     b = one_line_errors(sub.add_parser(
         "bench", help="benchmarks against peers measured in the same run",
@@ -500,7 +500,7 @@ def _run(args):
             raise
     except KeyboardInterrupt as e:
         # a command that kept something (plan-bench and tradeoff: the finished runs) says what in the interrupt's
-        # message (planar_lcp.experiments.records.BenchmarkInterrupted); a plain Ctrl-C has none
+        # message (planar_lcp.parallel.records.BenchmarkInterrupted); a plain Ctrl-C has none
         kept = str(e)
     # Long runs return to Python often enough for this (rollouts in chunks, a flag in the planners' termination
     # condition), so Ctrl-C ends any command within about a second: one line, exit status 130 (128 + SIGINT).

@@ -168,7 +168,7 @@ def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=
         The scene document(s) (a TOML file's document, e.g. `planar_lcp.spec.scene.read_document(path)[0]`) whose
         named places the parameters are written to; or a function (i, {name: value}) -> the scene document of
         recording i at those values (then `x0` is required and `setters` unused), for parameters that change more
-        than one key (e.g. `planar_lcp.experiments.pushdata.mit.push_scene`'s support ring).
+        than one key (e.g. `planar_lcp.studies.pushdata.mit.push_scene`'s support ring).
     recordings : sequence of RecordedRun
         Times and poses of bodies the scene names: kinematic ones are inputs, dynamic ones observations.
     params : sequence of str

@@ -1,6 +1,6 @@
 """THE trajectory of a run: states per step (frame and centre of mass), diagnostics, contacts, and energy.
 
-`simulate` returns it; the pymunk bridge (experiments/pymunk_bridge.py) fills the same type from its runs. The
+`simulate` returns it; the pymunk bridge (planar_lcp/bridges/pymunk.py) fills the same type from its runs. The
 body-frame <-> centre-of-mass conversions are planar_lcp.frames.
 """
 
@@ -46,10 +46,10 @@ class Trajectory:
         rows of a step are the contacts in the order they were found (not matched across steps). vt and mode use the
         geometry the LCP was solved with (the linearization pose).
     failures : list of (step index, t, cause) recorded with on_failure="record".
-    options : the SimOptions of the run (a pymunk run: `pymunk_bridge.PymunkOptions`, with h, solver, formulation).
+    options : the SimOptions of the run (a pymunk run: `planar_lcp.bridges.pymunk.PymunkOptions`, with h, solver, formulation).
     scene : the Scene simulated.
 
-    A pymunk run (`pymunk_bridge.simulate_pymunk`) fills the same fields; its stats are energy, n_contacts and
+    A pymunk run (`planar_lcp.bridges.pymunk.simulate_pymunk`) fills the same fields; its stats are energy, n_contacts and
     penetration, its contacts one row per touching shape pair (no vt, no mode).
     """
 

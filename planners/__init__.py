@@ -12,7 +12,7 @@ A task is a scene file with a [task] table (docs/scene-format.md, "Task files"; 
 task"). Importing this package does not import ompl: `plan` does, when it is called.
 
 With gymnasium installed (the `gym` extra), importing this package registers the environments `planar_lcp/PushT-v0`
-and `planar_lcp/Task-v0` (planners/envs.py, docs/gym.md) by name: `gymnasium.make` imports them, and without
+and `planar_lcp/Task-v0` (planners/environments/, docs/gym.md) by name: `gymnasium.make` imports them, and without
 gymnasium nothing is registered and the rest works as before.
 """
 
@@ -42,11 +42,11 @@ def _register_envs():
     except ImportError:
         return
     if "planar_lcp/PushT-v0" not in gymnasium.registry:
-        gymnasium.register(id="planar_lcp/PushT-v0", entry_point="planners.envs:PushTEnv", max_episode_steps=300,
+        gymnasium.register(id="planar_lcp/PushT-v0", entry_point="planners.environments.push_t:PushTEnv", max_episode_steps=300,
                            kwargs={"obs_type": "state"})
     if "planar_lcp/Task-v0" not in gymnasium.registry:
         # truncation is the environment's own (its time_limit in the task's step durations)
-        gymnasium.register(id="planar_lcp/Task-v0", entry_point="planners.envs:TaskEnv")
+        gymnasium.register(id="planar_lcp/Task-v0", entry_point="planners.environments.task_env:TaskEnv")
 
 
 _register_envs()

@@ -22,11 +22,10 @@ from pathlib import Path
 import numpy as np
 from ompl import base as ob
 
-from planar_lcp.cli_support import raised_while_interrupted
-from planar_lcp.experiments.cluster import (SchedulerLost, close_cluster, host_info, local_jobs, lost_scheduler_message,
-                                            open_cluster, retried_runs, sigint_ignored, worker_address)
-from planar_lcp.experiments.records import (RECORDS, STOPPED, BenchmarkInterrupted, RecordWriter, prepare, read_records,
-                                            count_finished, stopped_message, write_text_atomic)
+from planar_lcp.parallel.cluster import (SchedulerLost, close_cluster, host_info, local_jobs, lost_scheduler_message,
+                                         open_cluster, retried_runs, worker_address)
+from planar_lcp.parallel.records import RECORDS, STOPPED, RecordWriter, prepare, read_records, write_text_atomic
+from planar_lcp.parallel.sweep import run_recorded, say_resumed
 
 #: OMPL's planner statuses; a run's `status ENUM` column holds the value of one of them
 STATUS = ob.PlannerStatus.PlannerStatusType
@@ -284,7 +283,7 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
     Task itself) with a time limit or, with `iterations`, an iteration budget per run, on Dask; write the log,
     database, summaries and box plots into `out`. Returns the summary rows.
 
-    Each finished run is appended to `out`/records.jsonl as its result arrives (planar_lcp.experiments.records),
+    Each finished run is appended to `out`/records.jsonl as its result arrives (planar_lcp.parallel.records),
     and the outputs are made from those records: at the end, and also when Ctrl-C, a lost scheduler or an error
     stops the benchmark (then partial: they say how many runs finished of how many). `resume`: the runs already
     in the record file are kept and only the others run; the file must be of the same benchmark (task, planners,
@@ -321,50 +320,19 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
     # benchmark's summary says the same
     jobs = local_jobs(jobs, len(planned))
     where = f"the Dask cluster at {scheduler}" if scheduler else f"{jobs} worker processes"
-    path = out / RECORDS
-    if previous is not None:
-        print(f"resume         {path}: {len(done)} of {len(planned)} runs finished before; "
-              + (f"running the other {len(todo)}" if todo else "nothing left to run: writing the outputs"), flush=True)
-        if previous.torn:
-            print(f"note           {previous.torn}", flush=True)
-    elif resume:
-        print(f"resume         {path}: no record file yet; running every run", flush=True)
-    writer = RecordWriter(path, header, resume=previous)
+    say_resumed(previous, resume, out / RECORDS, len(done), len(planned), "run", width=15)
+    writer = RecordWriter(out / RECORDS, header, resume=previous)
     t0 = time.perf_counter()
     session = dict(lost_workers=[], retried_runs=0)
-    live = dict(client=None, cluster=None, futures=[], bar=None)       # what _run_on_dask opened, to close
-    try:
+
+    def run(live):
         if todo:
             _run_on_dask(t, todo, limit, iterations, scheduler, jobs, writer, done, t0, session, live)
             close_cluster(live["client"], live["cluster"])
-    except BaseException as e:
-        # Ctrl-C, a lost scheduler, any error: stop the runs quietly and leave the finished ones with a summary of
-        # what ran; a second Ctrl-C meanwhile would cut that short, so it waits (seconds)
-        with sigint_ignored():
-            if live["bar"] is not None:
-                live["bar"].leave = False      # the interrupted bar is cleared: the command's one line stays alone
-                live["bar"].close()
-            close_cluster(live["client"], live["cluster"], live["futures"], quiet=True)
-            # an error raised while a Ctrl-C was handled (e.g. by distributed, starting the cluster) is the interrupt
-            interrupted = isinstance(e, KeyboardInterrupt) or raised_while_interrupted(e)
-            ended = "interrupted" if interrupted else "failed"
-            writer.end(ended, time.perf_counter() - t0, **session)
-            writer.close()
-            try:
-                _write_outputs(out, t, planners, planned, header, where, scheduler, jobs, partial=ended)
-            except Exception as w:  # noqa: BLE001 - the records are on disk; the stop's own cause is reported
-                print(f"warning: no partial summary: {w!r}", file=sys.stderr)
-        # counted on disk: a Ctrl-C can land between a record's write and its entry in `done`
-        kept = stopped_message(count_finished(path, planned, len(done)), len(planned), path, "run", "a partial summary")
-        if interrupted:
-            raise BenchmarkInterrupted(kept) from None
-        if isinstance(e, SchedulerLost):
-            raise SchedulerLost(f"{e}; stopped {kept}") from None
-        raise
-    if live["bar"] is not None:
-        live["bar"].close()
-    writer.end("complete", time.perf_counter() - t0, **session)
-    writer.close()
+
+    run_recorded(run, writer, planned, len(done), "run",
+                 lambda ended: _write_outputs(out, t, planners, planned, header, where, scheduler, jobs, partial=ended),
+                 "a partial summary", info=session, t0=t0)
     rows, md, wrote = _write_outputs(out, t, planners, planned, header, where, scheduler, jobs)
     print(md)
     lost, retried = session["lost_workers"], session["retried_runs"]

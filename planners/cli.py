@@ -53,7 +53,7 @@ def register(sub):
     r = one_line_errors(sub.add_parser(
         "replay", help="re-simulate a plan's controls open loop and check the goal",
         description="Re-simulate the controls of PLAN.json open loop (our LCP simulator, or pymunk through "
-                    "planar_lcp.experiments.pymunk_bridge), or execute it closed loop (--closed-loop), optionally in "
+                    "planar_lcp.bridges.pymunk), or execute it closed loop (--closed-loop), optionally in "
                     "a world whose friction and masses differ from the task's (--perturb); report the final goal "
                     "error and the deepest penetration, write replay_SIMULATOR[_closed_loop].png and .gif. Exit "
                     "status 0 only when the goal holds at the end."))
@@ -98,7 +98,7 @@ def register(sub):
                         "same")
     b.set_defaults(func=cmd_bench)
 
-    from .pusht_eval import ENVS, MAX_EPISODES
+    from .environments.pusht_eval import ENVS, MAX_EPISODES
     e = one_line_errors(sub.add_parser(
         "pusht-eval", help="run PushTPolicy's episodes in gym-pusht's Push-T or ours and score them",
         description="Episodes of planners.PushTPolicy (a feedback controller with our simulator as its model, "
@@ -419,8 +419,8 @@ def cmd_replay(args):
 
 def cmd_bench(args):
     from planar_lcp.cli_support import require
-    from planar_lcp.experiments.cluster import SchedulerLost, SchedulerUnreachable
-    from planar_lcp.experiments.records import RecordFileError
+    from planar_lcp.parallel.cluster import SchedulerLost, SchedulerUnreachable
+    from planar_lcp.parallel.records import RecordFileError
 
     require("distributed")                 # the runs are Dask tasks: checked before any work
     from .bench import run_bench
@@ -462,9 +462,9 @@ def cmd_pusht_eval(args):
     require("gymnasium")
     if args.jobs is not None or args.scheduler is not None:
         require("distributed")
-    from planar_lcp.experiments.cluster import SchedulerLost, SchedulerUnreachable
+    from planar_lcp.parallel.cluster import SchedulerLost, SchedulerUnreachable
 
-    from .pusht_eval import evaluate
+    from .environments.pusht_eval import evaluate
     if args.scheduler is not None and args.jobs is not None:
         return _err("pusht-eval", f"--jobs sizes the local cluster: not with --scheduler {args.scheduler}")
     env_kwargs = {}
@@ -489,7 +489,7 @@ def cmd_pusht_eval(args):
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         return _err("pusht-eval", f"--out {out}: cannot create the directory ({e.strerror or e})")
-    from .pusht_eval import default_world
+    from .environments.pusht_eval import default_world
     world = args.world or default_world(args.env)
     print(f"pusht-eval     {args.episodes} episodes of {args.env} (seeds {args.seed}..{args.seed + args.episodes - 1})"
           f", PushTPolicy(world={world!r})" + (f", the world's {env_kwargs}" if env_kwargs else ""), flush=True)

@@ -26,7 +26,20 @@ import numpy as np
 PENDING = object()
 
 
-class PushController:
+class _Timed:
+    """A controller's call: `_decide(x)` on the observed state as float64, its thread CPU time kept in `compute_s`
+    (what the closed-loop runs report per control step)."""
+
+    compute_s = 0.0
+
+    def __call__(self, x):
+        c0 = time.thread_time()
+        u = self._decide(np.asarray(x, dtype=np.float64))
+        self.compute_s = time.thread_time() - c0
+        return u
+
+
+class PushController(_Timed):
     """One push at a time over a TaskModel (module docstring). `reset()`, then `controller(x) -> u` (the pusher's
     velocity, m/s, for one propagation step).
 
@@ -95,12 +108,6 @@ class PushController:
         return f, np.array([[c, -s], [s, c]])
 
     # ---- deciding ---------------------------------------------------------------------------------------------
-    def __call__(self, x):
-        c0 = time.thread_time()
-        u = self._decide(np.asarray(x, dtype=np.float64))
-        self.compute_s = time.thread_time() - c0
-        return u
-
     def _decide(self, x):
         push = self._push
         if push is not None and not self._on_track(push, x):
@@ -265,7 +272,7 @@ class PushController:
         return {"phase": "approach", "c0": c0, "u": u, "states": states, "start": x.copy(), "k": 0, "j": j}
 
 
-class PlanTracker:
+class PlanTracker(_Timed):
     """Track a plan with feedback: receding-horizon control over our simulator (module docstring). `reset()`, then
     `tracker(x) -> u`, the pusher's velocity (m/s) for the next propagation step from the observed flat state x.
 
@@ -368,12 +375,6 @@ class PlanTracker:
     def _u(self, j, offset):
         base = self.uref[j] if j < len(self.uref) else np.zeros(2)
         return np.clip(base + offset, -self.cm, self.cm)
-
-    def __call__(self, x):
-        c0 = time.thread_time()
-        u = self._decide(np.asarray(x, dtype=np.float64))
-        self.compute_s = time.thread_time() - c0
-        return u
 
     def _decide(self, x):
         """The control for observed state x, and self.phase set (the class docstring's steps)."""

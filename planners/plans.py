@@ -247,7 +247,7 @@ class Plan:
         ----------
         simulator : {"lcp", "pymunk"}
             "lcp": ours, exactly as the planner propagated them (bit for bit); "pymunk": through
-            planar_lcp.experiments.pymunk_bridge, from the scene's start (another contact model: expect drift).
+            planar_lcp.bridges.pymunk, from the scene's start (another contact model: expect drift).
         closed_loop : bool
             A planners.closed_loop.PlanTracker chooses every propagation step's control from the simulator's
             state (docs/closed_loop.md, "Any task in pymunk"); the run stops when the goal holds.
@@ -630,7 +630,7 @@ def animate_plan(tm, X, path, fps=20, max_frames=120):
 
 
 def replay_pymunk(plan, tm=None, controller=None, scene=None, max_steps=None):
-    """Execute a plan in pymunk (planar_lcp.experiments.pymunk_bridge), from the scene's start: open loop (the
+    """Execute a plan in pymunk (planar_lcp.bridges.pymunk), from the scene's start: open loop (the
     plan's controls in turn) or, with `controller`, closed loop.
 
     controller : callable, optional
@@ -646,9 +646,9 @@ def replay_pymunk(plan, tm=None, controller=None, scene=None, max_steps=None):
     pymunk's arbiters after any step), with `steps` (propagation steps executed) and, closed loop, `compute_s`
     (the controller's thread CPU seconds of each step)."""
     try:
-        from planar_lcp.experiments.pymunk_bridge import build_space, read_state, set_kinematic_velocity
+        from planar_lcp.bridges.pymunk import build_space, read_state, set_kinematic_velocity
     except ImportError as e:  # the bridge, or pymunk itself
-        raise ImportError(f"planar_lcp.experiments.pymunk_bridge cannot be used ({e})") from None
+        raise ImportError(f"planar_lcp.bridges.pymunk cannot be used ({e})") from None
     tm = tm if tm is not None else TaskModel(plan["task_document"])
     space, hd = build_space(scene if scene is not None else tm.scene, h=tm.h)
     pusher = hd.bodies[tm.task.pusher]

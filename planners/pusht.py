@@ -2,7 +2,7 @@
 
 At every action it reads the observed state (the pusher's position and the T's pose, gym-pusht's "state"
 observation) and decides the next PD target. Its plan is one push at a time, chosen with the simulator as the model
-(PushT-v0's physics, `planners.envs.PushTEnv.advance`, set to the world the policy acts in):
+(PushT-v0's physics, `planners.environments.push_t.PushTEnv.advance`, set to the world the policy acts in):
 
 - Candidates: points along the T's outline every `spacing` mm where the pusher's disk fits, each pushed along the
   inward normal of its edge; those whose first motion (a frictionless push's: along the push, turning by the moment
@@ -31,7 +31,7 @@ import time
 
 import numpy as np
 
-from .envs import ARENA, GOAL_POSE, PUSHT_COG, WALL_HALF, WALL_LINES, PushTEnv, pd_substeps
+from .environments.push_t import ARENA, GOAL_POSE, PUSHT_COG, WALL_HALF, WALL_LINES, PushTEnv, pd_substeps
 
 WORLDS = ("gym_pusht", "planar_lcp")
 #: the pusher's centre stays this far inside the walls' inner faces beyond its radius, mm
@@ -426,90 +426,4 @@ def _wrap(a):
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
-class SubprocessEnv:
-    """gym-pusht's environment in another python (its own virtualenv: it pins pymunk < 7), driven through
-    planners/pusht_server.py: `reset(seed=...)` and `step(action)` as a gymnasium environment's, obs_type "state".
-
-    Raises RuntimeError naming the interpreter when the server cannot start (no such python, no gym-pusht there)."""
-
-    def __init__(self, python, env_id="gym_pusht/PushT-v0"):
-        import json
-        import subprocess
-        from pathlib import Path
-        self._json = json
-        server = Path(__file__).resolve().parent / "pusht_server.py"
-        try:
-            self._p = subprocess.Popen([str(python), str(server), env_id], stdin=subprocess.PIPE,
-                                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, bufsize=1)
-        except OSError as e:
-            raise RuntimeError(f"cannot start {python} for {env_id}: {e}") from None
-        first = self._p.stdout.readline()
-        if not first:
-            err = self._p.stderr.read().strip().splitlines()
-            raise RuntimeError(f"{python} could not serve {env_id}: {err[-1] if err else 'it exited'}")
-        hello = json.loads(first)
-        self.version = hello.get("gym_pusht")
-        self.env_id = env_id
-
-    def _ask(self, req):
-        self._p.stdin.write(self._json.dumps(req) + "\n")
-        self._p.stdin.flush()
-        ans = self._json.loads(self._p.stdout.readline())
-        if "error" in ans:
-            raise RuntimeError(f"{self.env_id}: {ans['error']}")
-        return ans
-
-    def reset(self, seed=None, options=None):
-        if options:
-            raise ValueError("SubprocessEnv.reset: options are not served")
-        a = self._ask({"cmd": "reset", "seed": seed})
-        return np.asarray(a["obs"], dtype=np.float64), a["info"]
-
-    def step(self, action):
-        a = self._ask({"cmd": "step", "action": [float(x) for x in action]})
-        return (np.asarray(a["obs"], dtype=np.float64), float(a["reward"]), bool(a["terminated"]),
-                bool(a["truncated"]), a["info"])
-
-    def render(self):
-        """gym-pusht's own drawing of the current state (its render(): 680 x 680 RGB), through a temporary file."""
-        import tempfile
-        from pathlib import Path
-        with tempfile.TemporaryDirectory() as d:
-            path = Path(d) / "frame.npy"
-            self._ask({"cmd": "render", "path": str(path)})
-            return np.load(path)
-
-    def close(self):
-        if self._p.poll() is None:
-            try:
-                self._ask({"cmd": "close"})
-            except (OSError, ValueError):
-                pass
-            self._p.wait(timeout=10)
-
-
-def run_episode(env, policy, seed=None, options=None, max_steps=300):
-    """One episode of `env` (a gymnasium PushT-v0, obs_type "state") driven by `policy`: a dict with success (as
-    the env says it), the final and best coverage, the actions taken, and the policy's compute per action (s, thread
-    CPU time)."""
-    obs, info = env.reset(seed=seed, options=options)
-    policy.reset()
-    compute, cover, success = [], 0.0, False
-    best = 0.0
-    for k in range(max_steps):
-        action = policy(obs)
-        compute.append(policy.compute_s)
-        obs, reward, terminated, truncated, info = env.step(action)
-        cover = float(info.get("coverage", 0.0))
-        best = max(best, cover)
-        if terminated:
-            success = bool(info.get("is_success", terminated))
-            break
-        if truncated:
-            break
-    return {"seed": seed, "success": success, "coverage": cover, "best_coverage": best, "actions": k + 1,
-            "compute_median_s": float(np.median(compute)), "compute_max_s": float(np.max(compute)),
-            "replans": policy.replans}
-
-
-__all__ = ["PushTPolicy", "WORLDS", "run_episode", "ARENA"]
+__all__ = ["PushTPolicy", "WORLDS", "ARENA"]

@@ -3,7 +3,7 @@ import os
 import pytest
 from cli_helpers import TIP_PLAN_ARGS, run_cli
 
-from planar_lcp.experiments.lcp_corpus import find_corpus_dir, load_corpus
+from planar_lcp.benchmarks.lcp_corpus import find_corpus_dir, load_corpus
 
 JIT_DISABLED = os.environ.get("NUMBA_DISABLE_JIT", "0") == "1"
 

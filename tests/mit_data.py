@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from planar_lcp.experiments.pushdata import mit
+from planar_lcp.studies.pushdata import mit
 
 ROOT = Path(__file__).resolve().parent.parent
 

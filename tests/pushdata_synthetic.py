@@ -53,7 +53,7 @@ def _rot(th):
 
 def _streams(normal, push_angle, seed):
     """(tip (N, 4), object (M, 4) at rest, force (K, 4)): the streams of one push, UNIX times."""
-    from planar_lcp.experiments.pushdata.mit import PUSHER_RADIUS
+    from planar_lcp.studies.pushdata.mit import PUSHER_RADIUS
     rng = np.random.default_rng(seed)
     n_out = np.array([math.cos(normal), math.sin(normal)])                   # outward normal, object frame
     start_local = (RADIUS + PUSHER_RADIUS + GAP) * n_out
@@ -85,7 +85,7 @@ def _write(path, tip, obj, force):
 
 def make_root(root, pushes=PUSHES, params=TRUE) -> list:
     """Write the data root `root` (module docstring); returns the push files, sorted."""
-    from planar_lcp.experiments.pushdata import mit
+    from planar_lcp.studies.pushdata import mit
     from planar_lcp.fitting import predict_run
 
     root = Path(root)

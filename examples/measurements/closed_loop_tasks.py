@@ -4,7 +4,7 @@
 
 For each task: a plan made by `planners.plan` with our simulator as the forward model (seed 1; the shipped tasks'
 committed plans in docs/figures/ when present, else planned once and kept in OUT/plans/TASK/plan.json), executed in
-pymunk through planar_lcp.experiments.pymunk_bridge (another contact model, pymunk's own friction) three ways:
+pymunk through planar_lcp.bridges.pymunk (another contact model, pymunk's own friction) three ways:
 open loop (the plan's controls in turn, `planar-lcp replay PLAN --simulator pymunk`), closed loop (`--closed-loop`:
 planners.closed_loop.PlanTracker) and closed loop in a perturbed world (`--perturb mu=0.8,mass=1.2` by default).
 Writes OUT/results.csv (one row per task and way), OUT/table.md and prints the table.

@@ -24,8 +24,8 @@ import math
 
 import numpy as np
 
-from planar_lcp.experiments.studies import common
-from planar_lcp.experiments.studies import falling_rod as fr
+from planar_lcp.studies import common
+from planar_lcp.studies import falling_rod as fr
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import simulate
 from planar_lcp.spec.scene import load_scene

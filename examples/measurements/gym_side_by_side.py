@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
+ROOT = HERE.parents[1]
 DEFAULT_PLAN = ROOT / "docs" / "figures" / "gym" / "push_t_plan" / "plan.json"
 #: where the push_t scene's origin goes in the arena, mm (the plan's whole motion stays inside the walls)
 PLAN_OFFSET = (200.0, 270.0)
@@ -37,9 +37,9 @@ PART_MM, PART_DEG = 2.0, 2.0
 
 def reset_state(agent, frame_pose):
     """gym-pusht's reset_to_state (agent x, y, block x, y, angle) that puts the T's frame at frame_pose (x, y mm,
-    angle rad): it turns the T about its frame point (0, 45) (planners.envs.PUSHT_COG), so the frame ends at
+    angle rad): it turns the T about its frame point (0, 45) (planners.environments.push_t.PUSHT_COG), so the frame ends at
     (bx + 45 sin a, by + 45 - 45 cos a)."""
-    from planners.envs import PUSHT_COG
+    from planners.environments.push_t import PUSHT_COG
     fx, fy, a = frame_pose
     cx, cy = PUSHT_COG
     c, s = math.cos(a), math.sin(a)
@@ -49,11 +49,11 @@ def reset_state(agent, frame_pose):
 def plan_episode(plan_path):
     """The push_t plan as an episode: start state and PD targets (mm), 10 Hz.
 
-    Our push_t T's frame is gym-pusht's turned by 180 degrees and moved 15 mm (planners.envs._push_t_bodies): a frame
+    Our push_t T's frame is gym-pusht's turned by 180 degrees and moved 15 mm (planners.environments.push_t._push_t_bodies): a frame
     pose (P, a) of ours is gym-pusht's (P + R(a) (0, 15 mm), a + pi). The plan's step is 0.1 s, one action: the target
     of action k is the plan's pusher position at its end plus the PD law's lag behind a ramp, (k_v / k_p) u_k."""
     import planners
-    from planners.envs import K_P, K_V
+    from planners.environments.push_t import K_P, K_V
     p = planners.load_plan(plan_path)
     tm = p.model
     if abs(tm.task.step_duration - 0.1) > 1e-12:
@@ -130,7 +130,7 @@ def run_pusht(python, eps):
 
 
 def cover_of(frame_pose, goal):
-    from planners.envs import coverage, t_box_corners
+    from planners.environments.push_t import coverage, t_box_corners
     return coverage(t_box_corners(), frame_pose, goal)
 
 

@@ -2,7 +2,7 @@
 
     python examples/measurements/identify_gym_pusht.py --pusht-python PY [--episodes 3] [--window 20]
 
-Records PushTPolicy's episodes in gym-pusht's own environment (its virtualenv, planners/pusht_server.py): the T's
+Records PushTPolicy's episodes in gym-pusht's own environment (its virtualenv, planners/environments/gym_pusht_server.py): the T's
 observed pose after every action and the pusher's path, which is the PD law's from the actions (ten substeps per
 action, exactly as gym-pusht computes it). Cuts them into windows of `--window` actions that start with the pusher
 clear of the T, and fits the T's inertia per unit mass and its centre of mass along its stem (mm) of our engine with
@@ -27,7 +27,7 @@ DT = 0.01
 
 def pd_path(agent0, actions):
     """The pusher's positions (mm) at every physics step of the actions, from rest at agent0: gym-pusht's PD law."""
-    from planners.envs import pd_substeps
+    from planners.environments.push_t import pd_substeps
     p, v = np.asarray(agent0, float) * 1e-3, np.zeros(2)
     out = [p[None] * 1e3]
     for a in actions:
@@ -58,7 +58,7 @@ def record(env, policy, seed, actions_max):
 def windows(agents, poses, acts, length, clearance=1.0):
     """(pusher path rows (t, x, y, 0) in m at every physics step, the T's recorded frame poses in m) of the windows
     of `length` actions that start with the pusher at least `clearance` mm off the T."""
-    from planners.envs import PushTEnv
+    from planners.environments.push_t import PushTEnv
     from planners.pusht import _boxes_mm, _frame_maps, _sdf
     boxes = _boxes_mm(PushTEnv(obs_type="state", render_mode=None, physics="gym_pusht"))
     path = pd_path(agents[0], acts)
@@ -81,7 +81,7 @@ def windows(agents, poses, acts, length, clearance=1.0):
 
 def scene_doc(rows, inertia_mm2, com_y_mm):
     """Our PushT-v0's scene with gym-pusht's physics, the pusher on `rows`, the T's inertia and centre of mass."""
-    from planners.envs import PushTEnv
+    from planners.environments.push_t import PushTEnv
     env = PushTEnv(obs_type="state", render_mode=None, physics="gym_pusht")
     doc = env._scene_document()
     for b in doc["bodies"]:
@@ -108,8 +108,9 @@ def main(argv=None):
                  "a virtualenv with gym-pusht==0.1.8")
     from planar_lcp.fitting import fit
     from planar_lcp.spec.recordings import RecordedRun
-    from planners.envs import GYM_PUSHT_INERTIA, PUSHT_COG
-    from planners.pusht import PushTPolicy, SubprocessEnv
+    from planners.environments.push_t import GYM_PUSHT_INERTIA, PUSHT_COG
+    from planners.environments.gym_pusht_process import SubprocessEnv
+    from planners.pusht import PushTPolicy
 
     env = SubprocessEnv(args.pusht_python)
     policy = PushTPolicy("gym_pusht")

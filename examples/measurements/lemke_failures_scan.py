@@ -6,7 +6,7 @@
 
 from planar_lcp import simulate
 from planar_lcp.spec.scene import FORMULATIONS, load_scene
-from planar_lcp.experiments.studies.common import shift_scene
+from planar_lcp.studies.common import shift_scene
 
 base = load_scene("falling_rod")
 runs = failed = retried = 0

@@ -3,7 +3,7 @@
 
     python examples/measurements/pushdata_summary.py [DATA_ROOT]
 
-DATA_ROOT defaults to $PLANAR_LCP_MIT_PUSH, else ../shared/data/mit-push (planar_lcp.experiments.pushdata.mit.
+DATA_ROOT defaults to $PLANAR_LCP_MIT_PUSH, else ../shared/data/mit-push (planar_lcp.studies.pushdata.mit.
 find_data_root). Needs the extra 'pushdata' (h5py, scipy). About 10 s.
 """
 
@@ -17,8 +17,8 @@ from planar_lcp.cli_support import require
 
 def main(argv):
     require("h5py", "scipy")
-    from planar_lcp.experiments.pushdata import mit
-    from planar_lcp.experiments.pushdata.outline import clean, signed_distance
+    from planar_lcp.studies.pushdata import mit
+    from planar_lcp.studies.pushdata.outline import clean, signed_distance
 
     root = mit.data_root(argv[0] if argv else None)
     print(f"data: {root}")

@@ -2,7 +2,7 @@
 
     python examples/measurements/pusht_episode_gif.py --env gym_pusht/PushT-v0 --pusht-python PY --seed S --out FILE.gif
 
-gym-pusht's frames are its own render() (pygame), served from its virtualenv (planners/pusht_server.py); ours are
+gym-pusht's frames are its own render() (pygame), served from its virtualenv (planners/environments/gym_pusht_server.py); ours are
 PushT-v0's render(). Every other action is a frame (the episode at 5 frames per second of its 10 Hz actions, played
 at 10 frames per second: twice as fast); the last frame is held for a second. Prints the episode's outcome.
 """
@@ -27,7 +27,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     from PIL import Image
 
-    from planners.pusht import PushTPolicy, SubprocessEnv
+    from planners.environments.gym_pusht_process import SubprocessEnv
+    from planners.pusht import PushTPolicy
     if args.env == "gym_pusht/PushT-v0":
         if not args.pusht_python:
             sys.exit("pusht_episode_gif.py: error: --pusht-python (or $PLANAR_LCP_PUSHT_PYTHON) must name the python "
@@ -35,7 +36,7 @@ def main(argv=None):
         env = SubprocessEnv(args.pusht_python, args.env)
         policy = PushTPolicy("gym_pusht")
     else:
-        from planners.envs import PushTEnv
+        from planners.environments.push_t import PushTEnv
         env = PushTEnv(obs_type="state", render_mode="rgb_array")
         policy = PushTPolicy("planar_lcp")
     obs, _ = env.reset(seed=args.seed)

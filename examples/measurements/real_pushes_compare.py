@@ -16,7 +16,7 @@ leave-one-object-out cross-validation on those four (fit on three objects' pushe
 - "pymunk": pymunk (Chipmunk2D) through planar_lcp's bridge, the fitted coefficients, its friction at the support
   points (docs/pymunk-comparison.md).
 
-Scores (planar_lcp.experiments.pushdata.score): final displacement NMSE (mean over dx, dy in the object's initial frame
+Scores (planar_lcp.studies.pushdata.score): final displacement NMSE (mean over dx, dy in the object's initial frame
 and dtheta), median final position and angle errors, and the rms position error along each push (median over pushes).
 Writes OUT/compare.csv, OUT/compare.md (the table) and OUT/errors.png (the error along each push, per model).
 """
@@ -33,8 +33,8 @@ import numpy as np
 
 def scores(rec, pred, along):
     """The table's scores of N pushes from their recorded and predicted final displacements (N, 3) and each push's
-    rms position error along it (m): planar_lcp.experiments.pushdata.score."""
-    from planar_lcp.experiments.pushdata import score
+    rms position error along it (m): planar_lcp.studies.pushdata.score."""
+    from planar_lcp.studies.pushdata import score
 
     pos, ang = score.final_errors(pred, rec)
     return {"nmse": score.nmse(pred, rec), "median_position_mm": float(np.median(pos)) * 1e3,
@@ -44,14 +44,14 @@ def scores(rec, pred, along):
 
 def predict(push, params, simulator="planar_lcp", support_model=None):
     """(recorded poses (T, 3), predicted poses (T, 3), CPU s) of the object at its recorded times."""
-    from planar_lcp.experiments.pushdata import mit
+    from planar_lcp.studies.pushdata import mit
     from planar_lcp.fitting import predict_run, run_scene
 
     doc = mit.push_scene(push, params)
     rec = mit.push_recording(push)
     c0 = time.thread_time()
     if simulator == "pymunk":
-        from planar_lcp.experiments.pymunk_bridge import simulate_pymunk
+        from planar_lcp.bridges.pymunk import simulate_pymunk
         from planar_lcp.spec.scene import parse_scene
         traj = simulate_pymunk(parse_scene(run_scene(doc, rec)))
         t = rec.t - rec.t[0]
@@ -70,7 +70,7 @@ FITTED = {"fitted": {"support_friction": (0.25, 0.0, 2.0), "pusher_friction": (0
 
 
 def fit_on(pushes, every, kind="fitted"):
-    from planar_lcp.experiments.pushdata import mit
+    from planar_lcp.studies.pushdata import mit
     from planar_lcp.fitting import fit
 
     recs = [mit.push_recording(p) for p in pushes]
@@ -83,7 +83,7 @@ def fit_on(pushes, every, kind="fitted"):
 
 
 def evaluate(pushes, fitted, models, ring=None):
-    from planar_lcp.experiments.pushdata import mit, score
+    from planar_lcp.studies.pushdata import mit, score
 
     out = {}
     for name in models:
@@ -117,7 +117,7 @@ def main(argv=None):
     ap.add_argument("--per-object", type=int, default=None, metavar="N",
                     help="only the first N pushes of each object, by file name (a quick check; default all)")
     args = ap.parse_args(argv)
-    from planar_lcp.experiments.pushdata import mit
+    from planar_lcp.studies.pushdata import mit
 
     models = args.models.split(",")
     files = mit.push_files(args.data)

@@ -12,7 +12,7 @@ bridge's defaults (10 iterations, slop 1e-4 m), and prints for each:
   the number of steps, the vertical COM velocity before (the step before it) and after (its last step), the
   kinetic energy before and after and their ratio, the total energy after (potential m g y, y = 0 the table) and
   the smallest gap between the shapes over the recorded states from the one before the impact to its last
-  (`experiments.compare._pose_gaps`, our collision code at each simulator's poses, as `planar-lcp compare` measures:
+  (`planar_lcp.studies.compare._pose_gaps`, our collision code at each simulator's poses, as `planar-lcp compare` measures:
   positive = the impact acted at a distance, negative = an overlap);
 - apexes: the highest COM point between an impact and the next, the height of the disk's bottom (COM y - r) or of
   the rod's COM above the table, and the ratio to the previous apex (the first to the drop height);
@@ -26,8 +26,8 @@ import math
 
 import numpy as np
 
-from planar_lcp.experiments.compare import _pose_gaps
-from planar_lcp.experiments.pymunk_bridge import simulate_pymunk
+from planar_lcp.studies.compare import _pose_gaps
+from planar_lcp.bridges.pymunk import simulate_pymunk
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import simulate
 from planar_lcp.spec.scene import load_scene, restitution_setting

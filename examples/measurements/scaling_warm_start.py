@@ -7,7 +7,7 @@ Used for docs/performance.md ("Scaling"):
 import statistics
 import time
 
-from planar_lcp.experiments.bench import scaling_scene
+from planar_lcp.benchmarks.bench import scaling_scene
 from planar_lcp.engine.layout import Stat
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator

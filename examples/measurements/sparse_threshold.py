@@ -13,7 +13,7 @@ import argparse
 import numpy as np
 
 from planar_lcp.engine.layout import Stat
-from planar_lcp.experiments.bench import _spread, alternate_rounds
+from planar_lcp.benchmarks.bench import _spread, alternate_rounds
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
 from planar_lcp.spec import piles

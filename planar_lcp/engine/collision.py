@@ -481,7 +481,7 @@ def _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_poi
 def _core_core_ordered(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point):
     """The pair in canonical order. contact_core_core calls this from both of its branches (not once after a swap):
     with two call sites LLVM keeps the point and polygon kernels out of line in every module that links them, and the
-    first simulate() compiles faster (experiments.bench.measure_step_compile_time)."""
+    first simulate() compiles faster (planar_lcp.benchmarks.bench.measure_step_compile_time)."""
     if na == 1:
         return _point_core(va, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point)
     return _poly_poly(va, na, ra, vb, nb, rb, margin, tol, out_phi, out_normal, out_point)

@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from planar_lcp.experiments import bench
-from planar_lcp.experiments.bench import (alternate_rounds, ratio_stats, bench_lcp, bench_scaling, bench_scaling_piles,
+from planar_lcp.benchmarks import bench
+from planar_lcp.benchmarks.bench import (alternate_rounds, ratio_stats, bench_lcp, bench_scaling, bench_scaling_piles,
                                           bench_step, fit_exponent, format_lcp_table, format_scaling_piles_table,
                                           format_scaling_table, format_step_table, pyramid_rows)
 

@@ -13,7 +13,7 @@ from cli_helpers import run_cli
 
 pymunk = pytest.importorskip("pymunk")
 
-from planar_lcp.experiments.pymunk_bridge import build_space, contact_pairs, simulate_pymunk  # noqa: E402
+from planar_lcp.bridges.pymunk import build_space, contact_pairs, simulate_pymunk  # noqa: E402
 from planar_lcp.spec.scene import load_scene, parse_scene, restitution_setting, scenes_dir  # noqa: E402
 
 DISK = str(scenes_dir() / "bouncing_disk.toml")

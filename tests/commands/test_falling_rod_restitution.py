@@ -12,8 +12,8 @@ from cli_helpers import run_cli
 
 import planar_lcp.sim as sim_module
 from planar_lcp.cli import main
-from planar_lcp.experiments.studies import common
-from planar_lcp.experiments.studies import falling_rod as fr
+from planar_lcp.studies import common
+from planar_lcp.studies import falling_rod as fr
 
 SHORT_T_END = 0.45
 

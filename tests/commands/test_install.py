@@ -148,7 +148,7 @@ out = dict(package=planar_lcp.__file__, scenes=str(shipped_dir("scenes")), tasks
            status=[_task_file_status(f"{k}/{n}.toml", document_sha256(read_document(shipped_dir(k) / f"{n}.toml")[0]))
                    for k, n in (("scenes", "push_box"), ("tasks", "push_l"))])
 try:
-    from planners.envs import TASKS_DIR, task_source
+    from planners.environments.task_env import TASKS_DIR, task_source
     out.update(tasks_dir=str(TASKS_DIR), push_l_env=str(task_source("push_l")))
 except ImportError:
     pass

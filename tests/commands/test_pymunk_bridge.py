@@ -15,7 +15,7 @@ import pytest
 pymunk = pytest.importorskip("pymunk")
 
 from planar_lcp.spec.massprops import body_area_properties, body_mass_properties  # noqa: E402
-from planar_lcp.experiments.pymunk_bridge import (build_space, contact_pairs, friction_assignment,  # noqa: E402
+from planar_lcp.bridges.pymunk import (build_space, contact_pairs, friction_assignment,  # noqa: E402
                                                   read_state, simulate_pymunk)
 from planar_lcp.spec.scene import list_scenes, load_scene, parse_scene  # noqa: E402
 
@@ -357,7 +357,7 @@ def test_box_push_turns_the_box_in_pymunk_the_way_the_push_torque_says():
 
 def test_compare_writes_its_files_and_the_report_has_the_promised_columns(tmp_path, capsys):
     from planar_lcp.cli import main
-    from planar_lcp.experiments.compare import REPORT_COLUMNS
+    from planar_lcp.studies.compare import REPORT_COLUMNS
     out = tmp_path / "cmp"
     assert main(["compare", "falling_rod", "--out", str(out), "--t-end", "0.05", "--iterations", "5"]) == 0
     for f in ("report.md", "report.csv", "trajectories.png", "frames.png", "side_by_side.gif"):
@@ -390,9 +390,9 @@ def test_compare_rejects_a_bad_scene_name_with_exit_2(tmp_path, capsys):
 
 
 def test_cli_and_bridge_imports_do_not_pull_in_pymunk_or_matplotlib():
-    code = ("import sys, planar_lcp, planar_lcp.cli, planar_lcp.experiments.compare, "
-            "planar_lcp.experiments.compare_cli\n"
-            "import planar_lcp.experiments.compare_plots, planar_lcp.experiments.pymunk_bridge, planar_lcp.geometry\n"
+    code = ("import sys, planar_lcp, planar_lcp.cli, planar_lcp.studies.compare, "
+            "planar_lcp.studies.compare_cli\n"
+            "import planar_lcp.studies.compare_plots, planar_lcp.bridges.pymunk, planar_lcp.geometry\n"
             "planar_lcp.cli.build_parser()\n"
             "print(','.join(m for m in ('pymunk', 'matplotlib') if m in sys.modules))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()

@@ -385,7 +385,7 @@ def test_replay_pymunk(plan_file, tmp_path):
 
 
 def check_records(p, runs):
-    """A record file (planar_lcp.experiments.records): every line JSON, a header first, `runs` runs."""
+    """A record file (planar_lcp.parallel.records): every line JSON, a header first, `runs` runs."""
     lines = [json.loads(line) for line in Path(p).read_text().splitlines()]
     assert "header" in lines[0] and sum(1 for line in lines if "run" in line) == runs, p
     return lines

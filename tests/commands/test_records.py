@@ -1,4 +1,4 @@
-"""The record file of plan-bench and tradeoff (planar_lcp.experiments.records): each run appended and
+"""The record file of plan-bench and tradeoff (planar_lcp.parallel.records): each run appended and
 fsynced as it arrives, read back exactly, a line cut short by a crash ignored with a note and cut off on resume, any
 other damage refused; the checks --resume and a new benchmark make before any work; the interrupt's one line."""
 
@@ -9,8 +9,8 @@ import os
 import pytest
 
 from planar_lcp import cli
-from planar_lcp.experiments import records
-from planar_lcp.experiments.records import (RECORDS, BenchmarkInterrupted, RecordFileError, RecordWriter,
+from planar_lcp.parallel import records
+from planar_lcp.parallel.records import (RECORDS, BenchmarkInterrupted, RecordFileError, RecordWriter,
                                             count_finished, prepare, read_records, stopped_message)
 
 HEADER = {"command": "plan-bench", "task": "tip_box", "planners": ["RRT", "EST"], "runs": 2}
@@ -151,7 +151,7 @@ def test_the_benchmark_headers_name_each_difference():
         ("a budget of 20000 iterations per run", "a budget of 60 s per run")]
     assert bench_differences(dict(old, command="tradeoff"), old) == [("planar-lcp tradeoff", "planar-lcp plan-bench")]
 
-    from planar_lcp.experiments.tradeoff import _settings, header_differences, tradeoff_header
+    from planar_lcp.benchmarks.tradeoff import _settings, header_differences, tradeoff_header
     plans = [(name, *_settings(name, True)) for name in ("falling_rod", "box_push")]
     h = tradeoff_header(plans, True, 1)
     assert h["settings"] == 12 and header_differences(h, dict(h, scenes=["box_push", "falling_rod"])) == []

@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 from planar_lcp.cli import main
 from planar_lcp.sim import simulate
-from planar_lcp.experiments.accuracy import grid_ratio, table1_errors
-from planar_lcp.experiments.tradeoff import (COLUMNS, QUICK_SUPPORT_SWEEP, REFERENCE_SUPPORT, _settings,
+from planar_lcp.studies.accuracy import grid_ratio, table1_errors
+from planar_lcp.benchmarks.tradeoff import (COLUMNS, QUICK_SUPPORT_SWEEP, REFERENCE_SUPPORT, _settings,
                                              pareto_front, plot_pareto, support_series)
 
 #: the CSV columns as docs/tradeoff.md documents them (the contract: readers find the columns by these names)

@@ -1,4 +1,4 @@
-"""The Gymnasium environments (planners/envs.py, docs/gym.md): planar_lcp/PushT-v0 and planar_lcp/Task-v0.
+"""The Gymnasium environments (planners/environments/, docs/gym.md): planar_lcp/PushT-v0 and planar_lcp/Task-v0.
 
 Checked by Gymnasium's own env_checker, against analytic oracles (gym-pusht's reset geometry, the PD law, the
 coverage of shifted Ts, the table's deceleration bound, momentum without friction), against the planner's own
@@ -20,7 +20,8 @@ gym = pytest.importorskip("gymnasium")
 pytest.importorskip("shapely")
 
 import planners  # noqa: E402  (registers the environments)
-from planners.envs import GOAL_POSE, K_P, K_V, OBS_TYPES, TASKS_DIR  # noqa: E402
+from planners.environments.push_t import GOAL_POSE, K_P, K_V, OBS_TYPES  # noqa: E402
+from planners.environments.task_env import TASKS_DIR  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 ALL_TASKS = planners.shipped_tasks() + sorted(p.stem for p in TASKS_DIR.glob("*.toml"))
@@ -42,7 +43,7 @@ def test_import_planners_registers_both_ids_without_importing_ompl_or_the_envs()
     code = ("import sys, gymnasium, planners; "
             "assert 'planar_lcp/PushT-v0' in gymnasium.registry and 'planar_lcp/Task-v0' in gymnasium.registry; "
             "assert gymnasium.registry['planar_lcp/PushT-v0'].max_episode_steps == 300; "
-            "assert 'ompl' not in sys.modules and 'planners.envs' not in sys.modules; print('ok')")
+            "assert 'ompl' not in sys.modules and 'planners.environments.push_t' not in sys.modules and 'planners.environments.task_env' not in sys.modules; print('ok')")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr
 
@@ -303,7 +304,7 @@ def test_raster_fills_exactly_the_pixel_centres_inside_each_shape():
     import shapely
     from shapely.geometry import MultiPoint
 
-    from planners.raster import Raster
+    from planners.environments.raster import Raster
     rng = np.random.default_rng(0)
     for y_down in (True, False):
         r = Raster(37, 29, -1.0, 2.0, 0.5, 3.0, y_down=y_down)

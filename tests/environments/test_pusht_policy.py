@@ -19,8 +19,9 @@ from cli_helpers import run_cli
 gym = pytest.importorskip("gymnasium")
 pytest.importorskip("shapely")
 
-from planners.envs import PushTEnv  # noqa: E402
-from planners.pusht import PushTPolicy, _outline_points, _sdf, run_episode  # noqa: E402
+from planners.environments.push_t import PushTEnv  # noqa: E402
+from planners.environments.pusht_eval import run_episode  # noqa: E402
+from planners.pusht import PushTPolicy, _outline_points, _sdf  # noqa: E402
 
 
 def test_the_policy_tracks_the_pushers_velocity_as_the_environment_does():
@@ -151,7 +152,7 @@ def test_pusht_eval_in_gym_pushts_own_environment(tmp_path):
 def test_a_python_without_gym_pusht_cannot_serve_it():
     import sys
 
-    from planners.pusht import SubprocessEnv
+    from planners.environments.gym_pusht_process import SubprocessEnv
     import importlib.util
     if importlib.util.find_spec("gym_pusht") is not None:
         pytest.skip("gym_pusht imports in this python")

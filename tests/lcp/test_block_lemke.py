@@ -11,7 +11,7 @@ import pytest
 from planar_lcp.engine.layout import Stat
 from planar_lcp.engine.solvers.block_lemke import block_lemke, make_block_work
 from planar_lcp.engine.solvers.lemke import STATUS_MAX_PIVOTS, STATUS_SOLVED, default_max_pivots, lemke_solve
-from planar_lcp.experiments.lcp_corpus import find_corpus_dir, load_corpus
+from planar_lcp.benchmarks.lcp_corpus import find_corpus_dir, load_corpus
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from planar_lcp.lcp import lemke
-from planar_lcp.experiments.lcp_corpus import (expectation, find_corpus_dir, load_corpus, read_siconos_fc2d,
+from planar_lcp.benchmarks.lcp_corpus import (expectation, find_corpus_dir, load_corpus, read_siconos_fc2d,
                                                read_siconos_lcp)
 
 _dir = find_corpus_dir()
@@ -172,7 +172,7 @@ def test_same_results_without_the_jit(corpus_dir):
     code = (
         "import json, numpy as np\n"
         "from planar_lcp.lcp import lemke\n"
-        "from planar_lcp.experiments.lcp_corpus import load_corpus\n"
+        "from planar_lcp.benchmarks.lcp_corpus import load_corpus\n"
         "out = {}\n"
         "for i in load_corpus():\n"
         "    r = lemke(i.M, i.q)\n"

@@ -61,7 +61,7 @@ def ids(pages):
 def test_paths_named_in_the_docs_exist(page):
     text = page.read_text()
     missing = []
-    for m in re.finditer(r"(?<![\w/.])((?:planar_lcp|planners|tests|examples|scenes|docs|engine|spec|experiments"
+    for m in re.finditer(r"(?<![\w/.])((?:planar_lcp|planners|tests|examples|scenes|docs|engine|spec|studies|benchmarks|bridges|parallel"
                          r"|kernels)/[\w/.-]*\w)", text):
         path = m.group(1).split("::")[0]
         if path in ("scenes/x.toml", "scenes/NAME.toml"):       # placeholders in examples

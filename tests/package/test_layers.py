@@ -4,8 +4,8 @@
 - planar_lcp/frames.py (rotations, body frame <-> centre of mass) imports nothing of planar_lcp: every layer above
   the engine may use it;
 - planar_lcp/spec/ imports nothing of planar_lcp outside spec/ but frames.py (it runs no simulation);
-- the core (every other module of planar_lcp except viz, cli and experiments/) imports none of viz, cli,
-  experiments; nothing in planar_lcp imports planners (test_package.py also checks that it never names them) or
+- the core (every other module of planar_lcp except viz, cli, bridges/, studies/, benchmarks/ and parallel/) imports
+  none of them; nothing in planar_lcp imports planners (test_package.py also checks that it never names them) or
   ompl (the planners alone do).
 """
 
@@ -47,7 +47,8 @@ def imported_modules(path):
 
 def layer(name):
     parts = name.split(".")
-    if len(parts) > 1 and parts[1] in ("engine", "spec", "experiments", "viz", "cli", "frames"):
+    if len(parts) > 1 and parts[1] in ("engine", "spec", "bridges", "studies", "benchmarks", "parallel", "viz",
+                                            "cli", "frames"):
         return parts[1]
     return "core"
 
@@ -151,7 +152,9 @@ def test_no_import_circle():
                                                         "planar_lcp.engine.solvers.certificate"}
 
 
-ROOM_NAMES = {"planners": "`planners/`", "experiments": "`planar_lcp/experiments/`", "cli": "`planar_lcp/cli.py`",
+ROOM_NAMES = {"planners": "`planners/`", "environments": "`planners/environments/`",
+              "studies": "`planar_lcp/studies/`", "benchmarks": "`planar_lcp/benchmarks/`",
+              "bridges": "`planar_lcp/bridges/`", "parallel": "`planar_lcp/parallel/`", "cli": "`planar_lcp/cli.py`",
               "viz": "`planar_lcp/viz.py`", "core": "core", "compilation": "`planar_lcp/compilation/`",
               "spec": "`planar_lcp/spec/`", "geometry": "`planar_lcp/geometry.py`", "frames": "`planar_lcp/frames.py`",
               "engine": "`planar_lcp/engine/`"}
@@ -160,7 +163,7 @@ ROOM_NAMES = {"planners": "`planners/`", "experiments": "`planar_lcp/experiments
 def _room(module):
     parts = module.split(".")
     if parts[0] == "planners":
-        return "planners"
+        return "environments" if parts[1:2] == ["environments"] else "planners"
     if len(parts) > 1 and parts[1] in ROOM_NAMES:
         return parts[1]
     return "core"

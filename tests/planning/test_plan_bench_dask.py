@@ -64,7 +64,7 @@ def test_plan_bench_on_a_cluster_matches_the_local_one(cluster, tmp_path):
     assert remote["scheduler"] == address and set(remote["workers"]) <= set(workers.values())
     assert all(rec["worker"] in workers.values() for rec in remote["records"])
     # the OMPL log names the machine and CPU the workers ran on, as OMPL's Benchmark writes them
-    from planar_lcp.experiments.cluster import host_info
+    from planar_lcp.parallel.cluster import host_info
     host, cpu = host_info()
     log = (tmp_path / "remote" / "push_box.log").read_text()
     assert f"Running on {host}\n" in log and cpu in log
@@ -410,7 +410,7 @@ def test_tradeoff_refuses_jobs_with_a_scheduler(tmp_path):
 def test_an_unreachable_scheduler_is_named_and_nothing_else_is_blamed_on_it():
     """open_cluster turns distributed's connect failure into SchedulerUnreachable, naming the address; the commands
     report only that as a --scheduler error (any other OSError is not theirs to relabel)."""
-    from planar_lcp.experiments.cluster import SchedulerUnreachable, local_jobs, open_cluster
+    from planar_lcp.parallel.cluster import SchedulerUnreachable, local_jobs, open_cluster
     with pytest.raises(SchedulerUnreachable, match=r"^--scheduler tcp://127\.0\.0\.1:1: "):
         open_cluster("tcp://127.0.0.1:1", timeout=2)
     assert local_jobs(None, 3) == min(os.cpu_count(), 3) and local_jobs(5, 2) == 2 and local_jobs(0) >= 1

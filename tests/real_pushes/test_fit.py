@@ -50,7 +50,7 @@ def recordings(noise=0.0, seed=0):
         traj = simulate(doc)
         poses = np.stack([traj.q[:, 0], traj.qk[:, 0]], axis=1)
         # noise on every observation but the start, which is an input of the run (a reader reconciles a real
-        # recording's start, e.g. planar_lcp.experiments.pushdata)
+        # recording's start, e.g. planar_lcp.studies.pushdata)
         poses[1:, 0] += noise * rng.normal(size=poses[1:, 0].shape) * np.array([1.0, 1.0, 10.0])
         runs.append(Run(t=traj.t, names=("box", "pusher"), poses=poses, source=f"push{i}"))
     assert truth["bodies"][0]["support_friction"] == 0.35

@@ -79,7 +79,7 @@ def test_a_force_limited_body_below_its_limit_follows_the_path_as_a_prescribed_o
 
 def test_pymunk_moves_the_body_along_the_same_path():
     pytest.importorskip("pymunk")
-    from planar_lcp.experiments.pymunk_bridge import simulate_pymunk
+    from planar_lcp.bridges.pymunk import simulate_pymunk
 
     scene = parse_scene(push_doc(WIGGLE))
     ours, theirs = simulate(scene), simulate_pymunk(scene)
@@ -92,7 +92,7 @@ def test_pymunk_moves_the_body_along_the_same_path():
 def test_the_timed_pymunk_unit_moves_the_body_along_the_path_as_the_recorded_run():
     """`bench step`'s pymunk unit (PymunkRun: a whole run without recording) ends where simulate_pymunk does."""
     pytest.importorskip("pymunk")
-    from planar_lcp.experiments.pymunk_bridge import PymunkRun, read_state, simulate_pymunk
+    from planar_lcp.bridges.pymunk import PymunkRun, read_state, simulate_pymunk
 
     scene = parse_scene(push_doc(WIGGLE))
     run = PymunkRun(scene, 40)

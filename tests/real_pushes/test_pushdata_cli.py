@@ -1,4 +1,4 @@
-"""`planar-lcp pushdata predict` and `fit` (planar_lcp.experiments.pushdata: cli, score, model_file).
+"""`planar-lcp pushdata predict` and `fit` (planar_lcp.studies.pushdata: cli, score, model_file).
 
 Without the data: the scores against hand-computed values; the model file's round trip and each of its errors; both
 commands end to end on a small data root in the data set's layout made by our own simulator
@@ -20,8 +20,8 @@ import pytest
 
 from cli_helpers import ROOT, ctrl_c_cli, group_size, run_cli
 from mit_data import DATA, needs_data
-from planar_lcp.experiments.pushdata import mit, score
-from planar_lcp.experiments.pushdata.model_file import FORMAT, ModelFileError, read_model, write_model
+from planar_lcp.studies.pushdata import mit, score
+from planar_lcp.studies.pushdata.model_file import FORMAT, ModelFileError, read_model, write_model
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -251,7 +251,7 @@ def test_fit_on_a_local_dask_cluster_gives_the_same_bits(synthetic, tmp_path):
 def test_a_parameter_fitted_through_a_setter_gives_the_same_bits(synthetic):
     """fit_setup's setters (for parameters mit.push_scene does not write as one scene key) rebuild each push's scene
     with push_scene: the two frictions fitted that way give the scene keys' result bit for bit."""
-    from planar_lcp.experiments.pushdata.cli import fit_setup
+    from planar_lcp.studies.pushdata.cli import fit_setup
     from planar_lcp.fitting import fit
     root, files = synthetic
     pushes = [mit.read_push(f, root) for f in files]
@@ -424,7 +424,7 @@ def twelve_pushes(tmp_path_factory):
 
 # Ctrl-C 0.2 s after the cluster's two worker processes appear (the command's process group holds three: the client
 # is connecting, the workers starting) and 3 s after, inside the fit. Not sooner: the command ignores SIGINT for the
-# 30 to 40 ms in which it starts them (planar_lcp.experiments.cluster.open_cluster)
+# 30 to 40 ms in which it starts them (planar_lcp.parallel.cluster.open_cluster)
 @pytest.mark.slow   # a local cluster started and stopped: about 10 s each
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="counts the command's processes in /proc")
 @pytest.mark.parametrize("after", [0.2, 3.0])

@@ -1,4 +1,4 @@
-"""The MIT pushing data set's reader (planar_lcp.experiments.pushdata): outlines as convex pieces, the signed
+"""The MIT pushing data set's reader (planar_lcp.studies.pushdata): outlines as convex pieces, the signed
 distance, rotational symmetry and registration checked on synthetic outlines to round-off; on the data (read from
 ../shared, never copied here; every data test skips cleanly when it is absent): the streams, the contact onsets, each
 object's registration, the start overlaps reconciled, the scene and recording of every push."""
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from mit_data import DATA, needs_data
-from planar_lcp.experiments.pushdata import mit
-from planar_lcp.experiments.pushdata.outline import (Registration, centroid, clean, convex_pieces, is_convex_ccw,
+from planar_lcp.studies.pushdata import mit
+from planar_lcp.studies.pushdata.outline import (Registration, centroid, clean, convex_pieces, is_convex_ccw,
                                                      register_outline, rotational_symmetry, signed_area,
                                                      signed_distance)
 from planar_lcp.spec.recordings import read_recording
@@ -263,7 +263,7 @@ def test_an_overlap_at_the_start_moves_the_pusher_out_and_a_deep_one_is_refused(
 
 def test_a_missing_h5py_names_the_extra(tmp_path):
     code = ("import sys\nsys.modules['h5py'] = None\n"
-            "from planar_lcp.experiments.pushdata import mit\n"
+            "from planar_lcp.studies.pushdata import mit\n"
             "mit.read_push('motion_surface=abs_shape=rect1_a=0_v=20_i=0.000_s=0.675_t=0.349.h5')\n")
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=env,

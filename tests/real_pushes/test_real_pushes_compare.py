@@ -1,7 +1,7 @@
 """examples/measurements/real_pushes_compare.py (docs/real_pushes.md, "How close we are") end to end on a few pushes of the MIT
 pushing data set (read from ../shared; skipped cleanly when it is absent): its table holds the rows it promises, no
 butter push is fitted on, and its "defaults" row is the score of what `planar-lcp pushdata predict` writes for the
-same pushes (an independent path: the CLI's CSV through planar_lcp.experiments.pushdata.score)."""
+same pushes (an independent path: the CLI's CSV through planar_lcp.studies.pushdata.score)."""
 
 import csv
 import subprocess
@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @needs_data
 def test_the_comparison_on_two_pushes_per_object(tmp_path):
-    from planar_lcp.experiments.pushdata import mit, score
+    from planar_lcp.studies.pushdata import mit, score
 
     out = tmp_path / "cmp"
     r = subprocess.run([sys.executable, str(ROOT / "examples" / "measurements" / "real_pushes_compare.py"), "--data", str(DATA),

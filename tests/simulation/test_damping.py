@@ -69,7 +69,7 @@ def test_pymunk_decays_the_same_way_through_the_bridge():
     """The same velocities; Chipmunk moves a body by the velocity it has at the START of a step (then damps it),
     ours by the one at its end, so pymunk's pose after step n is ours after step n - 1 plus h v0."""
     pytest.importorskip("pymunk")
-    from planar_lcp.experiments.pymunk_bridge import simulate_pymunk
+    from planar_lcp.bridges.pymunk import simulate_pymunk
     scene = parse_scene(free_doc(0.3, omega=0.0))
     ours, theirs = simulate(scene), simulate_pymunk(scene)
     assert np.abs(theirs.v_com - ours.v_com).max() < 1e-12

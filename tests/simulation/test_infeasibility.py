@@ -64,7 +64,7 @@ def test_farkas_certifies_a_head_on_jam_and_nothing_feasible():
 
 
 def test_branch_and_bound_agrees_with_the_corpus_enumeration():
-    from planar_lcp.experiments.lcp_corpus import find_corpus_dir, load_corpus
+    from planar_lcp.benchmarks.lcp_corpus import find_corpus_dir, load_corpus
     corpus = find_corpus_dir()
     if corpus is None:
         pytest.skip("the LCP corpus (../shared/data/lcp) is absent")

@@ -148,10 +148,10 @@ def test_sparse_min_unknowns_is_checked():
 
 
 def test_the_box2d_world_is_the_scene():
-    """The Box2D peer (experiments/box2d_bridge.py) starts where our run starts: the same poses (to float32), masses,
+    """The Box2D peer (planar_lcp/bridges/box2d.py) starts where our run starts: the same poses (to float32), masses,
     moments of inertia and friction, and falls as it should in free flight."""
     pytest.importorskip("pyb2d3")
-    from planar_lcp.experiments.box2d_bridge import box2d_poses, box2d_world
+    from planar_lcp.bridges.box2d import box2d_poses, box2d_world
     model = compile_scene(parse_scene(piles.pyramid(3)))
     world, bodies = box2d_world(model)
     np.testing.assert_allclose(box2d_poses(bodies), model.q0, rtol=0, atol=1e-6)
@@ -209,10 +209,10 @@ def test_a_tower_of_64_runs_in_little_memory():
 
 
 def test_bench_pile_measures_both_simulators():
-    """`planar-lcp bench pile` (experiments/bench.py `bench_pile`) on a small tower: each row has both simulators'
+    """`planar-lcp bench pile` (planar_lcp/benchmarks/bench.py `bench_pile`) on a small tower: each row has both simulators'
     times, the per-round ratio, and whether each tower stood."""
     pytest.importorskip("pyb2d3")
-    from planar_lcp.experiments.bench import bench_pile, format_pile_table
+    from planar_lcp.benchmarks.bench import bench_pile, format_pile_table
     rows = bench_pile(scenes=(("tower_4", lambda: piles.tower(4)),), steps=10, rounds=2)
     assert {r["box2d_substeps"] for r in rows} >= {4}
     for r in rows:

@@ -177,7 +177,7 @@ def test_the_pymunk_bridge_makes_a_force_limited_pusher_a_servo():
     """pymunk's mapping: a dynamic body held to a kinematic control body by a PivotJoint with max_force (and a
     GearJoint); in the stall it stops short of where the prescribed motion would take it, near where ours stops."""
     pytest.importorskip("pymunk")
-    from planar_lcp.experiments.pymunk_bridge import build_space, simulate_pymunk
+    from planar_lcp.bridges.pymunk import build_space, simulate_pymunk
     space, handles = build_space(push_scene(5.0, t_end=0.5))
     pivot, gear = handles.servo_joints["pusher"]
     assert pivot.max_force == 5.0 and pivot.max_bias == 0.0 and gear.max_force == float("inf")

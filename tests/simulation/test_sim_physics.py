@@ -311,7 +311,7 @@ def test_nearly_degenerate_flat_rod_lcp_false_ray_and_its_certified_solutions():
     of that step. With the (optional) warm start, the previous step's basis solves it without Lemke."""
     from planar_lcp import lemke
     from planar_lcp.spec.scene import load_scene
-    from planar_lcp.experiments.studies.common import shift_scene
+    from planar_lcp.studies.common import shift_scene
     sc = shift_scene(load_scene("falling_rod"), 0.017148085531751386)
     tr = simulate(sc, h=0.005)   # raises on failure
     assert tr.stats["solved_equilibrated"][108] == 1 and tr.stats["lemke_retries"][108] == 1

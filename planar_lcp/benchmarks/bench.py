@@ -14,7 +14,7 @@ import numpy as np
 from planar_lcp.compilation.notice import COLD_START_SECONDS
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES, lemke_kernel, make_lemke_work
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, default_max_pivots, lemke
-from planar_lcp.experiments.lcp_corpus import load_corpus
+from planar_lcp.benchmarks.lcp_corpus import load_corpus
 
 
 #: The clock of every timed round: CPU time of the calling thread. Wall clock on a shared machine counts the time
@@ -282,7 +282,7 @@ def measure_step_compile_time():
 def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_ROUND_S, progress=None):
     """Microseconds per step of our stepper (one jitted rollout over the scene's duration, warm JIT), with its defaults
     and with the LCP warm start the planners use, and, in the same process, of pymunk on the same scene and h through
-    planar_lcp.experiments.pymunk_bridge (10 iterations, its defaults).
+    planar_lcp.bridges.pymunk (10 iterations, its defaults).
 
     The three are timed in `rounds` alternating rounds of thread CPU time (`alternate_rounds`): ours, ours warm-started,
     pymunk, ours, ... each round a fixed number of whole runs. `ratio` (`warm_ratio`) is the median over rounds of
@@ -299,7 +299,7 @@ def bench_step(scenes=STEP_SCENES, rounds=ROUNDS, pymunk=True, min_round_s=MIN_R
     from planar_lcp.spec.scene import load_scene
     from planar_lcp.sim import SimOptions, Simulator, simulate
     from planar_lcp.engine.layout import Stat
-    from planar_lcp.experiments.pymunk_bridge import PymunkRun
+    from planar_lcp.bridges.pymunk import PymunkRun
     from planar_lcp.spec.path import kinematic_velocities
     rows = []
     for i, name in enumerate(scenes):
@@ -391,7 +391,7 @@ def format_step_table(rows, compile_times=None):
         lines.append(f"CPU time of other threads during the rounds: at most {100 * other:.1f} % of the timed "
                      "thread's (not counted in the times)")
     if any("ratio" in r for r in rows):
-        lines.append("target: ratio <= 1.0 on each scene (pymunk through planar_lcp.experiments.pymunk_bridge, 10 "
+        lines.append("target: ratio <= 1.0 on each scene (pymunk through planar_lcp.bridges.pymunk, 10 "
                      "iterations); ours with the defaults, then with SimOptions(warm_start=True) as the planners "
                      "run it")
     if compile_times:
@@ -851,7 +851,7 @@ def _penetration(model, q):
 def _box2d_run(model, substeps, steps, h):
     """Box2D's whole run: (top-box drift (m), deepest penetration over the run at the end of every step, as ours is
     measured: Stat.PENETRATION, the deepest at each step's q+)."""
-    from planar_lcp.experiments.box2d_bridge import box2d_poses, box2d_world
+    from planar_lcp.bridges.box2d import box2d_poses, box2d_world
     world, bodies = box2d_world(model)
     q0 = box2d_poses(bodies)
     pen = 0.0
@@ -870,7 +870,7 @@ class _Box2dRunner:
         self.worlds = []
 
     def prepare(self, k):
-        from planar_lcp.experiments.box2d_bridge import box2d_world
+        from planar_lcp.bridges.box2d import box2d_world
         self.worlds = [box2d_world(self.model)[0] for _ in range(k)]
 
     def __call__(self):

@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 
-from planar_lcp.experiments.accuracy import table1_errors
+from planar_lcp.studies.accuracy import table1_errors
 
 #: Stewart & Trinkle's step sizes (their Table 1); the finest is the reference solution.
 SEED_STEPS = (0.02, 0.01, 0.005, 0.0025, 0.00125)

@@ -4,7 +4,7 @@
 Each episode is `reset(seed=SEED + i)` of the environment as registered (its TimeLimit: 300 actions) and the policy
 acting until the environment says it succeeded (coverage > 0.95) or truncates. gym-pusht's environment runs in this
 process when gym_pusht imports here, else under `--pusht-python` ($PLANAR_LCP_PUSHT_PYTHON) through
-planners/pusht_server.py. With --jobs or --scheduler the episodes are Dask tasks, a chunk of seeds each.
+planners/environments/gym_pusht_server.py. With --jobs or --scheduler the episodes are Dask tasks, a chunk of seeds each.
 """
 
 import csv
@@ -30,7 +30,7 @@ def default_world(env_id):
 
 def make_env(env_id, pusht_python=None, env_kwargs=None):
     """The environment (obs_type "state"): ours through gymnasium.make; gym-pusht's in this process when it imports,
-    else in `pusht_python` (planners.pusht.SubprocessEnv). Returns (env, gym-pusht's version or None)."""
+    else in `pusht_python` (planners.environments.gym_pusht_process.SubprocessEnv). Returns (env, gym-pusht's version or None)."""
     import gymnasium as gym
     if env_id == "planar_lcp/PushT-v0":
         import planners  # noqa: F401  (registers planar_lcp/PushT-v0)
@@ -44,15 +44,39 @@ def make_env(env_id, pusht_python=None, env_kwargs=None):
     if not pusht_python:
         raise RuntimeError(f"{env_id}: gym_pusht does not import here; give --pusht-python (or "
                            f"$PLANAR_LCP_PUSHT_PYTHON), the python of a virtualenv with gym-pusht==0.1.8")
-    from .pusht import SubprocessEnv
+    from .gym_pusht_process import SubprocessEnv
     env = SubprocessEnv(pusht_python, env_id)
     return env, env.version
+
+
+def run_episode(env, policy, seed=None, options=None, max_steps=300):
+    """One episode of `env` (a gymnasium PushT-v0, obs_type "state") driven by `policy`: a dict with success (as
+    the env says it), the final and best coverage, the actions taken, and the policy's compute per action (s, thread
+    CPU time)."""
+    obs, info = env.reset(seed=seed, options=options)
+    policy.reset()
+    compute, cover, success = [], 0.0, False
+    best = 0.0
+    for k in range(max_steps):
+        action = policy(obs)
+        compute.append(policy.compute_s)
+        obs, reward, terminated, truncated, info = env.step(action)
+        cover = float(info.get("coverage", 0.0))
+        best = max(best, cover)
+        if terminated:
+            success = bool(info.get("is_success", terminated))
+            break
+        if truncated:
+            break
+    return {"seed": seed, "success": success, "coverage": cover, "best_coverage": best, "actions": k + 1,
+            "compute_median_s": float(np.median(compute)), "compute_max_s": float(np.max(compute)),
+            "replans": policy.replans}
 
 
 def run_chunk(env_id, world, seeds, first_episode, pusht_python=None, env_kwargs=None, on_row=None):
     """Episodes of seeds `seeds` (a Dask task, or in this process) in one environment with one policy: one row
     (COLUMNS) per episode; `on_row(row)` is called as each ends."""
-    from .pusht import PushTPolicy, run_episode
+    from ..pusht import PushTPolicy
     env, _ = make_env(env_id, pusht_python, env_kwargs)
     policy = PushTPolicy(world=world)
     rows = []
@@ -98,7 +122,7 @@ def evaluate(env_id, episodes, seed, out, world=None, pusht_python=None, env_kwa
     if jobs is None and scheduler is None:
         run_chunk(env_id, world, seeds, 0, pusht_python, env_kwargs, on_row=report_one)
     else:
-        from planar_lcp.experiments.cluster import close_cluster, local_jobs, open_cluster
+        from planar_lcp.parallel.cluster import close_cluster, local_jobs, open_cluster
         client, cluster = open_cluster(scheduler, local_jobs(jobs, len(seeds)))
         try:
             workers = max(1, len(client.scheduler_info()["workers"]))

@@ -104,9 +104,9 @@ def fmt(x):
 def measure(scene, *, h, t_end, settings, repeats=3):
     """Both runs of `scene` and their REPORT_COLUMNS rows (one per simulator and dynamic body).
 
-    settings: pymunk's (`pymunk_bridge.build_space`). Returns (ours, pymunk, rows): two Trajectory and the rows.
+    settings: pymunk's (`planar_lcp.bridges.pymunk.build_space`). Returns (ours, pymunk, rows): two Trajectory and the rows.
     """
-    from planar_lcp.experiments import pymunk_bridge as pb
+    from planar_lcp.bridges import pymunk as pb
     from planar_lcp.model import compile_scene
     from planar_lcp.sim import simulate
 
@@ -193,7 +193,7 @@ def run_compare(scene, out, *, h=None, t_end=None, iterations=None, collision_sl
 
     Returns a dict: rows (list of dicts, the CSV), files (paths written), ours and pymunk (each a Trajectory).
     """
-    from planar_lcp.experiments.compare_plots import animate_side_by_side, plot_frames, plot_overlay
+    from planar_lcp.studies.compare_plots import animate_side_by_side, plot_frames, plot_overlay
     from planar_lcp.spec.scene import Scene, load_scene
 
     if not isinstance(scene, Scene):

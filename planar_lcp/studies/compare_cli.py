@@ -1,4 +1,4 @@
-"""`planar-lcp compare SCENE --out DIR`: the command over `experiments.compare` (see that module for the files)."""
+"""`planar-lcp compare SCENE --out DIR`: the command over `planar_lcp.studies.compare` (see that module for the files)."""
 
 import math
 import sys
@@ -26,7 +26,7 @@ def _command_line(args):
 
 def _cmd_compare(args):
     from planar_lcp.cli_support import SIMULATE_FLAGS, InputError, prepare_output_dir
-    from planar_lcp.experiments.compare import fmt, run_compare
+    from planar_lcp.studies.compare import fmt, run_compare
     from planar_lcp.sim import SimulationError
     from planar_lcp.spec.scene import SceneError, load_scene, restitution_setting, sim_settings
 

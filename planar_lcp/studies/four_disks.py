@@ -9,7 +9,7 @@ import os
 
 import numpy as np
 
-from planar_lcp.experiments.studies import common
+from planar_lcp.studies import common
 from planar_lcp.viz import new_figure
 
 TITLE = "four disks (seed 4.2, elevation)"

@@ -1,6 +1,6 @@
 """Build a pymunk (Chipmunk2D) space from a planar_lcp Scene and run it, for apples-to-apples comparisons.
 
-pymunk is imported inside the functions only: `import planar_lcp.experiments.pymunk_bridge` does not need pymunk.
+pymunk is imported inside the functions only: `import planar_lcp.bridges.pymunk` does not need pymunk.
 
 Mapping (docs/pymunk-comparison.md says more):
 
@@ -469,7 +469,7 @@ def simulate_pymunk(scene, *, t_end=None, h=None, **settings) -> Trajectory:
 class PymunkRun:
     """One unit of pymunk work to time: `nsteps` steps of h on a fresh space of the scene, a whole run from the
     initial state as our rollout is timed, without recording. `prepare(k)` builds the spaces of the next k units, so
-    that a caller can keep building them out of its clock (`experiments.bench` calls it before each round)."""
+    that a caller can keep building them out of its clock (`planar_lcp.benchmarks.bench` calls it before each round)."""
 
     def __init__(self, scene, nsteps, *, h=None, **settings):
         self.scene = scene if isinstance(scene, Scene) else load_scene(scene)

@@ -1,12 +1,9 @@
-"""Gymnasium environments on our physics (docs/gym.md): `planar_lcp/PushT-v0` and `planar_lcp/Task-v0`.
+"""`planar_lcp/PushT-v0` (docs/gym.md): gym-pusht's Push-T on our physics.
 
-`import planners` registers both ids when gymnasium is installed (the `gym` extra); this module is imported only by
-`gymnasium.make` (the registrations name it by string), so importing planners never imports it nor ompl.
-
-PushT-v0 keeps gym-pusht's interface (its arena, units, action, observations, reward, goal and episode length) over
-the push_t scene's T on a table with limit-surface friction, the pusher a kinematic disk of our simulator. Task-v0
-makes any task file an environment: the planner's state, the pusher's velocity as the action, held for the task's
-step duration, exactly as the planner propagates it (TaskModel.advance).
+It keeps gym-pusht's interface (its arena, units, action, observations, reward, goal and episode length) over the
+push_t scene's T on a table with limit-surface friction, the pusher a kinematic disk of our simulator. `import
+planners` registers the id when gymnasium is installed (the `gym` extra); the registration names this module by
+string, so importing planners never imports it.
 """
 
 import math
@@ -20,6 +17,7 @@ from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
 from planar_lcp.spec.scene import load_scene, parse_scene, shipped_dir
 
+from .inputs import checked_action, finite_array, options_dict, shown
 from .raster import Raster
 
 #: 1 gym-pusht unit = 1 mm
@@ -61,51 +59,6 @@ def pd_substeps(p, v, target):
         p = p + DT * v
         ps[i], vs[i] = p, v
     return ps, vs
-
-
-def _show(value, limit=120):
-    """A value for a message: its numbers as a list when it has some, else its repr; at most `limit` characters."""
-    try:
-        text = repr(value) if isinstance(value, (str, bytes)) else str(np.asarray(value).tolist())
-    except Exception:                                  # noqa: BLE001 (anything that is not array-like)
-        text = repr(value)
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
-def _finite_array(value):
-    """`value` as a float64 array when it is numbers, all finite; None otherwise."""
-    try:
-        a = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError, OverflowError):
-        return None
-    return a if np.isfinite(a).all() else None
-
-
-def _action(env, action, what):
-    """An action as a (2,) float64 array, checked before the environment changes: a ValueError naming it unless it
-    is 2 finite numbers."""
-    a = _finite_array(action)
-    if a is None or a.shape != (2,):
-        try:
-            shape = np.shape(action)
-        except Exception:                              # noqa: BLE001
-            shape = None
-        shown = f"{_show(action)}" + (f" of shape {shape}" if shape not in (None, (2,)) else "")
-        raise ValueError(f"{env}: the action ({what}) must be 2 finite numbers, got {shown}")
-    return a
-
-
-def _options_dict(env, options, allowed):
-    """reset()'s options as a dict (None: none); a ValueError naming an option that is not one of `allowed`."""
-    if options is None:
-        return {}
-    if not isinstance(options, dict):
-        raise ValueError(f"{env}: reset's options must be a dict (keys: {', '.join(allowed)}), got "
-                         f"{type(options).__name__}")
-    for k in options:
-        if k not in allowed:
-            raise ValueError(f"{env}: unknown reset option {k!r} (the options are {', '.join(allowed)})")
-    return options
 
 
 def _push_t_bodies():
@@ -319,23 +272,23 @@ class PushTEnv(gym.Env):
     def _reset_options(self, options):
         """The start (agent mm, T frame pose) and the goal of reset's options, each None when not given, checked
         before anything changes: a ValueError names the option, what it must be and what it got."""
-        options = _options_dict("PushT-v0", options, self.RESET_OPTIONS)
+        options = options_dict("PushT-v0", options, self.RESET_OPTIONS)
         start = goal = None
         if options.get("reset_to_state") is not None:
-            state = _finite_array(options["reset_to_state"])
+            state = finite_array(options["reset_to_state"])
             if state is None or state.shape != (5,):
                 raise ValueError("PushT-v0: options['reset_to_state'] must be 5 finite numbers (agent x, y, block x, "
-                                 f"y mm, angle rad), got {_show(options['reset_to_state'])}")
+                                 f"y mm, angle rad), got {shown(options['reset_to_state'])}")
             start = (state[:2], self.frame_pose(state[2:]))
             why = self.why_not_start(*start)
             if why:
                 raise ValueError(f"PushT-v0: options['reset_to_state'] = {state.tolist()} is not a start state: "
                                  f"{why}")
         if options.get("goal") is not None:
-            goal = _finite_array(options["goal"])
+            goal = finite_array(options["goal"])
             if goal is None or goal.shape != (3,):
                 raise ValueError(f"PushT-v0: options['goal'] must be 3 finite numbers (x, y mm, angle rad), got "
-                                 f"{_show(options['goal'])}")
+                                 f"{shown(options['goal'])}")
             c = self.t_world_corners(goal)
             inner0, inner1 = WALL_LINES[0] + WALL_HALF, WALL_LINES[1] - WALL_HALF
             if c.min() < inner0 or c.max() > inner1:
@@ -376,7 +329,7 @@ class PushTEnv(gym.Env):
 
     def step(self, action):
         # checked before anything changes; a target outside the action space is clipped to it (the arena)
-        target = np.clip(_action("PushT-v0", action, "the pusher's target x, y in mm"), 0.0, ARENA)
+        target = np.clip(checked_action("PushT-v0", action, "the pusher's target x, y in mm"), 0.0, ARENA)
         self._last_action = target
         self.advance(target)
         cover = self.coverage()
@@ -465,146 +418,3 @@ class PushTEnv(gym.Env):
         if self.render_mode is None:
             return None
         return self._draw(self.vis_raster, action=True)
-
-
-# ---- Task-v0 ------------------------------------------------------------------------------------------------------
-#: where the benchmark's task files live (tasks/*.toml, shipped with the package), so that Task-v0 takes their names as
-#: well as the shipped tasks'
-TASKS_DIR = shipped_dir("tasks")
-
-
-def task_source(task):
-    """A shipped task's name, a tasks/ file's name (tasks/NAME.toml), a path, TOML text, a dict or a Task: what
-    load_task takes."""
-    from planar_lcp.spec.task import shipped_tasks
-    if isinstance(task, str) and "\n" not in task and not task.endswith(".toml") and "/" not in task \
-            and task not in shipped_tasks() and (TASKS_DIR / f"{task}.toml").is_file():
-        return TASKS_DIR / f"{task}.toml"
-    return task
-
-
-class TaskEnv(gym.Env):
-    """Any task file as an environment (docs/gym.md, "Task-v0").
-
-    Observation: the planner's flat state (planners.tasks: the object's and each obstacle's centre-of-mass pose and
-    velocity, then the pusher's position; m, rad, m/s, rad/s). Action: the pusher's velocity (vx, vy) m/s within the
-    task's control_max per axis, held for task.step_duration (TaskModel.advance, as the planner propagates it).
-    Reward: -goal_distance (the task's own metric, <= 1 where the goal holds). Terminated when the goal holds (or a
-    physics step fails: info["sim_ok"] False); truncated at `time_limit` seconds of simulated time.
-
-    Parameters
-    ----------
-    task : str, path, dict or Task
-        A shipped task's name, a name in tasks/, a path to a task file, its TOML text or a dict.
-    time_limit : float
-        Seconds of simulated time per episode (default 20 s).
-    render_mode : "rgb_array" or None
-    render_size : int
-        render()'s width in pixels (the height follows the drawn region's aspect).
-    """
-
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
-
-    def __init__(self, task, time_limit=20.0, render_mode="rgb_array", render_size=512):
-        super().__init__()
-        from .tasks import TaskModel
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"Task-v0: render_mode must be 'rgb_array' or None, got {render_mode!r}")
-        if not (isinstance(time_limit, (int, float)) and math.isfinite(time_limit) and time_limit > 0):
-            raise ValueError(f"Task-v0: time_limit must be a number of seconds > 0, got {time_limit!r}")
-        self.tm = tm = TaskModel(task_source(task))
-        self.task = tm.task
-        self.render_mode = render_mode
-        self.max_steps = max(1, int(math.ceil(time_limit / self.task.step_duration - 1e-9)))
-        self.metadata = {**self.metadata, "render_fps": max(1, int(round(1.0 / self.task.step_duration)))}
-        cm = self.task.control_max
-        self.action_space = spaces.Box(low=-cm, high=cm, shape=(2,), dtype=np.float32)
-        self.observation_space = spaces.Box(low=-np.inf, high=np.inf, shape=(self.task.state_dim,), dtype=np.float64)
-        self._x0 = tm.initial_state()
-        self._x = self._x0.copy()
-        self._n = 0
-        self._render_size = int(render_size)
-        self._drawing = None
-
-    def reset(self, *, seed=None, options=None):
-        state = _options_dict("Task-v0", options, ("state",)).get("state")       # checked before anything changes
-        if state is not None:
-            x = _finite_array(state)
-            if x is None or x.shape != self._x0.shape:
-                raise ValueError(f"Task-v0: options['state'] must be {self._x0.size} finite numbers "
-                                 f"({', '.join(self.task.state_names())}), got {_show(state, 400)}")
-        super().reset(seed=seed)
-        self._x = self._x0.copy() if state is None else x.copy()
-        self._n = 0
-        d = self.tm.goal_distance(self._x)
-        return self._x.copy(), {"goal_distance": d, "is_success": d <= 1.0, "sim_ok": True,
-                                "admissible": self.tm.admissible(self._x)}
-
-    def step(self, action):
-        cm = self.task.control_max
-        # checked before anything changes; beyond the action space clipped to it
-        u = np.clip(_action("Task-v0", action, "the pusher's velocity vx, vy in m/s"), -cm, cm)
-        x, ok = self.tm.advance(self._x, u, self.tm.steps_per_prop)
-        self._n += 1
-        if ok:
-            self._x = x
-        d = self.tm.goal_distance(self._x)
-        success = ok and d <= 1.0
-        info = {"goal_distance": d, "is_success": success, "sim_ok": ok, "admissible": self.tm.admissible(self._x)}
-        return self._x.copy(), -float(d), bool(success or not ok), bool(self._n >= self.max_steps), info
-
-    # ---- drawing ------------------------------------------------------------------------------------------------
-    def _setup_drawing(self):
-        import shapely
-        from shapely.ops import unary_union
-
-        from planar_lcp.geometry import shape_geometry
-        tm, t = self.tm, self.task
-        (wx0, wx1), (wy0, wy1) = t.workspace
-        (px0, px1), (py0, py1) = t.pusher_workspace
-        x0, x1, y0, y1 = min(wx0, px0), max(wx1, px1), min(wy0, py0), max(wy1, py1)
-        width = self._render_size
-        height = max(1, int(round(width * (y1 - y0) / (x1 - x0))))
-        r = Raster(width, height, x0, x1, y0, y1, y_down=False)
-        gx, gy = r.grid()
-        X, Y = np.meshgrid(gx, gy)
-        bodies = [unary_union([shape_geometry(s, quad_segs=8) for s in t.scene.body(n).shapes])
-                  for n in (t.object, *t.obstacles)]
-        statics = np.zeros(X.shape, dtype=bool)
-        if tm.statics is not None:
-            shapely.prepare(tm.statics)
-            statics = shapely.contains_xy(tm.statics, X, Y)
-        goal = np.zeros(X.shape, dtype=bool)
-        if tm.goal_poly is not None:
-            goal = shapely.contains_xy(tm.goal_poly, X, Y)
-        # a timed task's moving bodies (body frame), drawn where they are at the state's time
-        moving = [unary_union([shape_geometry(s, quad_segs=8) for s in t.scene.body(n).shapes]) for n in t.moving]
-        self._drawing = (r, X, Y, bodies, statics, goal, moving)
-
-    def render(self):
-        if self.render_mode is None:
-            return None
-        import shapely
-
-        from planar_lcp.frames import com_to_frame as to_frame
-        from .tasks import _place
-        if self._drawing is None:
-            self._setup_drawing()
-        r, X, Y, bodies, statics, goal, moving = self._drawing
-        tm, x = self.tm, self._x
-        img = r.blank(WHITE)
-        img[goal] = LIGHT_GREEN
-        img[statics] = (90, 90, 90)
-        if moving:
-            for g, (bx, by, ba) in zip(moving, tm.moving_poses(x)):
-                img[shapely.contains_xy(_place(g, (bx, by), ba), X, Y)] = (90, 90, 90)
-        for i, g in enumerate(bodies):
-            d = tm.dyn_order[i]
-            pf = to_frame(x[6 * i:6 * i + 3][None], tm.model.com_local[d:d + 1])[0]
-            color = SLATE_GRAY if i == 0 else (205, 133, 63)
-            img[shapely.contains_xy(_place(g, pf[:2], pf[2]), X, Y)] = color
-        g = self.task.goal
-        if tm.goal_poly is None and g.x is not None and g.y is not None:
-            r.cross(img, (g.x, g.y), max(5, r.width // 40), (0, 150, 0))
-        r.disk(img, x[tm.ip:tm.ip + 2], tm.pusher_radius, ROYAL_BLUE)
-        return img

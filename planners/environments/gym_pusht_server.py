@@ -1,8 +1,8 @@
 """gym-pusht's PushT-v0 served over stdin/stdout, one JSON line per request: the peer's half of closed-loop runs
-(`planar-lcp pusht-eval --env gym_pusht/PushT-v0`, planners.pusht.SubprocessEnv) when gym-pusht lives in its own
+(`planar-lcp pusht-eval --env gym_pusht/PushT-v0`, planners.environments.gym_pusht_process.SubprocessEnv) when gym-pusht lives in its own
 virtualenv (it pins pymunk < 7). It runs under that virtualenv's python and imports nothing of planar_lcp:
 
-    PY planners/pusht_server.py [ENV_ID]
+    PY planners/environments/gym_pusht_server.py [ENV_ID]
 
 The environment is `gymnasium.make(ENV_ID, obs_type="state")` (default gym_pusht/PushT-v0) as registered, with its
 TimeLimit, unmodified. Requests and answers:

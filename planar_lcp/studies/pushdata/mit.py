@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from planar_lcp.experiments.pushdata.outline import (Registration, clean, convex_pieces, register_outline,
+from planar_lcp.studies.pushdata.outline import (Registration, clean, convex_pieces, register_outline,
                                                      signed_distance)
 from planar_lcp.spec.recordings import RecordedRun
 
@@ -598,7 +598,7 @@ def support_ring(model: ObjectModel, scale: float) -> np.ndarray:
     """(RING_POINTS, 2) points, pose frame, m: the outline shrunk about its centroid (the centre of mass) by `scale`
     (1: on the outline), sampled evenly by arc length: a ring that follows the object's shape, inside it for an
     outline star-shaped about its centroid (every object of the data set)."""
-    from planar_lcp.experiments.pushdata.outline import centroid
+    from planar_lcp.studies.pushdata.outline import centroid
 
     poly = model.outline
     closed = np.vstack([poly, poly[:1]])

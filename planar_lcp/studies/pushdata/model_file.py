@@ -62,7 +62,7 @@ class PushModel:
 
 
 def _known():
-    from planar_lcp.experiments.pushdata.mit import DEFAULT_PARAMS
+    from planar_lcp.studies.pushdata.mit import DEFAULT_PARAMS
     return DEFAULT_PARAMS
 
 

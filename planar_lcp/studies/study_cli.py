@@ -40,8 +40,8 @@ def _runner(module_name):
         except InputError as e:
             print(f"planar-lcp study: error: {e}", file=sys.stderr)
             return 2
-        module = importlib.import_module(f"{__name__}.{module_name}")
-        from planar_lcp.experiments.studies.common import print_phase_table_and_files
+        module = importlib.import_module(f"{__package__}.{module_name}")
+        from planar_lcp.studies.common import print_phase_table_and_files
         restitution = getattr(args, "restitution", None)
         kwargs = {} if restitution is None else dict(restitution=restitution)
         print(module.TITLE + (" --quick" if args.quick else "")

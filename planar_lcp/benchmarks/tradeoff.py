@@ -35,13 +35,13 @@ import sys
 import time
 from pathlib import Path
 
-from planar_lcp.cli_support import raised_while_interrupted
-from planar_lcp.experiments.accuracy import table1_errors
-from planar_lcp.experiments.cluster import (SchedulerLost, SchedulerUnreachable, close_cluster, local_jobs,
-                                            lost_scheduler_message, open_cluster, sigint_ignored)
-from planar_lcp.experiments.records import (RECORDS, STOPPED, BenchmarkInterrupted, RecordFileError, RecordWriter,
-                                            count_finished, prepare, read_records, stopped_message, write_text_atomic)
+from planar_lcp.parallel.cluster import (SchedulerLost, SchedulerUnreachable, close_cluster, local_jobs,
+                                         lost_scheduler_message, open_cluster)
+from planar_lcp.parallel.records import (RECORDS, STOPPED, RecordFileError, RecordWriter, prepare, read_records,
+                                         write_text_atomic)
+from planar_lcp.parallel.sweep import run_recorded, say_resumed
 from planar_lcp.spec.scene import FORMULATIONS, SOLVERS, SimSpec
+from planar_lcp.studies.accuracy import table1_errors
 
 DEFAULT_SCENES = ("falling_rod", "four_disks", "box_push")
 SOLVER_SETTINGS = (("lemke", None), ("pgs", 5), ("pgs", 20), ("pgs", 100), ("osqp", None))
@@ -195,20 +195,15 @@ def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progres
     cluster of `jobs` worker processes (default: the CPUs). A task's cost is its own worker's thread CPU time.
 
     Each setting's row is appended to `out_dir`/records.jsonl as soon as it is measured against its scene's
-    reference (planar_lcp.experiments.records), and the outputs are made from those rows: at the end, and also
+    reference (planar_lcp.parallel.records), and the outputs are made from those rows: at the end, and also
     when Ctrl-C, a lost scheduler or an error stops the sweep (then partial: summary.json says how many settings
     finished of how many). `resume`: the rows already in the record file are kept and only the other settings run
     (with their scenes' references again); the file must be of the same sweep, which is checked before any work,
     as is, without `resume`, that the file holds no row.
 
-    Raises
-    ------
-    RecordFileError
-        Before any work: the record file is of another sweep (`resume`) or holds rows (not `resume`).
-    BenchmarkInterrupted
-        Ctrl-C: the cluster stopped, the finished rows kept with partial outputs; its message says what was kept.
-    SchedulerLost
-        The scheduler went away during the sweep; the finished rows are kept as after Ctrl-C.
+    Raises RecordFileError before any work when the record file is of another sweep (`resume`) or holds rows (not
+    `resume`); after a stop, BenchmarkInterrupted (Ctrl-C) or SchedulerLost, each saying what was kept
+    (planar_lcp.parallel.sweep.run_recorded).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -220,52 +215,18 @@ def run_tradeoff(scenes=DEFAULT_SCENES, quick=False, out_dir="tradeoff", progres
     keys = {k for k, *_ in planned}
     done = {k: r for k, r in (previous.runs.items() if previous else ()) if k in keys}
     todo = [p for p in planned if p[0] not in done]
-    path = out / RECORDS
-    if previous is not None:
-        print(f"resume: {path}: {len(done)} of {len(planned)} settings finished before; "
-              + (f"running the other {len(todo)}" if todo else "nothing left to run: writing the outputs"),
-              flush=True)
-        if previous.torn:
-            print(f"note: {previous.torn}", flush=True)
-    elif resume:
-        print(f"resume: {path}: no record file yet; running every setting", flush=True)
-    writer = RecordWriter(path, header, resume=previous)
+    say_resumed(previous, resume, out / RECORDS, len(done), len(planned), "setting")
+    writer = RecordWriter(out / RECORDS, header, resume=previous)
     t0 = time.perf_counter()
-    live = dict(client=None, cluster=None, futures=[], bar=None)       # what _sweep_on_dask opened, to close
-    try:
+
+    def run(live):
         if todo:
             _sweep_on_dask(todo, repeats, progress, jobs, scheduler, writer, done, t0, live, len(planned))
             close_cluster(live["client"], live["cluster"])
-    except BaseException as e:
-        # Ctrl-C, a lost scheduler, any error: stop the runs quietly and leave the finished rows with what they
-        # are of; a second Ctrl-C meanwhile would cut that short, so it waits (seconds)
-        with sigint_ignored():
-            if live["bar"] is not None:
-                live["bar"].leave = False      # the interrupted bar is cleared: the command's one line stays alone
-                live["bar"].close()
-            close_cluster(live["client"], live["cluster"], live["futures"], quiet=True)
-            # an error raised while a Ctrl-C was handled (e.g. by distributed, starting the cluster) is the interrupt
-            interrupted = isinstance(e, KeyboardInterrupt) or raised_while_interrupted(e)
-            ended = "interrupted" if interrupted else "failed"
-            writer.end(ended, time.perf_counter() - t0)
-            writer.close()
-            try:
-                _write_outputs(out, scenes, planned, partial=ended)
-            except Exception as w:  # noqa: BLE001 - the rows are on disk; the stop's own cause is reported
-                print(f"warning: no partial outputs: {w!r}", file=sys.stderr)
-        # counted on disk: a Ctrl-C can land between a record's write and its entry in `done`
-        finished = count_finished(path, [k for k, *_ in planned], len(done))
-        kept = stopped_message(finished, len(planned), path, "setting",
-                               "tradeoff.csv, summary.json and the plots of their rows")
-        if interrupted:
-            raise BenchmarkInterrupted(kept) from None
-        if isinstance(e, SchedulerLost):
-            raise SchedulerLost(f"{e}; stopped {kept}") from None
-        raise
-    if live["bar"] is not None:
-        live["bar"].close()
-    writer.end("complete", time.perf_counter() - t0)
-    writer.close()
+
+    run_recorded(run, writer, [k for k, *_ in planned], len(done), "setting",
+                 lambda ended: _write_outputs(out, scenes, planned, partial=ended),
+                 "tradeoff.csv, summary.json and the plots of their rows", t0=t0)
     return _write_outputs(out, scenes, planned)
 
 

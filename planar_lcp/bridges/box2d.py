@@ -53,7 +53,7 @@ def _add_shapes(b2, body, shapes, mu, offset_com=(0.0, 0.0)):
             corners = [p + t * w / 2, p - n * d + t * w / 2, p - n * d - t * w / 2, p - t * w / 2]
             body.create_polygon_shape(sd, b2.polygon(points=[tuple(map(float, c)) for c in corners]))
         else:
-            raise ValueError(f"box2d_bridge: shape type {s.type!r} is not mapped")
+            raise ValueError(f"planar_lcp.bridges.box2d: shape type {s.type!r} is not mapped")
 
 
 def box2d_world(model, substeps=4):
@@ -62,10 +62,10 @@ def box2d_world(model, substeps=4):
     b2 = _import()
     scene = model.scene
     if scene.world.plane != "vertical":
-        raise ValueError("box2d_bridge: only vertical-plane scenes")
+        raise ValueError("planar_lcp.bridges.box2d: only vertical-plane scenes")
     mus = {scene.friction_between(a.name, b.name) for a in scene.bodies for b in scene.bodies if a is not b}
     if len(mus) > 1:
-        raise ValueError(f"box2d_bridge: one Coulomb coefficient for the whole scene, got {sorted(mus)}")
+        raise ValueError(f"planar_lcp.bridges.box2d: one Coulomb coefficient for the whole scene, got {sorted(mus)}")
     mu = mus.pop() if mus else scene.world.friction
     world = b2.World(gravity=tuple(map(float, scene.world.gravity)))
     world.sleeping_enabled = False
@@ -90,7 +90,7 @@ def box2d_world(model, substeps=4):
             body = world.create_static_body(position=tuple(map(float, spec.position)), rotation=float(spec.angle))
             _add_shapes(b2, body, spec.shapes, mu)
         elif spec.type == "kinematic":
-            raise ValueError("box2d_bridge: kinematic bodies are not mapped")
+            raise ValueError("planar_lcp.bridges.box2d: kinematic bodies are not mapped")
     return world, dyn
 
 

@@ -57,7 +57,7 @@ def _check_push_file(path):
     """A push file given on the command line: it exists, is a file, ends in .h5 and is named as the data set's are.
     InputError otherwise."""
     from planar_lcp.cli_support import InputError
-    from planar_lcp.experiments.pushdata.mit import PushDataError, parse_push_name
+    from planar_lcp.studies.pushdata.mit import PushDataError, parse_push_name
 
     p = Path(path)
     if not p.exists():
@@ -87,7 +87,7 @@ def _load(files):
     """(pushes, models): each file read (`mit.read_push`) and its object registered (`mit.object_model`, once per
     object). InputError naming the file for one that cannot be read or registered."""
     from planar_lcp.cli_support import InputError
-    from planar_lcp.experiments.pushdata import mit
+    from planar_lcp.studies.pushdata import mit
 
     pushes, models = [], []
     try:
@@ -105,7 +105,7 @@ def _scenes(pushes, models, params):
     """The scene document and the recording of each push (`mit.push_scene` with `params`, `mit.push_recording`);
     InputError naming the file where one cannot be made (e.g. a start overlap deeper than the reconciliation takes)."""
     from planar_lcp.cli_support import InputError
-    from planar_lcp.experiments.pushdata import mit
+    from planar_lcp.studies.pushdata import mit
 
     docs, recs = [], []
     try:
@@ -143,7 +143,7 @@ def predict_push(doc, recording):
     simulation fails."""
     import numpy as np
 
-    from planar_lcp.experiments.pushdata.mit import OBJECT
+    from planar_lcp.studies.pushdata.mit import OBJECT
     from planar_lcp.fitting import predict_run
     from planar_lcp.sim import SimulationError
     from planar_lcp.spec.scene import SceneError
@@ -188,7 +188,7 @@ def _table(results):
 
 def _push_result(push, t, pred, rec, cpu):
     """The scores of one push (m, rad), as `per_push` of a model file holds them."""
-    from planar_lcp.experiments.pushdata import score
+    from planar_lcp.studies.pushdata import score
     d_pred, d_rec = score.final_displacement(pred), score.final_displacement(rec)
     pos, ang = score.final_errors(d_pred[None], d_rec[None])
     along = score.along_push_errors(pred, rec)
@@ -204,7 +204,7 @@ def _summary_lines(results):
     """The summary of a set of pushes' results: NMSE of the final displacements and the median final errors."""
     import numpy as np
 
-    from planar_lcp.experiments.pushdata import score
+    from planar_lcp.studies.pushdata import score
     pred = np.array([r["predicted_displacement"] for r in results])
     rec = np.array([r["recorded_displacement"] for r in results])
     s = score.summary(pred, rec)
@@ -235,8 +235,8 @@ def _cmd_predict(args):
 
 def _predict(args):
     from planar_lcp.cli_support import ProgressBar, check_output_file, prepare_output_dir, require
-    from planar_lcp.experiments.pushdata import mit
-    from planar_lcp.experiments.pushdata.model_file import ModelFileError, read_model
+    from planar_lcp.studies.pushdata import mit
+    from planar_lcp.studies.pushdata.model_file import ModelFileError, read_model
     from planar_lcp.cli_support import InputError
 
     prog = f"{PROG} predict"
@@ -314,8 +314,8 @@ def plot_push(path, push, model, recording, pred, result):
     title gives the file's parameters and the final errors."""
     import numpy as np
 
-    from planar_lcp.experiments.pushdata.mit import OBJECT, PUSHER, PUSHER_RADIUS
-    from planar_lcp.experiments.pushdata.outline import centroid
+    from planar_lcp.studies.pushdata.mit import OBJECT, PUSHER, PUSHER_RADIUS
+    from planar_lcp.studies.pushdata.outline import centroid
     from planar_lcp.viz import new_figure
 
     rec = np.asarray(recording.poses)[:, recording.index(OBJECT)]
@@ -395,8 +395,8 @@ def fit_setup(pushes, models, names, start, via_setters=()):
     in `via_setters`) under its own name, with a setter that rebuilds the push's document with `mit.push_scene` at the
     values it holds (the scene keys read back from the document), so that a parameter pushing several keys (e.g. a
     support pressure) is written as `push_scene` writes it."""
-    from planar_lcp.experiments.pushdata import mit
-    from planar_lcp.experiments.pushdata.model_file import RANGES
+    from planar_lcp.studies.pushdata import mit
+    from planar_lcp.studies.pushdata.model_file import RANGES
 
     by_setter = [n for n in names if n not in SCENE_KEYS or n in via_setters]
     docs = []
@@ -459,7 +459,7 @@ def _command_line(args):
 
 def _parse_params(text):
     from planar_lcp.cli_support import InputError
-    from planar_lcp.experiments.pushdata.mit import DEFAULT_PARAMS
+    from planar_lcp.studies.pushdata.mit import DEFAULT_PARAMS
     known = [k for k in DEFAULT_PARAMS if k not in NOT_FITTED]
     names = [n.strip() for n in text.split(",")]
     if not all(names):
@@ -476,7 +476,7 @@ def _parse_params(text):
 
 
 class _FitProgress:
-    """The progress bar of a fit (planar_lcp.cli.ProgressBar on stderr: a terminal only, after 2 s): the simulated
+    """The progress bar of a fit (planar_lcp.cli_support.ProgressBar on stderr: a terminal only, after 2 s): the simulated
     runs, and the evaluations (parameter points) done."""
 
     def __init__(self, n_runs):
@@ -532,7 +532,7 @@ def _predict_job(doc, recording):
 
 def _cmd_fit(args):
     from planar_lcp.cli_support import InputError, MissingPackage
-    from planar_lcp.experiments.cluster import SchedulerLost, SchedulerUnreachable
+    from planar_lcp.parallel.cluster import SchedulerLost, SchedulerUnreachable
     try:
         return _fit(args)
     except (InputError, MissingPackage) as e:
@@ -543,8 +543,8 @@ def _cmd_fit(args):
 
 def _fit(args):
     from planar_lcp.cli_support import InputError, check_output_file, require
-    from planar_lcp.experiments.pushdata import mit
-    from planar_lcp.experiments.pushdata.model_file import ModelFileError, read_model
+    from planar_lcp.studies.pushdata import mit
+    from planar_lcp.studies.pushdata.model_file import ModelFileError, read_model
 
     require("h5py", "scipy")
     if args.scheduler is not None and args.jobs_given:
@@ -591,7 +591,7 @@ def _fit(args):
 
 
 def _run_fit(args, names, start, pushes, models, docs, recs, fit_names, setters, x0, bounds):
-    from planar_lcp.experiments.cluster import (SchedulerLost, close_cluster, local_jobs, lost_scheduler_message,
+    from planar_lcp.parallel.cluster import (SchedulerLost, close_cluster, local_jobs, lost_scheduler_message,
                                                 open_cluster, sigint_ignored)
     from planar_lcp.fitting import fit
 
@@ -630,7 +630,7 @@ def _run_fit(args, names, start, pushes, models, docs, recs, fit_names, setters,
 
 
 def _report_fit(args, names, start, pushes, result, fit_names, bounds, fitted, preds, wall, cpu):
-    from planar_lcp.experiments.pushdata.model_file import write_model
+    from planar_lcp.studies.pushdata.model_file import write_model
 
     results, failed = [], []
     for push, p in zip(pushes, preds):
