@@ -69,7 +69,7 @@ class Background:
 
 _background = None
 #: True in the background process itself: its own runs compile in-process
-_inside = False
+compiling_here = False
 
 
 def started():
@@ -102,7 +102,7 @@ def start_background(kernel=None):
     PLANAR_LCP_PRECOMPILE=0) or numba has no cache directory; the caller then compiles in-process."""
     global _background
     kernel = default_kernel() if kernel is None else kernel
-    if _inside or kernel is not default_kernel() or compiled(kernel):
+    if compiling_here or kernel is not default_kernel() or compiled(kernel):
         return None
     cache_dir = engine_cache_dir()
     if not may_start() or not cache_dir:
@@ -127,7 +127,7 @@ def start_background(kernel=None):
                                  start_new_session=True)
     except OSError:
         return None
-    _take_lock(lock, popen.pid)  # for it, now: it takes the lock as its own once it has imported numba
+    take_lock(lock, popen.pid)  # for it, now: it takes the lock as its own once it has imported numba
     _background = Background(popen, lock, time.time())
     announce_background()
     return _background
@@ -139,7 +139,7 @@ def wait_for(kernel):
     numba's cache; at once when it is compiled or cached, or when no background can run (the call then compiles
     it in-process)."""
     from planar_lcp.interrupt import raise_if_interrupted
-    if _inside or compiled(kernel):
+    if compiling_here or compiled(kernel):
         return
     bg = start_background()
     while bg is not None and bg.running() and not compiled(kernel):
@@ -147,7 +147,7 @@ def wait_for(kernel):
         raise_if_interrupted()
 
 
-def _take_lock(lock, pid):
+def take_lock(lock, pid):
     """Create the lock file holding `pid`; a stale one (its process gone) is replaced. False if another process
     holds it."""
     for _ in range(2):

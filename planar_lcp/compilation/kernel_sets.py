@@ -92,7 +92,7 @@ def compile_kernels(kernel_set="default", progress=None, helper=True):
     """Compile `kernel_set` (module docstring) into numba's cache in this process, the helper process compiling the
     island solvers meanwhile (`helper`: where it may start). progress: called as progress(label, done, total) after
     each stage."""
-    background._inside = True
+    background.compiling_here = True
     try:
         if helper:
             start_helper()
@@ -104,13 +104,13 @@ def compile_kernels(kernel_set="default", progress=None, helper=True):
                 if progress is not None:
                     progress(label, i + 1, len(stages))
     finally:
-        background._inside = False
+        background.compiling_here = False
 
 
 def _compile_in_background(kernel_set):
     """The background process: `compile_kernels(kernel_set)` under the lock."""
     lock = background.lock_file(engine_cache_dir())
-    if not background._take_lock(lock, os.getpid()):
+    if not background.take_lock(lock, os.getpid()):
         return
     try:
         compile_kernels(kernel_set)
