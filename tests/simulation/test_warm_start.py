@@ -14,7 +14,7 @@ import pytest
 
 from planar_lcp import load_scene, simulate
 from planar_lcp.engine.layout import LemkeSettings, Stat, lemke_work_struct, make_lemke_work
-from planar_lcp.engine.rollout import make_recording, rollout_lemke
+from planar_lcp.engine.rollout import RolloutRun, make_recording, rollout_lemke
 from planar_lcp.engine.solvers.lemke import default_max_pivots, lemke_from_basis, lemke_kernel
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL
 from planar_lcp.model import compile_scene
@@ -214,7 +214,8 @@ def _one_kernel_call(sim, q, v, qk, vk, n, stop_on_failure):
     """The rollout kernel called once, from a fresh simulator."""
     C = sim.model.max_contacts()
     rec = make_recording(n, q.shape[0], qk.shape[0], C)
-    done = rollout_lemke(sim.kmodel, q, v, qk, vk[None], 0, n, sim.h, sim.kopt, sim.kwork, rec, stop_on_failure, True)
+    run = RolloutRun(q, v, qk, vk[None], 0, n, stop_on_failure, True)
+    done = rollout_lemke(sim.kmodel, run, sim.h, sim.kopt, sim.kwork, rec)
     return int(done), rec._asdict()
 
 
