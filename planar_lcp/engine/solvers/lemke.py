@@ -1,7 +1,8 @@
 """Lemke's complementary pivoting algorithm on an explicit tableau, with lexicographic degeneracy resolution.
 
-Numba kernels only: no exceptions, no allocation inside `lemke_kernel` (work arrays are passed in so the
-time-stepper can reuse them), tolerances as arguments. `planar_lcp.lcp.lemke` is the validating public wrapper.
+Numba kernels only: no exceptions, no allocation inside `lemke_kernel` (its work arrays are passed in as one struct,
+engine/layout.py LEMKE_LAYOUT, so the time-stepper can reuse them: its step work holds the same fields), the pivot
+cap and tolerances as one LemkeSettings value. `planar_lcp.lcp.lemke` is the validating public wrapper.
 
 Problem: find z >= 0 with w = M z + q >= 0 and z.w = 0.
 
