@@ -21,7 +21,7 @@ from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS, SUPPORT_POINTS
 from planar_lcp.engine.interpreted import compiled, python_version
 from planar_lcp.engine.layout import (INT_STATS, NSTAT, STATS, Stat, StepOptions, make_step_work,
                                       work_struct)
-from planar_lcp.engine.rollout import RUN_ROWS, Recording, make_recording, rollout_lemke, rollout_pgs
+from planar_lcp.engine.rollout import RUN_ROWS, Recording, RolloutRun, make_recording, rollout_lemke, rollout_pgs
 from planar_lcp.engine.solvers.lemke import STATUS_NAMES
 from planar_lcp.engine.step import STEP_LCP_FAILED, STEP_NEEDS_SPACE, STEP_NONFINITE, STEP_OK
 from planar_lcp.model import Model, compile_scene
@@ -327,10 +327,10 @@ class Simulator:
         # a first call that compiles in this process: with numba's inliner copying a callee's IR once
         # (planar_lcp.engine), restored after
         compiles = not python and not getattr(kernel, "overloads", True)
+        run = RolloutRun(rec.q[0], rec.v[0], rec.qk[0], vk_seq, start, n, stop_on_failure, reset_warm_start)
         t0 = time.perf_counter()
         with copying_inlined_ir_once() if compiles else contextlib.nullcontext():
-            done = int(kernel(m, rec.q[0], rec.v[0], rec.qk[0], vk_seq, start, n, self.h, self.kopt, w, rec,
-                              stop_on_failure, reset_warm_start))
+            done = int(kernel(m, run, self.h, self.kopt, w, rec))
         # a Ctrl-C that numba's dispatcher swallowed during the call (planar_lcp.interrupt) stops the run here
         raise_if_interrupted()
         return done, done / max(time.perf_counter() - t0, 1e-9), python

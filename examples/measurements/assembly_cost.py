@@ -12,8 +12,8 @@ from numba import njit
 
 import planar_lcp.engine.step as S
 from planar_lcp.engine.assemble import assemble_lcp
-from planar_lcp.engine.layout import NSTAT
-from planar_lcp.engine.solvers.lemke import lemke_kernel, make_lemke_work
+from planar_lcp.engine.layout import NSTAT, LemkeSettings, lemke_work_struct, make_lemke_work
+from planar_lcp.engine.solvers.lemke import lemke_kernel
 from planar_lcp.model import compile_scene
 from planar_lcp.spec.scene import load_scene
 from planar_lcp.sim import SimOptions, Simulator
@@ -32,13 +32,14 @@ n = 4 * ncon
 A, b = np.zeros((n, n)), np.zeros(n)
 args = (m, kw, vk, ncon, 0, h, False, A, b)
 assemble_lcp(*args)
-work = make_lemke_work(n)
+work = lemke_work_struct(make_lemke_work(n))
+settings = LemkeSettings(500, 1e-9, 1e-12, 1e-9, True)
 
 
 @njit
-def loop_lemke(A, b, work, N):
+def loop_lemke(A, b, settings, work, N):
     for _ in range(N):
-        lemke_kernel(A, b, 500, 1e-9, 1e-12, 1e-9, True, *work)
+        lemke_kernel(A, b, settings, work)
 
 
 @njit
@@ -48,7 +49,7 @@ def loop_assembly(args, N):
 
 
 N = 100000
-for label, f, a in (("Lemke", loop_lemke, (A, b, work)), ("assembly", loop_assembly, (args,))):
+for label, f, a in (("Lemke", loop_lemke, (A, b, settings, work)), ("assembly", loop_assembly, (args,))):
     f(*a, 2)
     t0 = time.perf_counter()
     f(*a, N)

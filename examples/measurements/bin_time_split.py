@@ -26,7 +26,7 @@ from planar_lcp.spec.scene import parse_scene
 @njit
 def _whole(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st, n):
     for _ in range(n):
-        S.lemke_step(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st)
+        S.lemke_step(m, (q, v, qk, vk), h, opt, w, (qo, vo, qko), st)
 
 
 @njit

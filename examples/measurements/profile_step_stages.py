@@ -23,14 +23,14 @@ from planar_lcp.sim import SimOptions, Simulator
 @njit
 def _full(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st, n):
     for _ in range(n):
-        S.lemke_step(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st)
+        S.lemke_step(m, (q, v, qk, vk), h, opt, w, (qo, vo, qko), st)
 
 
 @njit
 def _full_warm(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st, n):
     # the same step, run with opt.warm_start
     for _ in range(n):
-        S.lemke_step(m, q, v, qk, vk, h, opt, w, qo, vo, qko, st)
+        S.lemke_step(m, (q, v, qk, vk), h, opt, w, (qo, vo, qko), st)
 
 
 @njit

@@ -17,7 +17,7 @@ import numpy as np
 from planar_lcp import load_scene
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
-from planar_lcp.engine.rollout import make_recording, rollout_lemke
+from planar_lcp.engine.rollout import RolloutRun, make_recording, rollout_lemke
 
 kind, name = sys.argv[1], sys.argv[2]
 sc = load_scene(name)
@@ -26,7 +26,7 @@ m, w = (sim.kmodel, sim.kwork) if kind == "struct" else (sim.model.arrays, sim.w
 q, v, qk, vk = sim.initial_state()
 n = 400
 rec = make_recording(n, q.shape[0], qk.shape[0])
-args = (m, q, v, qk, vk.reshape(1, -1, 3).copy(), 0, n, sim.h, sim.kopt, w, rec, False, True)
+args = (m, RolloutRun(q, v, qk, vk.reshape(1, -1, 3).copy(), 0, n, False, True), sim.h, sim.kopt, w, rec)
 t0 = time.perf_counter()
 rollout_lemke(*args)
 t1 = time.perf_counter()

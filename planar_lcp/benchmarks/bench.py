@@ -12,7 +12,8 @@ import time
 import numpy as np
 
 from planar_lcp.compilation.notice import COLD_START_SECONDS
-from planar_lcp.engine.solvers.lemke import STATUS_NAMES, lemke_kernel, make_lemke_work
+from planar_lcp.engine.layout import LemkeSettings, lemke_work_struct, make_lemke_work
+from planar_lcp.engine.solvers.lemke import STATUS_NAMES, lemke_kernel
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, default_max_pivots, lemke
 from planar_lcp.benchmarks.lcp_corpus import load_corpus
 
@@ -104,13 +105,13 @@ class _OurKernel:
     def __init__(self, M, q):
         n = q.shape[0]
         self.M, self.q = np.ascontiguousarray(M), np.ascontiguousarray(q)
-        self.args = make_lemke_work(n)
-        self.max_pivots = default_max_pivots(n)
+        self.work = lemke_work_struct(make_lemke_work(n))
+        # not equilibrated: the first try of the step's chain (LEMKE_CHAIN) and the public lemke()'s default
+        self.settings = LemkeSettings(default_max_pivots(n), DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL,
+                                      False)
 
     def __call__(self):
-        # not equilibrated: the first try of the step's chain (LEMKE_CHAIN) and the public lemke()'s default
-        return lemke_kernel(self.M, self.q, self.max_pivots, DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL,
-                            False, *self.args)
+        return lemke_kernel(self.M, self.q, self.settings, self.work)
 
 
 class _QuantEcon:

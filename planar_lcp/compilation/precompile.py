@@ -115,11 +115,10 @@ def _drive_lemke_reversed(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats)
     b = w.lcp_vector[:n]
     _, _, _, _, elastic = LEMKE_CHAIN[isl]
     island_is_elastic(m, w.island_con, nci, w.con_pair)
-    lemke_from_basis(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu, w.lemke_rhs,
-                     w.lemke_perm, w.lemke_basic)
+    lemke_from_basis(A, b, w.warm_basic_z[isl], opt.res_tol, w)
     assemble_servo(m, w, nci, nf, n, nsb, h, A, w.lcp_vector)
     assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector, elastic)
-    record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf, nsb, ns)
+    record_failed_island(m, w, vk, nci, nsi, h, velocity_form, (n, nf, nsb, ns))
     return servo_within_limits(m, w, nci, nf, nsb, h, w.lemke_z)
 
 
@@ -130,7 +129,7 @@ def _drive_block(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     n = nci + nsi
     A = w.lcp_matrix[:n * n].reshape((n, n))
     b = w.lcp_vector[:n]
-    block_lemke_equilibrated(m, w, opt, vk, nci, nsi, h, velocity_form, A, b, n)
+    block_lemke_equilibrated(m, w, opt, vk, nci, nsi, h, velocity_form, n)
     return block_lemke_in_work(w, A, b, n, opt)
 
 

@@ -4,6 +4,9 @@ its numba structref type, the constructor of the struct over the view's buffers,
 - `MODEL_LAYOUT` -> `ModelArrays` (written by `planar_lcp.model.compile_scene`, never changed after);
 - `WORK_LAYOUT` -> `StepWork` (a step's buffers, `make_step_work`; each row names the stage that writes it);
 - `OPTIONS_LAYOUT` -> `StepOptions` (scalars, passed by value);
+- `LEMKE_LAYOUT` -> `LemkeWork`, and with `BLOCK_LAYOUT` -> `BlockLemkeWork` (Lemke's and block Lemke's buffers on
+  their own, `make_lemke_work`; a step's work holds the same fields, so the kernels take either struct);
+- `LEMKE_SETTINGS_LAYOUT` -> `LemkeSettings` (Lemke's pivot cap and tolerances: scalars, passed by value);
 - `STATS` -> `Stat` (the index of each entry of a step's stats vector).
 
 Why structs: a namedtuple of arrays is passed by value, flattened into hundreds of scalar arguments of every jitted
@@ -104,6 +107,43 @@ kin_max_force     | f8    | nkin       | N      | compile | a kinematic body's f
 kin_max_torque    | f8    | nkin       | N m    | compile | its torque limit (0: none, its rotation is prescribed)
 """)
 
+#: Lemke's work (engine/solvers/lemke.py `lemke_kernel`): part of a step's work, and on its own a `LemkeWork`
+#: (`make_lemke_work`). The kernel reads these fields by name from either struct.
+LEMKE_LAYOUT = _table("""
+name               | dtype | shape             | unit       | writer    | meaning
+lemke_tableau      | f8    | tableau           | -          | lemke     | tableau (n x 2n + 2, row-major)
+lemke_basis        | i8    | unknown           | -          | lemke     | basic variable of each tableau row
+lemke_z            | f8    | unknown           | N s        | lemke     | the LCP's answer z
+lemke_w            | f8    | unknown           | m/s        | lemke     | w = M z + q
+lemke_rows         | i8    | unknown           | -          | lemke     | candidate rows of the ratio test
+lemke_lu           | f8    | dense x dense     | -          | lemke     | basis refinement's LU factors
+lemke_rhs          | f8    | unknown           | -          | lemke     | basis refinement's right-hand side
+lemke_perm         | i8    | unknown           | -          | lemke     | basis refinement's row permutation
+lemke_basic        | i8    | unknown           | -          | lemke     | indices of the basic z
+lemke_z_refined    | f8    | unknown           | N s        | lemke     | z recomputed from the original data
+lemke_w_refined    | f8    | unknown           | m/s        | lemke     | its w
+lemke_pivot_row    | f8    | tableau_row       | -          | lemke     | the normalized pivot row
+lemke_scaling      | f8    | unknown           | -          | lemke     | equilibration (powers of two)
+""")
+
+#: Block Lemke's own work (engine/solvers/block_lemke.py `block_lemke`), beside LEMKE_LAYOUT's fields, which it
+#: uses too (K^-1 and the values of M's compressed columns in lemke_tableau's buffer): part of a step's work,
+#: and with LEMKE_LAYOUT on its own a `BlockLemkeWork` (`make_lemke_work(n, block=True)`).
+BLOCK_LAYOUT = _table("""
+name               | dtype | shape             | unit       | writer    | meaning
+block_cols         | i8    | unknown           | -          | block     | the basic z (and z0) of block Lemke, by position
+block_col_row      | i8    | dense2            | -          | block     | the rows of M's nonzeros, column by column
+block_col_start    | i8    | dense1            | -          | block     | each column's first entry in block_col_row
+block_rows         | i8    | unknown           | -          | block     | the rows whose w is not basic, by position
+block_col_pos      | i8    | unknown           | -          | block     | each z's position in block_cols (-1: not basic)
+block_row_pos      | i8    | unknown           | -          | block     | each row's position in block_rows (-1: w basic)
+block_xz           | f8    | unknown           | N s        | block     | the basic z's values
+block_xw           | f8    | unknown           | m/s        | block     | the basic w's values
+block_dz           | f8    | unknown           | -          | block     | their rates along the entering variable
+block_dw           | f8    | unknown           | -          | block     | the w's rates
+block_y            | f8    | unknown           | -          | block     | a row of the Schur complement's inverse update
+""")
+
 WORK_LAYOUT = _table("""
 name               | dtype | shape             | unit       | writer    | meaning
 body_pose          | f8    | body x 3          | m, rad     | contacts  | world pose of every body at the pose examined
@@ -131,19 +171,8 @@ column_g           | f8    | unknown x 2 x 3   | -          | assemble  | its ge
 lcp_matrix         | f8    | dense2            | -          | assemble  | the island's matrix (n x n, row-major)
 lcp_vector         | f8    | unknown           | m/s        | assemble  | the island's constant vector
 pgs_impulse        | f8    | unknown           | N s        | pgs       | PGS unknowns
-lemke_tableau      | f8    | tableau           | -          | lemke     | tableau (n x 2n + 2, row-major)
-lemke_basis        | i8    | unknown           | -          | lemke     | basic variable of each tableau row
-lemke_z            | f8    | unknown           | N s        | lemke     | the LCP's answer z
-lemke_w            | f8    | unknown           | m/s        | lemke     | w = M z + q
-lemke_rows         | i8    | unknown           | -          | lemke     | candidate rows of the ratio test
-lemke_lu           | f8    | dense x dense     | -          | lemke     | basis refinement's LU factors
-lemke_rhs          | f8    | unknown           | -          | lemke     | basis refinement's right-hand side
-lemke_perm         | i8    | unknown           | -          | lemke     | basis refinement's row permutation
-lemke_basic        | i8    | unknown           | -          | lemke     | indices of the basic z
-lemke_z_refined    | f8    | unknown           | N s        | lemke     | z recomputed from the original data
-lemke_w_refined    | f8    | unknown           | m/s        | lemke     | its w
-lemke_pivot_row    | f8    | tableau_row       | -          | lemke     | the normalized pivot row
-lemke_scaling      | f8    | unknown           | -          | lemke     | equilibration (powers of two)
+""") + LEMKE_LAYOUT + _table("""
+name               | dtype | shape             | unit       | writer    | meaning
 v_start            | f8    | dyn x 3           | m/s, rad/s | begin     | v damping^h, the velocity at the start of the step
 v_tilde            | f8    | dyn x 3           | m/s, rad/s | begin     | free-motion velocity v + h M^-1 f_ext
 v_hat              | f8    | dyn x 3           | m/s, rad/s | begin     | the linearization pose is q_hat = q + h v_hat
@@ -172,17 +201,8 @@ sparse_rhs         | f8    | reduced           | m/s        | sparse    | the re
 sparse_x           | f8    | reduced           | N s        | sparse    | its solution
 sparse_r           | f8    | reduced           | m/s        | sparse    | refinement residual, then correction
 sparse_dv          | f8    | dyn x 3           | m/s, rad/s | sparse    | M^-1 G z of the candidate answer
-block_cols         | i8    | unknown           | -          | block     | the basic z (and z0) of block Lemke, by position
-block_col_row      | i8    | dense2            | -          | block     | the rows of M's nonzeros, column by column
-block_col_start    | i8    | dense1            | -          | block     | each column's first entry in block_col_row
-block_rows         | i8    | unknown           | -          | block     | the rows whose w is not basic, by position
-block_col_pos      | i8    | unknown           | -          | block     | each z's position in block_cols (-1: not basic)
-block_row_pos      | i8    | unknown           | -          | block     | each row's position in block_rows (-1: w basic)
-block_xz           | f8    | unknown           | N s        | block     | the basic z's values
-block_xw           | f8    | unknown           | m/s        | block     | the basic w's values
-block_dz           | f8    | unknown           | -          | block     | their rates along the entering variable
-block_dw           | f8    | unknown           | -          | block     | the w's rates
-block_y            | f8    | unknown           | -          | block     | a row of the Schur complement's inverse update
+""") + BLOCK_LAYOUT + _table("""
+name               | dtype | shape             | unit       | writer    | meaning
 dense_needed       | i8    | 1                 | -          | solvers   | dense size a step asked for (NEEDS_SPACE)
 fail_size          | i8    | 5                 | -          | lemke     | the step's first island no method certified: n, nci, nsi, nf, ns
 fail_matrix        | f8    | dense2            | -          | lemke     | its LCP matrix (n x n, row-major), as first assembled
@@ -225,6 +245,16 @@ warm_start   | bool  | -     | -      | sim    | try each island's previous basi
 sparse_min   | int   | -     | -      | sim    | a larger island without table friction: sparse solver first (0: never)
 """)
 
+#: Lemke's settings (engine/solvers/lemke.py `lemke_kernel`, block_lemke.py `block_lemke`), one value passed by value
+LEMKE_SETTINGS_LAYOUT = _table("""
+name        | dtype | shape | unit | writer | meaning
+max_pivots  | int   | -     | -    | caller | the pivot cap
+piv_tol     | float | -     | -    | caller | pivot tolerance, relative to the entering column's largest magnitude
+ratio_tol   | float | -     | -    | caller | the ratio test's tie tolerance, relative to the problem's scale
+res_tol     | float | -     | -    | caller | certification: residual tolerance, relative to lcp_scale(M, q)
+equilibrate | bool  | -     | -    | caller | lemke_kernel: pivot on the equilibrated problem (block_lemke: not read)
+""")
+
 #: A step's diagnostics, one float64 entry each in the stats vector (the kernels' `stats`, `Simulator.stats`, a
 #: rollout's stats rows), in this order: (name, integer-valued, meaning). `Stat.<NAME>` is the index of each;
 #: `simulate` hands every entry but lemke_status to Trajectory.stats under its name (those keys are a contract).
@@ -263,6 +293,9 @@ INT_STATS = np.array([i for i, (_, integer, _) in enumerate(STATS) if integer], 
 ModelArrays = namedtuple("ModelArrays", [f.name for f in MODEL_LAYOUT])
 StepWork = namedtuple("StepWork", [f.name for f in WORK_LAYOUT])
 StepOptions = namedtuple("StepOptions", [f.name for f in OPTIONS_LAYOUT])
+LemkeWork = namedtuple("LemkeWork", [f.name for f in LEMKE_LAYOUT])
+BlockLemkeWork = namedtuple("BlockLemkeWork", [f.name for f in LEMKE_LAYOUT + BLOCK_LAYOUT])
+LemkeSettings = namedtuple("LemkeSettings", [f.name for f in LEMKE_SETTINGS_LAYOUT])
 
 _DTYPES = {"f8": (types.float64, np.float64), "i8": (types.int64, np.int64), "bool": (types.boolean, np.bool_)}
 _SCALARS = {"int": types.int64, "float": types.float64, "bool": types.boolean}
@@ -327,6 +360,21 @@ def make_step_work(model, dense_capacity=None):
 def step_work_bytes(model, dense_capacity=None):
     """What `make_step_work(model, dense_capacity)` allocates, in bytes, without allocating it."""
     return sum(math.prod(shape) * size for size, shape in zip(_WORK_ITEMSIZES, _work_shapes(model, dense_capacity)))
+
+
+def lemke_work_sizes(n):
+    """The sizes LEMKE_LAYOUT's and BLOCK_LAYOUT's shapes name, for problems of up to n unknowns (`work_sizes`' with
+    unknown = dense = n)."""
+    return dict(unknown=n, dense=n, dense1=n + 1, dense2=n * n, tableau=n * (2 * n + 2), tableau_row=2 * n + 2)
+
+
+def make_lemke_work(n, block=False):
+    """Allocate `lemke_kernel`'s buffers for problems of up to n unknowns, a LemkeWork; with block, `block_lemke`'s
+    too, a BlockLemkeWork. `lemke_work_struct` gives the kernels' view of it."""
+    sizes = lemke_work_sizes(n)
+    layout, view = (LEMKE_LAYOUT + BLOCK_LAYOUT, BlockLemkeWork) if block else (LEMKE_LAYOUT, LemkeWork)
+    return view(*(np.zeros(tuple(int(d) if d.isdigit() else sizes[d] for d in f.shape.split(" x ")),
+                           _DTYPES[f.dtype][1]) for f in layout))
 
 
 def _register_struct(struct_typeclass):
@@ -405,6 +453,9 @@ class WorkStructType(types.StructRef):
 
 MODEL_STRUCT = ModelStructType([(f.name, numba_type(f)) for f in MODEL_LAYOUT])
 WORK_STRUCT = WorkStructType([(f.name, numba_type(f)) for f in WORK_LAYOUT])
+#: the types of LemkeWork's and BlockLemkeWork's structs (work structs too: boxed as WorkStruct)
+LEMKE_WORK_STRUCT = WorkStructType([(f.name, numba_type(f)) for f in LEMKE_LAYOUT])
+BLOCK_LEMKE_WORK_STRUCT = WorkStructType([(f.name, numba_type(f)) for f in LEMKE_LAYOUT + BLOCK_LAYOUT])
 
 
 class ModelStruct(structref.StructRefProxy):
@@ -498,9 +549,31 @@ def work_struct(work, check=True):
     return _struct(work, WORK_STRUCT, WORK_LAYOUT, check)
 
 
+def lemke_work_struct(work):
+    """The kernels' view of a LemkeWork or BlockLemkeWork namedtuple (same buffers). With NUMBA_DISABLE_JIT, the
+    namedtuple."""
+    if isinstance(work, BlockLemkeWork):
+        return _struct(work, BLOCK_LEMKE_WORK_STRUCT, LEMKE_LAYOUT + BLOCK_LAYOUT)
+    return _struct(work, LEMKE_WORK_STRUCT, LEMKE_LAYOUT)
+
+
+def lemke_struct(arrays):
+    """A LemkeWork struct over the tuple `arrays` (LEMKE_LAYOUT's fields, in order), for a kernel that allocates its
+    own work (engine/solvers/lemke.py `lemke_solve`); run as Python, the LemkeWork namedtuple of them."""
+    return LemkeWork(*arrays)
+
+
+@overload(lemke_struct, jit_options={"_nrt": True})
+def _lemke_struct_overload(arrays):
+    def impl(arrays):
+        return _struct_from_tuple(LEMKE_WORK_STRUCT, arrays)
+    return impl
+
+
 def python_view(s):
-    """The namedtuple over the same buffers as a struct made by `model_struct` or `work_struct`, for Python code
-    that reads the arrays (a struct's fields are not exposed to Python); without the JIT, s itself."""
+    """The namedtuple over the same buffers as a struct made by `model_struct`, `work_struct` or `lemke_work_struct`,
+    for Python code that reads the arrays (a struct's fields are not exposed to Python); without the JIT, s
+    itself."""
     return getattr(s, "view", s)
 
 

@@ -28,6 +28,13 @@ Recording = namedtuple("Recording", ["q", "v", "qk", "stats", "status", "con_cou
 #: the Recording fields a chunk of a run gets whole (see Recording)
 RUN_ROWS = ("stat_rows", "stat_ints", "energy")
 
+#: A rollout's inputs: the initial state q0, v0 (ndyn, 3) and qk0 (nkin, 3) float64 (row 0 of the recording); the
+#: kinematic velocities vk_seq (nvk, nkin, 3) float64, step i using vk_seq[min(step0 + i, nvk - 1)]; step0, the index
+#: of the first step in vk_seq (a resumed rollout), and nsteps (int); stop_on_failure, reset_warm_start (bool).
+#: A namedtuple passed by value (scalars and four arrays: no struct needed to keep a call's arguments few).
+RolloutRun = namedtuple("RolloutRun", ["q0", "v0", "qk0", "vk_seq", "step0", "nsteps", "stop_on_failure",
+                                       "reset_warm_start"])
+
 
 def make_recording(nsteps, ndyn, nkin, contacts=0, rows=False):
     """The Recording of a rollout of nsteps steps of ndyn dynamic and nkin kinematic bodies, with room for
@@ -146,10 +153,11 @@ def record_contacts(w, i, nc, rec):
 
 
 @njit(cache=True, inline='always')
-def start_rollout(w, q0, v0, qk0, rec, reset_warm_start):
-    """Row 0 of the recording is the initial state; a rollout from scratch forgets the warm-start memory (so its
-    result depends on its inputs only), a resumed one keeps it."""
-    if reset_warm_start:
+def start_rollout(w, run, rec):
+    """Row 0 of the recording is the run's initial state; a rollout from scratch (run.reset_warm_start) forgets the
+    warm-start memory (so its result depends on its inputs only), a resumed one keeps it."""
+    q0, v0, qk0 = run.q0, run.v0, run.qk0
+    if run.reset_warm_start:
         for i in range(w.warm_size.shape[0]):
             w.warm_size[i] = -1
         for p in range(w.sparse_pair_mode.shape[0]):
@@ -165,23 +173,18 @@ def start_rollout(w, q0, v0, qk0, rec, reset_warm_start):
 
 
 @njit(cache=True, inline='always')
-def rollout_loop(step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
-    """THE rollout: nsteps steps of `step` from (q0, v0, qk0), recorded into `rec`.
+def rollout_loop(step, m, run, h, opt, w, rec):
+    """THE rollout: run.nsteps steps of `step` from (run.q0, run.v0, run.qk0), recorded into `rec`.
 
     Parameters
     ----------
     step : a step variant (engine/step.py), or any function with its arguments
     m, opt, w, h : as the step takes them
-    q0, v0 : (ndyn, 3) float64;  qk0 : (nkin, 3) float64
-        The initial state (row 0 of the recording).
-    vk_seq : (nvk, nkin, 3) float64
-        Kinematic velocities: step i uses vk_seq[min(step0 + i, nvk - 1)].
-    step0 : int
-        Index of the first step in vk_seq (a resumed rollout).
-    nsteps : int
+    run : RolloutRun
+        The initial state, the kinematic velocities, the steps (step0, nsteps) and the flags stop_on_failure,
+        reset_warm_start.
     rec : Recording
         Output buffers with nsteps + 1 state rows and nsteps step rows.
-    stop_on_failure, reset_warm_start : bool
 
     Returns
     -------
@@ -189,19 +192,22 @@ def rollout_loop(step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, st
         The steps done: nsteps, or fewer when stop_on_failure and a step failed (that step included), or when a step
         returned STEP_NEEDS_FALLBACK or STEP_NEEDS_SPACE (that step excluded: nothing of it was written but its status).
     """
-    start_rollout(w, q0, v0, qk0, rec, reset_warm_start)
+    start_rollout(w, run, rec)
+    vk_seq = run.vk_seq
+    step0 = run.step0
+    nsteps = run.nsteps
     nvk = vk_seq.shape[0]
     done = nsteps
     for i in range(nsteps):
         vk = vk_seq[min(step0 + i, nvk - 1)]
-        st = step(m, rec.q[i], rec.v[i], rec.qk[i], vk, h, opt, w, rec.q[i + 1], rec.v[i + 1], rec.qk[i + 1],
+        st = step(m, (rec.q[i], rec.v[i], rec.qk[i], vk), h, opt, w, (rec.q[i + 1], rec.v[i + 1], rec.qk[i + 1]),
                   rec.stats[i])
         rec.status[i] = st
         if st == STEP_NEEDS_FALLBACK or st == STEP_NEEDS_SPACE:
             done = i
             break
         record_contacts(w, i, int(rec.stats[i, Stat.N_CONTACTS]), rec)
-        if st != STEP_OK and stop_on_failure:
+        if st != STEP_OK and run.stop_on_failure:
             done = i + 1
             break
     record_rows(m, w, step0, done, rec)
@@ -213,12 +219,10 @@ def rollout_loop(step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, st
 # are the whole of what a cold cache compiles for the steps, whatever the scene.
 
 @njit(cache=True, _nrt=False)
-def rollout_lemke(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
-    return rollout_loop(lemke_step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
-                        reset_warm_start)
+def rollout_lemke(m, run, h, opt, w, rec):
+    return rollout_loop(lemke_step, m, run, h, opt, w, rec)
 
 
 @njit(cache=True, _nrt=False)
-def rollout_pgs(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
-    return rollout_loop(pgs_step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
-                        reset_warm_start)
+def rollout_pgs(m, run, h, opt, w, rec):
+    return rollout_loop(pgs_step, m, run, h, opt, w, rec)

@@ -284,7 +284,7 @@ def copy_pair_modes(src, dst):
 
 
 @njit(cache=True, inline='always')
-def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+def step_pipeline(solve, fallback, project, m, state, h, opt, w, out, stats):
     """THE step: advance (q, v, qk) by one step of size h with kinematic velocities vk.
 
     Parameters
@@ -297,11 +297,10 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
     project : `project_positions` or None
         The velocity form's last stage. None: a velocity-form step returns STEP_NEEDS_FALLBACK at once.
     m : model struct;  w : work struct (engine/layout.py);  opt : StepOptions;  h : float, s
-    q, v : (ndyn, 3) float64
-        COM poses (m, rad) and velocities (m/s, rad/s) of the dynamic bodies.
-    qk, vk : (nkin, 3) float64
-        Kinematic poses and (prescribed) velocities.
-    q_out, v_out, qk_out : like q, v, qk
+    state : (q, v, qk, vk), a tuple
+        q, v: (ndyn, 3) float64, COM poses (m, rad) and velocities (m/s, rad/s) of the dynamic bodies; qk, vk:
+        (nkin, 3) float64, kinematic poses and (prescribed) velocities.
+    out : (q_out, v_out, qk_out), a tuple of arrays like q, v, qk
         The state after the step (must not alias the inputs).
     stats : (NSTAT,) float64
         The step's diagnostics, by `Stat`.
@@ -327,6 +326,8 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
     bit for bit. A step whose island needs larger dense buffers returns STEP_NEEDS_SPACE the same way (nothing
     written, the warm-start memory as before the step; `Simulator` grows them and runs it again).
     """
+    q, v, qk, vk = state
+    q_out, v_out, qk_out = out
     velocity_form = opt.formulation == FORM_VELOCITY
     if project is None:
         if velocity_form:
@@ -380,16 +381,14 @@ def step_pipeline(solve, fallback, project, m, q, v, qk, vk, h, opt, w, q_out, v
 # is also what `Simulator.step` runs, one step a call: a cold cache compiles each step once.
 
 @njit(cache=True, inline='always')
-def lemke_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+def lemke_step(m, state, h, opt, w, out, stats):
     """Lemke's certified chain (the warm start with opt.warm_start; large islands by the sparse solver and block Lemke
     first, opt.sparse_min), PGS's uncertified answer for an island none of them certifies (the step is then reported
     as failed), and the velocity form's projection."""
-    return step_pipeline(solve_island_lemke, solve_island_pgs, project_positions, m, q, v, qk, vk, h, opt, w, q_out,
-                         v_out, qk_out, stats)
+    return step_pipeline(solve_island_lemke, solve_island_pgs, project_positions, m, state, h, opt, w, out, stats)
 
 
 @njit(cache=True, inline='always')
-def pgs_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+def pgs_step(m, state, h, opt, w, out, stats):
     """PGS (never fails, so no fallback) with the velocity form's projection."""
-    return step_pipeline(solve_island_pgs, None, project_positions, m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out,
-                         stats)
+    return step_pipeline(solve_island_pgs, None, project_positions, m, state, h, opt, w, out, stats)

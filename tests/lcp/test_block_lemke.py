@@ -8,8 +8,8 @@ the answers must move the bodies as the tableau's do; and the time-stepper's cou
 import numpy as np
 import pytest
 
-from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.solvers.block_lemke import block_lemke, make_block_work
+from planar_lcp.engine.layout import LemkeSettings, Stat, lemke_work_struct, make_lemke_work
+from planar_lcp.engine.solvers.block_lemke import block_lemke
 from planar_lcp.engine.solvers.lemke import STATUS_MAX_PIVOTS, STATUS_SOLVED, default_max_pivots, lemke_solve
 from planar_lcp.benchmarks.lcp_corpus import find_corpus_dir, load_corpus
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL
@@ -26,11 +26,17 @@ IDS = [inst.id for inst in load_corpus(_dir)] if _dir else ["<corpus absent>"]
 
 
 def _block(M, q, max_pivots=None):
-    """(status, pivots, residual, z, work) of block_lemke on (M, q)."""
+    """(status, pivots, residual, z, work) of block_lemke on (M, q); work a BlockLemkeWork (engine/layout.py)."""
     n = len(q)
-    wk = make_block_work(n)
-    st, piv, res = block_lemke(M, q, max_pivots or default_max_pivots(n), *TOLS, *wk)
-    return st, piv, res, wk[13][:n].copy(), wk
+    wk = make_lemke_work(n, block=True)
+    st, piv, res = block_lemke(M, q, LemkeSettings(max_pivots or default_max_pivots(n), *TOLS, False),
+                               lemke_work_struct(wk))
+    return st, piv, res, wk.lemke_z[:n].copy(), wk
+
+
+def _kinv(wk, n):
+    """The K^-1 block Lemke keeps, n x n (its first n * n tableau entries)."""
+    return wk.lemke_tableau[:n * n].reshape((n, n))
 
 
 def _residual(M, q, z):
@@ -99,12 +105,12 @@ def test_the_updated_inverse_is_the_inverse_of_the_basis_block():
     for m in (10, 50, 100, 150, 200, 250):
         st, piv, res, z, wk = _block(A, b, max_pivots=m)
         assert st == STATUS_MAX_PIVOTS and piv == m
-        row_pos = wk[7][:n]
+        row_pos = wk.block_row_pos[:n]
         k = int((row_pos >= 0).sum())
-        cols, rows = wk[4][:k], wk[5][:k]
+        cols, rows = wk.block_cols[:k], wk.block_rows[:k]
         K = Ae[np.ix_(rows, cols)]
         Kinv = np.linalg.inv(K)
-        assert np.abs(wk[0][:k, :k] - Kinv).max() <= 1e-8 * np.abs(Kinv).max(), m
+        assert np.abs(_kinv(wk, n)[:k, :k] - Kinv).max() <= 1e-8 * np.abs(Kinv).max(), m
 
 
 def test_a_bins_lcps_are_solved_as_the_tableau_solves_them():
@@ -175,7 +181,8 @@ def test_the_certificates_shortcuts_equal_what_they_replace():
     rng = np.random.default_rng(3)
     for zt in (zb, np.where(rng.random(n) < 0.5, 0.0, rng.random(n)), np.zeros(n)):
         w1, w2 = np.empty(n), np.empty(n)
-        assert _residual_csc(wk[1], wk[2], wk[3], b, zt, w1) == lcp_residual(A, b, zt, w2)
+        col_val = wk.lemke_tableau[n * n:2 * n * n]
+        assert _residual_csc(col_val, wk.block_col_row, wk.block_col_start, b, zt, w1) == lcp_residual(A, b, zt, w2)
         assert np.array_equal(w1, w2)
     checked = 0
     for _ in range(60):
@@ -186,10 +193,10 @@ def test_the_certificates_shortcuts_equal_what_they_replace():
             st, piv, res, _, wk = _block(M, q, max_pivots=stop)
             if st != STATUS_MAX_PIVOTS:
                 break
-            row_pos, col_pos = wk[7][:m], wk[6][:m]
+            row_pos, col_pos = wk.block_row_pos[:m], wk.block_col_pos[:m]
             k = int((row_pos >= 0).sum())
-            cols, rows = wk[4][:k], wk[5][:k]
-            got = _complementary_negativity(q, k, wk[0], cols, rows, col_pos)
+            cols, rows = wk.block_cols[:k], wk.block_rows[:k]
+            got = _complementary_negativity(q, k, _kinv(wk, m), cols, rows, col_pos)
             if m not in cols:
                 assert got == 0.0
                 continue

@@ -146,20 +146,22 @@ def test_trivial_cases():
 @given(seed=seeds, n=sizes)
 def test_basis_refinement_matches_numpy_solve_on_the_support(seed, n):
     """The refinement step re-solves the final complementary basis from the original data; oracle: numpy."""
-    from planar_lcp.engine.solvers.lemke import refine_from_basis, lemke_kernel, make_lemke_work
+    from planar_lcp.engine.layout import LemkeSettings, lemke_work_struct, make_lemke_work
+    from planar_lcp.engine.solvers.lemke import lemke_kernel, refine_from_basis
     rng = np.random.default_rng(seed)
     A = rng.normal(size=(n, n))
     S = rng.normal(size=(n, n))
     M = A @ A.T + 0.1 * np.eye(n) + (S - S.T)
     q = rng.normal(size=n)
     work = make_lemke_work(n)
-    T, basis, z, w, cand, lu, rhs, perm, zb, zalt, walt, prow, d = work
-    status, pivots, res = lemke_kernel(M, q, 1000, 1e-12, 1e-12, 1e-9, True, *work)
+    status, pivots, res = lemke_kernel(M, q, LemkeSettings(1000, 1e-12, 1e-12, 1e-9, True), lemke_work_struct(work))
+    basis, z = work.lemke_basis, work.lemke_z
     assert status == 0
     out = np.empty(n)
     if pivots == 0:
         return
-    ok, _ = refine_from_basis(M, q, basis, n, out, lu, rhs, perm, zb, cand)
+    ok, _ = refine_from_basis(M, q, basis, n, out, work.lemke_lu, work.lemke_rhs, work.lemke_perm, work.lemke_basic,
+                              work.lemke_rows)
     assert ok
     support = [basis[i] - n for i in range(n) if n <= basis[i] < 2 * n]
     expect = np.zeros(n)

@@ -15,8 +15,9 @@ from numba import njit
 import planar_lcp.engine.step as S
 from planar_lcp.engine.assemble import assemble_lcp, island_problem_size
 from planar_lcp.engine.islands import island_members
-from planar_lcp.engine.layout import NSTAT, Stat, make_step_work, work_struct
-from planar_lcp.engine.solvers.block_lemke import block_lemke, make_block_work
+from planar_lcp.engine.layout import (NSTAT, LemkeSettings, Stat, lemke_work_struct, make_lemke_work, make_step_work,
+                                      work_struct)
+from planar_lcp.engine.solvers.block_lemke import block_lemke
 from planar_lcp.engine.solvers.lemke import STATUS_SOLVED, default_max_pivots
 from planar_lcp.engine.solvers.sparse import solve_island_sparse
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, lemke
@@ -265,10 +266,10 @@ def test_sparse_and_block_answers_on_300_random_large_islands():
                                                          SimOptions.sparse_min_unknowns):
             islands += 1
             n = len(b)
-            wk = make_block_work(n)
-            bst = block_lemke(A, b, default_max_pivots(n), DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL,
-                              *wk)[0]
-            answers = ([z] if ok else []) + ([wk[13][:n].copy()] if bst == STATUS_SOLVED else [])
+            wk = make_lemke_work(n, block=True)
+            settings = LemkeSettings(default_max_pivots(n), DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, False)
+            bst = block_lemke(A, b, settings, lemke_work_struct(wk))[0]
+            answers = ([z] if ok else []) + ([wk.lemke_z[:n].copy()] if bst == STATUS_SOLVED else [])
             certified += ok
             block += bst == STATUS_SOLVED
             either += bool(answers)

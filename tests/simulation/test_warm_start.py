@@ -13,10 +13,9 @@ import numpy as np
 import pytest
 
 from planar_lcp import load_scene, simulate
-from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.rollout import make_recording, rollout_lemke
-from planar_lcp.engine.solvers.lemke import (default_max_pivots, lemke_from_basis, lemke_kernel,
-                                             make_lemke_work)
+from planar_lcp.engine.layout import LemkeSettings, Stat, lemke_work_struct, make_lemke_work
+from planar_lcp.engine.rollout import RolloutRun, make_recording, rollout_lemke
+from planar_lcp.engine.solvers.lemke import default_max_pivots, lemke_from_basis, lemke_kernel
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL
 from planar_lcp.model import compile_scene
 from planar_lcp.spec.scene import list_scenes
@@ -25,23 +24,23 @@ from planar_lcp.sim import SimOptions, Simulator
 
 def _from_basis(M, q, mask):
     n = len(q)
-    T, basis, z, w, cand, lu, rhs, perm, zb, zalt, walt, prow, d = make_lemke_work(n)
-    ok, res = lemke_from_basis(M, q, np.asarray(mask, np.bool_), DEFAULT_RES_TOL, z, w, lu, rhs, perm, zb)
-    return ok, res, z.copy()
+    work = make_lemke_work(n)
+    ok, res = lemke_from_basis(M, q, np.asarray(mask, np.bool_), DEFAULT_RES_TOL, lemke_work_struct(work))
+    return ok, res, work.lemke_z.copy()
 
 
 def _cold(M, q, equilibrate=False):
     """Lemke from scratch as the time-stepper's first try does it (as assembled), or on the equilibrated problem."""
     n = len(q)
     work = make_lemke_work(n)
-    status, piv, res = lemke_kernel(M, q, default_max_pivots(n), DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL,
-                                    equilibrate, *work)
-    basis = work[1]
+    settings = LemkeSettings(default_max_pivots(n), DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, equilibrate)
+    status, piv, res = lemke_kernel(M, q, settings, lemke_work_struct(work))
+    basis = work.lemke_basis
     mask = np.zeros(n, np.bool_)
     for k in basis[:n]:
         if n <= k < 2 * n:
             mask[k - n] = True
-    return status, work[2][:n].copy(), mask
+    return status, work.lemke_z[:n].copy(), mask
 
 
 @pytest.mark.parametrize("seed", range(20))
@@ -215,7 +214,8 @@ def _one_kernel_call(sim, q, v, qk, vk, n, stop_on_failure):
     """The rollout kernel called once, from a fresh simulator."""
     C = sim.model.max_contacts()
     rec = make_recording(n, q.shape[0], qk.shape[0], C)
-    done = rollout_lemke(sim.kmodel, q, v, qk, vk[None], 0, n, sim.h, sim.kopt, sim.kwork, rec, stop_on_failure, True)
+    run = RolloutRun(q, v, qk, vk[None], 0, n, stop_on_failure, True)
+    done = rollout_lemke(sim.kmodel, run, sim.h, sim.kopt, sim.kwork, rec)
     return int(done), rec._asdict()
 
 

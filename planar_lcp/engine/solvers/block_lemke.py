@@ -23,16 +23,19 @@ already passes, else recomputed from (M, q) for the final basis
 (`certificate.solve_basic_z`), and certified by the residual test of `lemke_kernel` (`lcp_residual` within res_tol of
 `lcp_scale`). A problem it does not certify goes on to the tableau (lemke.py `solve_island_lemke`).
 
-Numba kernels, no allocation: the caller passes the work arrays (engine/layout.py `block_*`; `Kinv` and the values of
-M's compressed columns borrow the tableau's buffer).
+Numba kernels, no allocation: the caller passes the work struct (engine/layout.py BLOCK_LAYOUT's and LEMKE_LAYOUT's
+fields: a step's work or a BlockLemkeWork; `Kinv` and the values of M's compressed columns borrow the tableau's
+buffer).
 """
 
 import numpy as np
 from numba import njit
 
+from planar_lcp.engine.layout import matrix_view
 from planar_lcp.engine.solvers.certificate import (STATUS_INACCURATE, STATUS_INVALID, STATUS_MAX_PIVOTS,
-                                                   STATUS_RAY, STATUS_SOLVED, lcp_residual, lcp_scale,
-                                                   natural_residual, partial_pivot, solve_basic_z, swap_rows)
+                                                   STATUS_RAY, STATUS_SOLVED, keep_ties, lcp_residual, lcp_scale,
+                                                   lexicographic_pick, natural_residual, partial_pivot,
+                                                   solve_basic_z, swap_rows)
 
 
 #: K^-1 is made anew (`_refactor`) when a direction's equations are off by more than this, relative to the scale
@@ -69,10 +72,18 @@ def _add_basic_columns(col_val, col_row, col_start, n, k, cols, zs, out):
 
 
 @njit(cache=True, _nrt=False)
-def _direction(M, col_val, col_row, col_start, n, k, Kinv, cols, rows, row_pos, entering, dz, dw):
+def _direction(M, work, Kinv, col_val, n, k, entering):
     """How the basic variables change when `entering` rises at unit rate (variable codes: z_j is j, w_i is n + 1 + i,
-    z0 is n). Writes dz[:k] (the basic z, by position in S) and dw[i] for every row i (meaningful where w_i is basic).
-    col_val, col_row, col_start: M's nonzero entries by column (values, rows, each column's first entry)."""
+    z0 is n). Writes dz[:k] (the basic z, by position in S: work.block_dz) and dw[i] for every row i (meaningful
+    where w_i is basic: work.block_dw). col_val, work.block_col_row, work.block_col_start: M's nonzero entries by
+    column (values, rows, each column's first entry)."""
+    col_row = work.block_col_row
+    col_start = work.block_col_start
+    cols = work.block_cols
+    rows = work.block_rows
+    row_pos = work.block_row_pos
+    dz = work.block_dz
+    dw = work.block_dw
     if entering > n:
         # w_p enters: row p leaves the equations, K z_S = -q_C + e_p t
         p = row_pos[entering - n - 1]
@@ -117,14 +128,23 @@ def _basis_inverse_row(M, n, k, Kinv, cols, rows, cand_code, out):
 
 
 @njit(cache=True, _nrt=False)
-def _ratio_test(M, n, k, Kinv, cols, rows, row_pos, xz, xw, dz, dw, piv_tol, ratio_tol, rhs_scale, cand, rate, lex):
+def _ratio_test(M, work, Kinv, n, k, settings, rhs_scale):
     """The blocking basic variable: -1 none (a ray), c < k the basic z at position c, n + 1 + i the basic w_i.
 
     lemke._ratio_test's rule on the same numbers (a tableau entry T[i, j] is the basic variable's rate of DEcrease,
     -dz or -dw here): candidates fall faster than piv_tol of the fastest; the smallest ratio value / rate; ties
     within ratio_tol of the problem's scale go to the artificial variable, then are broken lexicographically on the
-    rows of B^-1 (built from K^-1 for the tied candidates only, in `lex`: n x n work), then by the largest rate.
-    cand (int64), rate (float64): (>=n,) work."""
+    rows of B^-1 (built from K^-1 for the tied candidates only, in work.lemke_lu), then by the largest rate. The
+    candidates in work.lemke_perm, their rates in work.lemke_rhs, their values in work.lemke_z_refined."""
+    cols = work.block_cols
+    row_pos = work.block_row_pos
+    xz = work.block_xz
+    xw = work.block_xw
+    dz = work.block_dz
+    dw = work.block_dw
+    cand = work.lemke_perm
+    rate = work.lemke_rhs
+    value = work.lemke_z_refined
     colmax = 0.0
     for c in range(k):
         colmax = max(colmax, abs(dz[c]))
@@ -133,68 +153,38 @@ def _ratio_test(M, n, k, Kinv, cols, rows, row_pos, xz, xw, dz, dw, piv_tol, rat
             colmax = max(colmax, abs(dw[i]))
     if colmax == 0.0:
         return -1
-    thresh = piv_tol * colmax
+    thresh = settings.piv_tol * colmax
     nc = 0
     best = np.inf
     for c in range(k):
         if -dz[c] > thresh:
             cand[nc] = c
             rate[nc] = -dz[c]
-            best = min(best, max(xz[c], 0.0) / -dz[c])
+            value[nc] = max(xz[c], 0.0)
+            best = min(best, value[nc] / -dz[c])
             nc += 1
     for i in range(n):
         if row_pos[i] < 0 and -dw[i] > thresh:
             cand[nc] = n + 1 + i
             rate[nc] = -dw[i]
-            best = min(best, max(xw[i], 0.0) / -dw[i])
+            value[nc] = max(xw[i], 0.0)
+            best = min(best, value[nc] / -dw[i])
             nc += 1
     if nc == 0:
         return -1
-    tol = ratio_tol * max(best, rhs_scale / colmax)
-    m = 0
-    for a in range(nc):
-        code = cand[a]
-        x = xz[code] if code < k else xw[code - n - 1]
-        if max(x, 0.0) / rate[a] <= best + tol:
-            cand[m] = code
-            rate[m] = rate[a]
-            m += 1
-    nc = m
+    nc = keep_ties(cand, rate, value, nc, best + settings.ratio_tol * max(best, rhs_scale / colmax))
     if nc == 1:
         return cand[0]
     for a in range(nc):
         if cand[a] < k and cols[cand[a]] == n:
             return cand[a]
-    # lexicographic on the rows of B^-1, as lemke._ratio_test (ties judged against the largest |B^-1 / rate|)
-    lex_scale = 0.0
+    # lexicographic on the rows of B^-1, as lemke._ratio_test: the tied candidates' rows, made from K^-1
+    lex = work.lemke_lu
+    lrow = work.lemke_basic
     for a in range(nc):
-        _basis_inverse_row(M, n, k, Kinv, cols, rows, cand[a], lex[a])
-        for t in range(n):
-            lex[a, t] /= rate[a]
-            lex_scale = max(lex_scale, abs(lex[a, t]))
-    tol = ratio_tol * lex_scale
-    for t in range(n):
-        best = np.inf
-        for a in range(nc):
-            best = min(best, lex[a, t])
-        m = 0
-        for a in range(nc):
-            if lex[a, t] <= best + tol:
-                if m != a:
-                    cand[m] = cand[a]
-                    rate[m] = rate[a]
-                    for t2 in range(n):
-                        lex[m, t2] = lex[a, t2]
-                m += 1
-        nc = m
-        if nc == 1:
-            return cand[0]
-    # still tied (round-off only): the largest pivot element
-    pick = 0
-    for a in range(1, nc):
-        if rate[a] > rate[pick]:
-            pick = a
-    return cand[pick]
+        _basis_inverse_row(M, n, k, Kinv, cols, work.block_rows, cand[a], lex[a])
+        lrow[a] = a
+    return lexicographic_pick(lex, lrow, cand, rate, nc, n, settings.ratio_tol)
 
 
 @njit(cache=True, _nrt=False)
@@ -211,10 +201,16 @@ def _drift(n, k, rows, entering, dz, dw):
 
 
 @njit(cache=True, _nrt=False)
-def _refactor(M, col_val, col_row, col_start, q, n, k, Kinv, cols, rows, xz, xw, lu):
-    """K^-1 anew from M (Gauss-Jordan with partial pivoting, O(k^3)), and the basic values from it: the updates'
-    round-off grows with every pivot. Returns False if K is singular to working precision (an elimination pivot
-    below SINGULAR_TOL of K's largest entry): the path has taken a pivot the updates could not resolve."""
+def _refactor(M, q, work, Kinv, col_val, n, k):
+    """K^-1 anew from M (Gauss-Jordan with partial pivoting, O(k^3), K's elimination in work.lemke_lu), and the basic
+    values from it (work.block_xz, block_xw): the updates' round-off grows with every pivot. Returns False if K is
+    singular to working precision (an elimination pivot below SINGULAR_TOL of K's largest entry): the path has taken
+    a pivot the updates could not resolve."""
+    cols = work.block_cols
+    rows = work.block_rows
+    xz = work.block_xz
+    xw = work.block_xw
+    lu = work.lemke_lu
     kmax = 0.0
     for r in range(k):
         for c in range(k):
@@ -249,7 +245,7 @@ def _refactor(M, col_val, col_row, col_start, q, n, k, Kinv, cols, rows, xz, xw,
         xz[c] = s
     for i in range(n):
         xw[i] = q[i]
-    _add_basic_columns(col_val, col_row, col_start, n, k, cols, xz, xw)
+    _add_basic_columns(col_val, work.block_col_row, work.block_col_start, n, k, cols, xz, xw)
     return True
 
 
@@ -284,19 +280,35 @@ def _remove_position(Kinv, k, cols, rows, col_pos, row_pos, xz, n, c, p):
 
 
 @njit(cache=True, _nrt=False)
-def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, col_val, col_row, col_start, cols, rows, col_pos,
-                row_pos, xz, xw, dz,
-                dw, y, z, w, lu, rhs, perm, zb, zalt, walt):
+def block_lemke(M, q, settings, work):
     """Solve the LCP (M, q) by Lemke's method (covering vector e) on the Schur complement of its basis.
 
-    M : (n, n), q : (n,) -- not modified. Kinv, lu : (>=n, >=n) work; col_val (float64), col_row (int64) : (>=n*n,)
-    work; col_start : (>=n+1,) int64 work; cols, rows, col_pos, row_pos, zb, perm : (>=n,) int64 work; xz, xw, dz,
-    dw, y, rhs, zalt, walt : (>=n,) float64 work. z, w : outputs.
+    M : (n, n), q : (n,) -- not modified. settings : LemkeSettings (engine/layout.py; equilibrate is not read).
+    work : a struct with LEMKE_LAYOUT's and BLOCK_LAYOUT's fields for problems of at least n unknowns (a step's work
+    struct, or `lemke_work_struct(make_lemke_work(n, block=True))`): K^-1 is the first n * n entries of
+    work.lemke_tableau (row-major), the values of M's compressed columns the next n * n. The answer is work.lemke_z,
+    with work.lemke_w = M z + q.
     Returns (status, pivots, residual) with lemke_kernel's meaning: STATUS_SOLVED only when certified.
     """
     n = q.shape[0]
     if n == 0:
         return STATUS_SOLVED, 0, 0.0
+    Kinv = matrix_view(work.lemke_tableau, n, n)
+    col_val = work.lemke_tableau[n * n:2 * n * n]
+    col_row = work.block_col_row
+    col_start = work.block_col_start
+    cols = work.block_cols
+    rows = work.block_rows
+    col_pos = work.block_col_pos
+    row_pos = work.block_row_pos
+    xz = work.block_xz
+    xw = work.block_xw
+    dz = work.block_dz
+    dw = work.block_dw
+    y = work.block_y
+    z = work.lemke_z
+    w = work.lemke_w
+    res_tol = settings.res_tol
     for i in range(n):
         if not np.isfinite(q[i]):
             return STATUS_INVALID, 0, np.inf
@@ -340,22 +352,21 @@ def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, col_val, co
     leaving = n + 1 + r
     pivots = 1
     status = STATUS_MAX_PIVOTS
-    while pivots < max_pivots:
+    while pivots < settings.max_pivots:
         # the complement of the variable that just left enters
         entering = leaving - n - 1 if leaving > n else n + 1 + leaving
-        _direction(M, col_val, col_row, col_start, n, k, Kinv, cols, rows, row_pos, entering, dz, dw)
+        _direction(M, work, Kinv, col_val, n, k, entering)
         # dw is computed on every row: where w_i = 0 stays an equation (the rows C) it must vanish, and what is left
         # there is the updated K^-1's error. Past DRIFT_TOL of the scale, K^-1 and the values are made anew.
         if _drift(n, k, rows, entering, dz, dw) > DRIFT_TOL * scale:
-            if not _refactor(M, col_val, col_row, col_start, q, n, k, Kinv, cols, rows, xz, xw, lu):
+            if not _refactor(M, q, work, Kinv, col_val, n, k):
                 status = STATUS_INACCURATE
                 break
-            _direction(M, col_val, col_row, col_start, n, k, Kinv, cols, rows, row_pos, entering, dz, dw)
+            _direction(M, work, Kinv, col_val, n, k, entering)
             if _drift(n, k, rows, entering, dz, dw) > DRIFT_TOL * scale:
                 status = STATUS_INACCURATE      # ill-conditioned even when made anew: leave it to the tableau
                 break
-        blk = _ratio_test(M, n, k, Kinv, cols, rows, row_pos, xz, xw, dz, dw, piv_tol, ratio_tol, rhs_scale, perm,
-                         rhs, lu)
+        blk = _ratio_test(M, work, Kinv, n, k, settings, rhs_scale)
         if blk < 0:
             status = STATUS_RAY
             break
@@ -458,12 +469,10 @@ def block_lemke(M, q, max_pivots, piv_tol, ratio_tol, res_tol, Kinv, col_val, co
             if cols[c] == n:
                 c0 = c
         if c0 >= 0 and xz[c0] <= res_tol * scale:
-            if _certify(M, q, k, Kinv, cols, rows, col_pos, col_val, col_row, col_start, xz, z, w, res_tol, scale,
-                        lu, rhs, perm, zb, zalt, walt) <= res_tol * scale:
+            if _certify(M, q, work, Kinv, col_val, k, res_tol, scale) <= res_tol * scale:
                 status = STATUS_SOLVED
                 break
-    res = _certify(M, q, k, Kinv, cols, rows, col_pos, col_val, col_row, col_start, xz, z, w, res_tol, scale, lu,
-                   rhs, perm, zb, zalt, walt)
+    res = _certify(M, q, work, Kinv, col_val, k, res_tol, scale)
     if res <= res_tol * scale:
         return STATUS_SOLVED, pivots, res
     if status == STATUS_SOLVED:
@@ -528,11 +537,10 @@ def _complementary_negativity(q, k, Kinv, cols, rows, col_pos):
 
 
 @njit(cache=True, _nrt=False)
-def _certify(M, q, k, Kinv, cols, rows, col_pos, col_val, col_row, col_start, xz, z, w, res_tol, scale, lu, rhs, perm,
-             zb, zalt, walt):
+def _certify(M, q, work, Kinv, col_val, k, res_tol, scale):
     """The answer at the current basis: the basic z as the pivots left them, or, unless that is already well inside
-    the tolerance, recomputed from (M, q) (M[Z, Z] z_Z = -q[Z] over the basic z); the better one in z, w = M z + q.
-    Returns its residual (`lcp_residual`'s value, summed over M's compressed columns).
+    the tolerance, recomputed from (M, q) (M[Z, Z] z_Z = -q[Z] over the basic z); the better one in work.lemke_z,
+    work.lemke_w = M z + q. Returns its residual (`lcp_residual`'s value, summed over M's compressed columns).
 
     With the artificial variable still basic the recomputation, an O(k^3) factorization, is tried only if the
     answer it would give, predicted from K^-1 in O(k^2), could be the better one: its most negative z no more than
@@ -541,6 +549,17 @@ def _certify(M, q, k, Kinv, cols, rows, col_pos, col_val, col_row, col_start, xz
     never gave the answer there (M[Z, Z] singular, or its answer negative) and was 40 % of the solve. A skip that
     was wrong costs a few more pivots or the tableau, never a wrong answer: what is returned is certified."""
     n = q.shape[0]
+    cols = work.block_cols
+    rows = work.block_rows
+    col_pos = work.block_col_pos
+    col_row = work.block_col_row
+    col_start = work.block_col_start
+    xz = work.block_xz
+    z = work.lemke_z
+    w = work.lemke_w
+    zb = work.lemke_basic
+    zalt = work.lemke_z_refined
+    walt = work.lemke_w_refined
     for i in range(n):
         z[i] = 0.0
     m = np.int64(0)                     # not a literal: numba would compile solve_basic_z for Literal[int](0) too
@@ -551,7 +570,7 @@ def _certify(M, q, k, Kinv, cols, rows, col_pos, col_val, col_row, col_start, xz
             m += 1
     res = _residual_csc(col_val, col_row, col_start, q, z, w)
     if res > 1e-3 * res_tol * scale and _complementary_negativity(q, k, Kinv, cols, rows, col_pos) <= 2.0 * res:
-        ok, neg = solve_basic_z(M, q, zb, m, zalt, lu, rhs, perm)
+        ok, neg = solve_basic_z(M, q, zb, m, zalt, work.lemke_lu, work.lemke_rhs, work.lemke_perm)
         if ok:
             res2 = max(_residual_csc(col_val, col_row, col_start, q, zalt, walt), -neg)
             if res2 < res:
@@ -560,12 +579,3 @@ def _certify(M, q, k, Kinv, cols, rows, col_pos, col_val, col_row, col_start, xz
                     z[i] = zalt[i]
                     w[i] = walt[i]
     return res
-
-
-def make_block_work(n):
-    """Work arrays for `block_lemke` (after M, q and the scalars): Kinv, col_val, col_row, col_start, cols, rows,
-    col_pos, row_pos, xz, xw, dz, dw, y, z, w, lu, rhs, perm, zb, zalt, walt."""
-    i = lambda: np.empty(n, np.int64)  # noqa: E731
-    f = lambda: np.zeros(n)  # noqa: E731
-    return (np.empty((n, n)), np.empty(n * n), np.empty(n * n, np.int64), np.empty(n + 1, np.int64), i(), i(), i(),
-            i(), f(), f(), f(), f(), f(), f(), f(), np.empty((n, n)), f(), i(), i(), f(), f())

@@ -1,10 +1,12 @@
 """What both Lemke variants (lemke.py's tableau, block_lemke.py's Schur-complement pivoting) share: the status codes,
 the certificate every answer is tested by (the natural-map residual of M z + q computed from the original data,
-relative to the problem's scale) and the solve of a basis's z from the original data.
+relative to the problem's scale), the solve of a basis's z from the original data, and the ratio test's rule once its
+candidates are gathered (`keep_ties`, `lexicographic_pick`: both variants pivot on the same path).
 
 Numba kernels only, no allocation: the work arrays are passed in.
 """
 
+import numpy as np
 from numba import njit
 
 STATUS_SOLVED = 0
@@ -133,3 +135,55 @@ def solve_basic_z(M, q, zb, m, z, lu, rhs, perm):
         z[zb[c]] = rhs[c] if rhs[c] > 0.0 else 0.0
         neg = min(neg, rhs[c])
     return True, neg
+
+
+@njit(cache=True, inline='always')
+def keep_ties(cand, rate, value, nc, bound):
+    """The ratio test's first level: keep, in order, the candidates cand[:nc] (each with its rate of decrease rate[a]
+    and its value value[a], clipped at 0) whose ratio value / rate is at most bound (the minimum ratio plus the tie
+    tolerance). Returns how many are kept (moved to the front of cand and rate)."""
+    m = 0
+    for a in range(nc):
+        if value[a] / rate[a] <= bound:
+            cand[m] = cand[a]
+            rate[m] = rate[a]
+            m += 1
+    return m
+
+
+@njit(cache=True, inline='always')
+def lexicographic_pick(L, lrow, cand, rate, nc, n, ratio_tol):
+    """The ratio test's tie-break among the tied candidates cand[:nc] (nc >= 2, none the artificial variable): the
+    lexicographic minimum of their rows of B^-1 divided by their rates, row a being L[lrow[a], :n]; entries tie
+    within ratio_tol of the largest |B^-1 / rate| among them (round-off in an entry of B^-1 is relative to the size of
+    its row, which grows over the pivots). Still tied (round-off only): the largest rate, the first of equals.
+    Returns the chosen candidate. cand, lrow and rate are compacted as the ties are broken (lrow may be cand itself)."""
+    lex_scale = 0.0
+    for a in range(nc):
+        i = lrow[a]
+        for k in range(n):
+            v = abs(L[i, k]) / rate[a]
+            if v > lex_scale:
+                lex_scale = v
+    tol = ratio_tol * lex_scale
+    for k in range(n):
+        best = np.inf
+        for a in range(nc):
+            ratio = L[lrow[a], k] / rate[a]
+            if ratio < best:
+                best = ratio
+        m = 0
+        for a in range(nc):
+            if L[lrow[a], k] / rate[a] <= best + tol:
+                cand[m] = cand[a]
+                lrow[m] = lrow[a]
+                rate[m] = rate[a]
+                m += 1
+        nc = m
+        if nc == 1:
+            return cand[0]
+    pick = 0
+    for a in range(1, nc):
+        if rate[a] > rate[pick]:
+            pick = a
+    return cand[pick]

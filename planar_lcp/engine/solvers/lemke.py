@@ -1,7 +1,8 @@
 """Lemke's complementary pivoting algorithm on an explicit tableau, with lexicographic degeneracy resolution.
 
-Numba kernels only: no exceptions, no allocation inside `lemke_kernel` (work arrays are passed in so the
-time-stepper can reuse them), tolerances as arguments. `planar_lcp.lcp.lemke` is the validating public wrapper.
+Numba kernels only: no exceptions, no allocation inside `lemke_kernel` (its work arrays are passed in as one struct,
+engine/layout.py LEMKE_LAYOUT, so the time-stepper can reuse them: its step work holds the same fields), the pivot
+cap and tolerances as one LemkeSettings value. `planar_lcp.lcp.lemke` is the validating public wrapper.
 
 Problem: find z >= 0 with w = M z + q >= 0 and z.w = 0.
 
@@ -26,10 +27,11 @@ from numba import njit
 from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, assemble_servo, contact_velocities,
                                         island_is_elastic, island_problem_size, island_servo, record_impulses,
                                         record_servo_lag, servo_within_limits, support_column_count)
-from planar_lcp.engine.layout import Stat, matrix_view
+from planar_lcp.engine.layout import LemkeSettings, Stat, lemke_struct, matrix_view
 from planar_lcp.engine.solvers.certificate import (STATUS_INACCURATE, STATUS_INVALID, STATUS_MAX_PIVOTS,  # noqa: F401
                                                    STATUS_NAMES, STATUS_NEEDS_SPACE, STATUS_RAY, STATUS_SOLVED,
-                                                   lcp_residual, lcp_scale, natural_residual, solve_basic_z)
+                                                   keep_ties, lcp_residual, lcp_scale, lexicographic_pick,
+                                                   natural_residual, solve_basic_z)
 from planar_lcp.engine.solvers.block_lemke import block_lemke
 from planar_lcp.engine.solvers.sparse import solve_island_sparse
 
@@ -58,21 +60,23 @@ def _pivot(T, n, r, j, prow):
 
 
 @njit(cache=True, _nrt=False)
-def _ratio_test(T, basis, n, j, piv_tol, ratio_tol, rhs_scale, cand):
+def _ratio_test(T, basis, n, j, settings, rhs_scale, cand, rate, value):
     """Lexicographic minimum-ratio test on entering column j; returns the leaving row or -1 (ray).
 
-    Candidates are rows whose pivot entry exceeds piv_tol relative to the column's largest magnitude.
+    Candidates are rows whose pivot entry exceeds settings.piv_tol relative to the column's largest magnitude.
     First level: rhs / pivot (a slightly negative rhs from round-off counts as 0, so it can never win with a
     negative ratio and start a cycle). On a tie the artificial variable leaves if it is among the tied rows
     (this ends the algorithm, and is what Drake's unrevised Lemke does). Remaining ties are broken on the
-    columns of B^-1 in order: with exact arithmetic two rows of B^-1 are never proportional, so the
-    lexicographic order is strict and Lemke cannot cycle.
+    columns of B^-1 in order (`lexicographic_pick`): with exact arithmetic two rows of B^-1 are never proportional,
+    so the lexicographic order is strict and Lemke cannot cycle.
 
     What counts as a tie is relative to the problem's own scale, never to 1: two first-level ratios tie when
     they differ by at most ratio_tol * max(|min ratio|, rhs_scale / colmax), i.e. by round-off in the rhs
     (whose magnitude is that of q) divided by the pivot. An absolute floor would merge real differences in
     small problems (DART's 12-D box LCP has ratios 4.8e-5 apart by 1e-12), pick a row that is not the
     minimum, drive a basic variable negative and cycle.
+
+    cand (int64), rate, value (float64): (>=n,) work, the candidate rows with their pivot entries and clipped rhs.
     """
     rhs = 2 * n + 1
     z0 = 2 * n
@@ -81,7 +85,7 @@ def _ratio_test(T, basis, n, j, piv_tol, ratio_tol, rhs_scale, cand):
         a = abs(T[i, j])
         if a > colmax:
             colmax = a
-    thresh = piv_tol * colmax
+    thresh = settings.piv_tol * colmax
     if colmax == 0.0:
         return -1
     nc = 0
@@ -95,59 +99,21 @@ def _ratio_test(T, basis, n, j, piv_tol, ratio_tol, rhs_scale, cand):
             if ratio < best:
                 best = ratio
             cand[nc] = i
+            rate[nc] = T[i, j]
+            value[nc] = b
             nc += 1
     if nc == 0:
         return -1
     # keep the rows tied with the minimum
-    tol = ratio_tol * max(best, rhs_scale / colmax)
-    m = 0
-    for a in range(nc):
-        i = cand[a]
-        b = T[i, rhs]
-        if b < 0.0:
-            b = 0.0
-        if b / T[i, j] <= best + tol:
-            cand[m] = i
-            m += 1
-    nc = m
+    nc = keep_ties(cand, rate, value, nc, best + settings.ratio_tol * max(best, rhs_scale / colmax))
     if nc == 1:
         return cand[0]
     for a in range(nc):
         if basis[cand[a]] == z0:
             return cand[a]
-    # Lexicographic tie-break on the columns of B^-1. Round-off in an entry of B^-1 is relative to the size of
-    # its row, which grows over the pivots, so ties at this level are judged against the largest |B^-1 / pivot|
-    # among the tied rows (tobenna's integer data has exact zero ratios decided here, and cycles otherwise).
-    lex_scale = 0.0
-    for a in range(nc):
-        i = cand[a]
-        for k in range(n):
-            v = abs(T[i, k]) / T[i, j]
-            if v > lex_scale:
-                lex_scale = v
-    tol = ratio_tol * lex_scale
-    for k in range(n):
-        best = np.inf
-        for a in range(nc):
-            i = cand[a]
-            ratio = T[i, k] / T[i, j]
-            if ratio < best:
-                best = ratio
-        m = 0
-        for a in range(nc):
-            i = cand[a]
-            if T[i, k] / T[i, j] <= best + tol:
-                cand[m] = i
-                m += 1
-        nc = m
-        if nc == 1:
-            return cand[0]
-    # Still tied (only possible through round-off): take the largest pivot element for stability.
-    r = cand[0]
-    for a in range(1, nc):
-        if T[cand[a], j] > T[r, j]:
-            r = cand[a]
-    return r
+    # Lexicographic tie-break on the columns of B^-1 (tobenna's integer data has exact zero ratios decided there,
+    # and cycles otherwise): the rows of B^-1 are the tied rows' first n tableau columns
+    return lexicographic_pick(T, cand, cand, rate, nc, n, settings.ratio_tol)
 
 
 @njit(cache=True, _nrt=False)
@@ -172,23 +138,26 @@ def refine_from_basis(M, q, basis, n, z, lu, rhs, perm, zb, zmask):
 
 
 @njit(cache=True, _nrt=False)
-def lemke_from_basis(M, q, zmask, res_tol, z, w, lu, rhs, perm, zb):
-    """Try a guessed complementary basis: z_i basic (w_i = 0) where zmask[i], else z_i = 0 (w_i basic).
+def lemke_from_basis(M, q, zmask, res_tol, work):
+    """Try a guessed complementary basis: z_i basic (w_i = 0) where zmask[i], else z_i = 0 (w_i basic), in Lemke's
+    work (a step's work struct or a LemkeWork struct: engine/layout.py LEMKE_LAYOUT).
 
     Solves M[Z, Z] z_Z = -q[Z] from the original data and certifies the answer by the residual on (M, q), with the
     margin under which `lemke_kernel` skips its own refinement (1e-3 res_tol, relative): an accepted guess is as
     accurate as a cold solve. Used as a warm start with the basis of the previous time step, where contact modes
-    rarely change. Returns (accepted, residual); z, w hold the answer only when accepted.
+    rarely change. Returns (accepted, residual); work.lemke_z, work.lemke_w hold the answer only when accepted.
     """
+    z = work.lemke_z
+    zb = work.lemke_basic
     m = np.int64(0)                     # not a literal: numba would compile solve_basic_z for Literal[int](0) too
     for i in range(q.shape[0]):
         if zmask[i]:
             zb[m] = i
             m += 1
-    ok, neg = solve_basic_z(M, q, zb, m, z, lu, rhs, perm)
+    ok, neg = solve_basic_z(M, q, zb, m, z, work.lemke_lu, work.lemke_rhs, work.lemke_perm)
     if not ok:
         return False, np.inf
-    res = max(lcp_residual(M, q, z, w), -neg)
+    res = max(lcp_residual(M, q, z, work.lemke_w), -neg)
     return res <= 1e-3 * res_tol * lcp_scale(M, q), res
 
 
@@ -221,11 +190,18 @@ def _equilibrate(M, n, d, r):
 
 
 @njit(cache=True, _nrt=False)
-def _certify(M, q, T, basis, n, d, z, w, res_tol, scale, zalt, walt, lu, rhs, perm, zb, cand):
-    """The LCP answer at the current basis, certified on the ORIGINAL (M, q): the basic z of the tableau (unscaled
-    by d), and, unless that is already well inside the tolerance, the basic z recomputed from (M, q) for the same
-    basis. Writes the better one into z (w = M z + q) and returns its residual. Valid whether or not the artificial
-    variable is still basic: the residual, not the pivoting, decides whether the answer is a solution."""
+def _certify(M, q, T, n, work, res_tol, scale):
+    """The LCP answer at the current basis, certified on the ORIGINAL (M, q): the basic z of the tableau T (unscaled
+    by work.lemke_scaling), and, unless that is already well inside the tolerance, the basic z recomputed from (M, q)
+    for the same basis. Writes the better one into work.lemke_z (work.lemke_w = M z + q) and returns its residual.
+    Valid whether or not the artificial variable is still basic: the residual, not the pivoting, decides whether the
+    answer is a solution."""
+    basis = work.lemke_basis
+    d = work.lemke_scaling
+    z = work.lemke_z
+    w = work.lemke_w
+    zalt = work.lemke_z_refined
+    walt = work.lemke_w_refined
     rhs_col = 2 * n + 1
     for i in range(n):
         z[i] = 0.0
@@ -237,7 +213,8 @@ def _certify(M, q, T, basis, n, d, z, w, res_tol, scale, zalt, walt, lu, rhs, pe
     # Refine from the original data: the tableau accumulates round-off over the pivots, the basis does not.
     # Skipped when the tableau's answer is already well inside the tolerance (it then costs more than it gains).
     if res > 1e-3 * res_tol * scale:
-        ok, neg = refine_from_basis(M, q, basis, n, zalt, lu, rhs, perm, zb, cand)
+        ok, neg = refine_from_basis(M, q, basis, n, zalt, work.lemke_lu, work.lemke_rhs, work.lemke_perm,
+                                    work.lemke_basic, work.lemke_rows)
         if ok:
             res2 = max(lcp_residual(M, q, zalt, walt), -neg)
             if res2 < res:
@@ -249,19 +226,18 @@ def _certify(M, q, T, basis, n, d, z, w, res_tol, scale, zalt, walt, lu, rhs, pe
 
 
 @njit(cache=True, _nrt=False)
-def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, basis, z, w, cand, lu, rhs, perm,
-                 zb, zalt, walt, prow, d):
+def lemke_kernel(M, q, settings, work):
     """Solve the LCP (M, q) in place. Never raises, never allocates.
 
     Parameters
     ----------
     M : (n, n) float64;  q : (n,) float64 -- not modified.
-    max_pivots : int; piv_tol, ratio_tol, res_tol : float (res_tol relative to lcp_scale(M, q)).
-    equilibrate : bool -- pivot on the symmetrically equilibrated problem (D M D, D q) (see `_equilibrate`).
-    T : (>=n, >=2n+2) float64 tableau work;  basis, cand, perm, zb : (>=n,) int64 work;
-    lu : (>=n, >=n) float64 work;  rhs, zalt, walt, d : (>=n,) float64 work;  prow : (>=2n+2,) float64 work.
-    `make_lemke_work(n)` allocates all of them in this order.
-    z, w : (>=n,) float64 outputs (the first n entries are written).
+    settings : LemkeSettings (engine/layout.py)
+        max_pivots; piv_tol, ratio_tol, res_tol (res_tol relative to lcp_scale(M, q)); equilibrate: pivot on the
+        symmetrically equilibrated problem (D M D, D q) (see `_equilibrate`).
+    work : a struct with LEMKE_LAYOUT's fields (engine/layout.py), for problems of at least n unknowns: a step's
+        work struct, or `lemke_work_struct(make_lemke_work(n))`. The tableau is the first n (2n + 2) entries of
+        work.lemke_tableau (row-major); the answer is work.lemke_z, with work.lemke_w = M z + q (first n entries).
 
     Returns
     -------
@@ -273,6 +249,12 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, 
     n = q.shape[0]
     if n == 0:
         return STATUS_SOLVED, 0, 0.0
+    basis = work.lemke_basis
+    z = work.lemke_z
+    w = work.lemke_w
+    d = work.lemke_scaling
+    prow = work.lemke_pivot_row
+    res_tol = settings.res_tol
     # the finiteness check and `lcp_scale(M, q)` in one pass over (M, q): the same comparisons in the same order
     scale = 1.0
     for i in range(n):
@@ -289,8 +271,8 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, 
                 scale = abs(a)
     for i in range(n):
         z[i] = 0.0
-    if equilibrate:
-        _equilibrate(M, n, d, rhs)
+    if settings.equilibrate:
+        _equilibrate(M, n, d, work.lemke_rhs)
     else:
         for i in range(n):
             d[i] = 1.0
@@ -316,6 +298,7 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, 
     # arithmetic, for other matrices it can decide whether Lemke succeeds (Murty's examples: docs/lcp.md).
     rhs_col = 2 * n + 1
     z0 = 2 * n
+    T = matrix_view(work.lemke_tableau, n, 2 * n + 2)
     for i in range(n):
         for c in range(n):               # B^-1 = I; the other columns are all written below
             T[i, c] = 0.0
@@ -332,13 +315,14 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, 
     z0_row = r           # the artificial variable stays in this row until it leaves (then the loop ends)
     pivots = 1
     status = STATUS_MAX_PIVOTS
-    while pivots < max_pivots:
+    while pivots < settings.max_pivots:
         # complement of the variable that just left
         if leaving < n:
             entering = leaving + n
         else:
             entering = leaving - n
-        r = _ratio_test(T, basis, n, entering, piv_tol, ratio_tol, rhs_scale, cand)
+        r = _ratio_test(T, basis, n, entering, settings, rhs_scale, work.lemke_rows, work.lemke_rhs,
+                        work.lemke_z_refined)
         if r < 0:
             status = STATUS_RAY
             break
@@ -353,12 +337,11 @@ def lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, 
         # with z0 = 0). Exact arithmetic would now let z0 leave on a tie; round-off can instead offer no pivot in
         # its row and end on a ray. Certify the point as it is (rare: only then is the O(n^2) residual computed).
         if T[z0_row, rhs_col] <= res_tol * scale:
-            if _certify(M, q, T, basis, n, d, z, w, res_tol, scale, zalt, walt, lu, rhs, perm, zb,
-                        cand) <= res_tol * scale:
+            if _certify(M, q, T, n, work, res_tol, scale) <= res_tol * scale:
                 status = STATUS_SOLVED
                 break
 
-    res = _certify(M, q, T, basis, n, d, z, w, res_tol, scale, zalt, walt, lu, rhs, perm, zb, cand)
+    res = _certify(M, q, T, n, work, res_tol, scale)
     if res <= res_tol * scale:
         return STATUS_SOLVED, pivots, res
     if status == STATUS_SOLVED:
@@ -373,15 +356,12 @@ def default_max_pivots(n):
     return 50 * n + 100
 
 
-def make_lemke_work(n):
-    """Work arrays for `lemke_kernel` for problems up to size n: (T, basis, z, w, cand, lu, rhs, perm, zb, zalt,
-    walt, prow, d). Plain Python so callers outside numba (bench, tests) share one definition with `lemke_solve`."""
-    return _make_work(n)
-
-
 @njit(cache=True)
 def _make_work(n):
-    return (np.empty((n, 2 * n + 2)), np.empty(n, np.int64), np.zeros(n), np.zeros(n), np.empty(n, np.int64),
+    """LEMKE_LAYOUT's buffers (engine/layout.py) for problems of size n, in its order, allocated in a kernel (the
+    public solver's per call; `make_lemke_work` allocates the same from Python, tests/lcp/test_lemke_work.py
+    checks that they agree)."""
+    return (np.empty(n * (2 * n + 2)), np.empty(n, np.int64), np.zeros(n), np.zeros(n), np.empty(n, np.int64),
             np.empty((n, n)), np.empty(n), np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n), np.empty(n),
             np.empty(2 * n + 2), np.empty(n))
 
@@ -389,11 +369,10 @@ def _make_work(n):
 @njit(cache=True)
 def lemke_solve(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate):
     """Allocate the work arrays and call `lemke_kernel`. Returns (z, w, status, pivots, residual)."""
-    n = q.shape[0]
-    T, basis, z, w, cand, lu, rhs, perm, zb, zalt, walt, prow, d = _make_work(n)
-    status, pivots, res = lemke_kernel(M, q, max_pivots, piv_tol, ratio_tol, res_tol, equilibrate, T, basis, z, w,
-                                       cand, lu, rhs, perm, zb, zalt, walt, prow, d)
-    return z, w, status, pivots, res
+    arrays = _make_work(q.shape[0])
+    status, pivots, res = lemke_kernel(M, q, LemkeSettings(max_pivots, piv_tol, ratio_tol, res_tol, equilibrate),
+                                       lemke_struct(arrays))
+    return arrays[2], arrays[3], status, pivots, res
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -446,39 +425,34 @@ def lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate, max_pivots=-1):
     """`lemke_kernel` on the LCP (A, b) of size n, in the step's work buffers (answer in w.lemke_z), with the options'
     ratio and residual tolerances, the pivot tolerance piv_tol and the pivot cap max_pivots (-1: default_max_pivots).
     Returns (status, pivots, residual)."""
-    T = matrix_view(w.lemke_tableau, n, 2 * n + 2)
     if max_pivots < 0:
         max_pivots = default_max_pivots(n)
-    return lemke_kernel(A, b, max_pivots, piv_tol, opt.ratio_tol, opt.res_tol, equilibrate, T,
-                        w.lemke_basis, w.lemke_z, w.lemke_w, w.lemke_rows, w.lemke_lu, w.lemke_rhs, w.lemke_perm,
-                        w.lemke_basic, w.lemke_z_refined, w.lemke_w_refined, w.lemke_pivot_row, w.lemke_scaling)
+    return lemke_kernel(A, b, LemkeSettings(max_pivots, piv_tol, opt.ratio_tol, opt.res_tol, equilibrate), w)
 
 
 @njit(cache=True, inline='always')
 def block_lemke_in_work(w, A, b, n, opt):
-    """`block_lemke` on the LCP (A, b) of size n in the step's work buffers (answer in w.lemke_z): K^-1 and the values
-    of M's compressed columns in the tableau's buffer, which is at least twice as large. At most
-    BLOCK_PIVOTS_PER_UNKNOWN pivots per unknown: a cycle costs little before the tableau takes over."""
-    T = w.lemke_tableau
-    Kinv = matrix_view(T, n, n)
-    return block_lemke(A, b, BLOCK_PIVOTS_PER_UNKNOWN * n + 100, opt.piv_tol, opt.ratio_tol, opt.res_tol, Kinv,
-                       T[n * n:2 * n * n], w.block_col_row, w.block_col_start, w.block_cols, w.block_rows,
-                       w.block_col_pos, w.block_row_pos, w.block_xz, w.block_xw, w.block_dz, w.block_dw, w.block_y,
-                       w.lemke_z, w.lemke_w, w.lemke_lu, w.lemke_rhs,
-                       w.lemke_perm, w.lemke_basic, w.lemke_z_refined, w.lemke_w_refined)
+    """`block_lemke` on the LCP (A, b) of size n in the step's work buffers (answer in w.lemke_z), with the options'
+    tolerances. At most BLOCK_PIVOTS_PER_UNKNOWN pivots per unknown: a cycle costs little before the tableau takes
+    over."""
+    return block_lemke(A, b, LemkeSettings(BLOCK_PIVOTS_PER_UNKNOWN * n + 100, opt.piv_tol, opt.ratio_tol,
+                                           opt.res_tol, np.bool_(False)), w)
 
 
 @njit(cache=True, _nrt=False)
-def block_lemke_equilibrated(m, w, opt, vk, nci, nsi, h, velocity_form, A, b, n):
-    """`block_lemke_in_work` on the equilibrated LCP (D A D, D b) (`_equilibrate`: powers of two, so exact), its answer
-    z = D z' certified on the island's LCP (A, b) as assembled by the residual test of every other answer. Leaves
-    (A, b) as assembled (made anew: the block kernel overwrites nothing of them, but the scaling is undone by
+def block_lemke_equilibrated(m, w, opt, vk, nci, nsi, h, velocity_form, n):
+    """`block_lemke_in_work` on the equilibrated LCP (D A D, D b) (`_equilibrate`: powers of two, so exact) of the
+    island's LCP (A, b) of size n in w.lcp_matrix, w.lcp_vector (assembled from vk, nci, nsi, h, velocity_form as
+    `assemble_lcp` takes them), its answer z = D z' certified on (A, b) by the residual test of every other answer.
+    Leaves (A, b) as assembled (made anew: the block kernel overwrites nothing of them, but the scaling is undone by
     assembling again, bit for bit, not by dividing). Returns (status, pivots, residual on (A, b)).
 
     Why: where round-off splits a degenerate tie, the pivot path as assembled can run K singular (the block kernel
     gives up) and the tableau's own path can wander to its cap of 50 n + 100 pivots (the settled bin of 40, step 36:
     16,900 tableau pivots, 1.4 s), while the equilibrated problem's path, another pivot sequence, reaches an answer in
     about n pivots."""
+    A = matrix_view(w.lcp_matrix, n, n)
+    b = w.lcp_vector[:n]
     d = w.lemke_scaling
     _equilibrate(A, n, d, w.lemke_rhs)
     for i in range(n):
@@ -498,11 +472,13 @@ def block_lemke_equilibrated(m, w, opt, vk, nci, nsi, h, velocity_form, A, b, n)
 
 
 @njit(cache=True, _nrt=False)
-def record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf, nsb, ns):
+def record_failed_island(m, w, vk, nci, nsi, h, velocity_form, sizes):
     """Keep the LCP of an island no method certified, as the chain's first try assembled it (its rows as the
     formulation states them, with restitution; with the force-limited bodies' lag blocks when ns > 0: the last n - ns
     ... n rows), with its contacts and support elements: w.fail_* (the step's first such island; begin_step forgets
-    it). For the diagnosis of the failure (planar_lcp/infeasibility.py)."""
+    it). For the diagnosis of the failure (planar_lcp/infeasibility.py). sizes: (n, nf, nsb, ns), the LCP's size,
+    the island's friction contacts and its force-limited bodies (`island_problem_size`, `island_servo`)."""
+    n, nf, nsb, ns = sizes
     A = matrix_view(w.lcp_matrix, n, n)
     assemble_lcp(m, w, vk, nci, nsi, h, velocity_form, A, w.lcp_vector, np.bool_(True))
     if ns > 0:
@@ -525,11 +501,15 @@ def record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf, nsb, ns):
 
 
 @njit(cache=True, inline='always')
-def lemke_chain(m, w, opt, vk, nci, nsi, h, velocity_form, stats, A, b, n, tried_block):
-    """The LEMKE_CHAIN's tries on the island LCP (A, b) of size n (assembled in its first form, and with the
-    force-limited bodies' lag blocks after the contacts' rows when it has them: `assemble_servo`, which the tries'
-    other row constants leave as they are), until one is certified. Returns (status, pivots, residual, the stats
-    counter of the method that solved it)."""
+def lemke_chain(m, w, opt, vk, nci, nsi, h, velocity_form, n, short_cap):
+    """The LEMKE_CHAIN's tries on the island LCP (A, b) of size n in w.lcp_matrix, w.lcp_vector (assembled in its
+    first form, and with the force-limited bodies' lag blocks after the contacts' rows when it has them:
+    `assemble_servo`, which the tries' other row constants leave as they are), until one is certified. short_cap
+    (-1: none): a large island's first sweep caps each try at that many pivots, and a second sweep runs the tries
+    that reached it with the full cap. Returns (status, pivots, residual, the stats counter of the method that solved
+    it, the tries after the first)."""
+    A = matrix_view(w.lcp_matrix, n, n)
+    b = w.lcp_vector[:n]
     # One call site for the whole chain: each inlined call of lemke_kernel costs compile time
     status = STATUS_RAY
     piv = 0
@@ -538,11 +518,9 @@ def lemke_chain(m, w, opt, vk, nci, nsi, h, velocity_form, stats, A, b, n, tried
     rows_velocity = velocity_form       # the rows (A, b) now hold
     rows_elastic = True
     elastic_island = island_is_elastic(m, w.island_con, nci, w.con_pair)
-    # A large island's chain runs twice: first each try capped at BLOCK_PIVOTS_PER_UNKNOWN pivots per
-    # unknown, then, if none was certified, the tries that reached that cap with the full one
-    short_cap = BLOCK_PIVOTS_PER_UNKNOWN * n + 100 if tried_block else -1
+    retries = 0
     capped = 0                           # bit `attempt`: that try ended at the short cap
-    for sweep_attempt in range(2 * len(LEMKE_CHAIN) if tried_block else len(LEMKE_CHAIN)):
+    for sweep_attempt in range(2 * len(LEMKE_CHAIN) if short_cap >= 0 else len(LEMKE_CHAIN)):
         attempt = sweep_attempt % len(LEMKE_CHAIN)
         second_sweep = sweep_attempt >= len(LEMKE_CHAIN)
         if second_sweep and not (capped >> attempt) & 1:
@@ -565,14 +543,14 @@ def lemke_chain(m, w, opt, vk, nci, nsi, h, velocity_form, stats, A, b, n, tried
             rows_velocity = want_velocity
             rows_elastic = elastic
         if sweep_attempt > 0:
-            stats[Stat.LEMKE_RETRIES] += 1
+            retries += 1
         status, p, res = lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate, -1 if second_sweep else short_cap)
         piv += p
         if status == STATUS_SOLVED:
             break
         if status == STATUS_MAX_PIVOTS and short_cap >= 0 and not second_sweep:
             capped |= 1 << attempt
-    return status, piv, res, method
+    return status, piv, res, method, retries
 
 
 @njit(cache=True, inline='always')
@@ -640,8 +618,7 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
             assemble_servo(m, w, nci, nf, n, nsb, h, A, w.lcp_vector)
         if phase == 0 and opt.warm_start and w.warm_size[isl] == n:
             # the previous step's basis for this island: contact modes rarely change from one step to the next
-            warm, res = lemke_from_basis(A, b, w.warm_basic_z[isl], opt.res_tol, w.lemke_z, w.lemke_w, w.lemke_lu,
-                                         w.lemke_rhs, w.lemke_perm, w.lemke_basic)
+            warm, res = lemke_from_basis(A, b, w.warm_basic_z[isl], opt.res_tol, w)
         if warm:
             status = STATUS_SOLVED
             stats[Stat.WARM_STARTS] += 1
@@ -652,14 +629,17 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
             status, p, res = block_lemke_in_work(w, A, b, n, opt)
             piv += p
             if status != STATUS_SOLVED:
-                status, p, res = block_lemke_equilibrated(m, w, opt, vk, nci, nsi, h, velocity_form, A, b, n)
+                status, p, res = block_lemke_equilibrated(m, w, opt, vk, nci, nsi, h, velocity_form, n)
                 piv += p
             if status == STATUS_SOLVED:
                 block = True
                 stats[Stat.SOLVED_BLOCK] += 1
         if not warm and not block:
-            status, p, res, method = lemke_chain(m, w, opt, vk, nci, nsi, h, velocity_form, stats, A, b, N,
-                                                 tried_block)
+            # a large island's chain runs twice: first each try capped at BLOCK_PIVOTS_PER_UNKNOWN pivots per
+            # unknown, then, if none was certified, the tries that reached that cap with the full one
+            short_cap = BLOCK_PIVOTS_PER_UNKNOWN * N + 100 if tried_block else -1
+            status, p, res, method, retries = lemke_chain(m, w, opt, vk, nci, nsi, h, velocity_form, N, short_cap)
+            stats[Stat.LEMKE_RETRIES] += retries
             piv += p
             if status == STATUS_SOLVED:
                 stats[method] += 1
@@ -675,7 +655,7 @@ def solve_island_lemke(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
         stats[Stat.LEMKE_STATUS] = max(stats[Stat.LEMKE_STATUS], status)
         w.warm_size[isl] = -1
         if w.fail_size[0] < 0 and not sparse:
-            record_failed_island(m, w, vk, nci, nsi, h, velocity_form, n, nf, nsb, ns)
+            record_failed_island(m, w, vk, nci, nsi, h, velocity_form, (n, nf, nsb, ns))
         return status
     if sparse or servo:
         w.warm_size[isl] = -1                # no basis to keep (a servo's: the next step tries its LCP first)

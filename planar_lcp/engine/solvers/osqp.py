@@ -144,14 +144,13 @@ def solve_island_osqp(m, w, opt, vk, isl, nci, nsi, h, velocity_form, stats):
     return STATUS_SOLVED
 
 
-def osqp_step(m, q, v, qk, vk, h, opt, w, q_out, v_out, qk_out, stats):
+def osqp_step(m, state, h, opt, w, out, stats):
     """The step variant of solver osqp (a step variant's arguments): the step pipeline run as Python, each island
     solved by OSQP, PGS as the fallback, the velocity form's projection."""
-    return int(STEP_PIPELINE_PY(solve_island_osqp, solve_island_pgs, project_positions, m, q, v, qk, vk, h, opt, w,
-                                q_out, v_out, qk_out, stats))
+    return int(STEP_PIPELINE_PY(solve_island_osqp, solve_island_pgs, project_positions, m, state, h, opt, w, out,
+                                stats))
 
 
-def osqp_rollout(m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure, reset_warm_start):
+def osqp_rollout(m, run, h, opt, w, rec):
     """The rollout variant of solver osqp (a rollout variant's arguments): the rollout loop run as Python."""
-    return ROLLOUT_LOOP_PY(osqp_step, m, q0, v0, qk0, vk_seq, step0, nsteps, h, opt, w, rec, stop_on_failure,
-                           reset_warm_start)
+    return ROLLOUT_LOOP_PY(osqp_step, m, run, h, opt, w, rec)

@@ -186,6 +186,15 @@ def _number_unknowns(m, w, nci):
     return p, bw
 
 
+@njit(cache=True, inline='always')
+def _body_contact(bcon, unk, slot, mode, fric, nci, d, e):
+    """Entry e of body d's island contacts (bcon: w.sparse_body_con): the contact a, its first reduced unknown (-1:
+    separated), the side (0 or 1) of its columns that is body d's, its number of reduced unknowns and the index of
+    its +t friction column."""
+    a = bcon[e]
+    return a, unk[a], 0 if slot[a, 0] == d else 1, _unknowns_of(mode, fric, a), nci + 2 * fric[a]
+
+
 @njit(cache=True, _nrt=False)
 def _build_band(m, w, nci, p, bw):
     """W = R^T M^-1 C of the current modes, band storage (row i, column j at i * (2 bw + 1) + j - i + bw), and the
@@ -219,21 +228,13 @@ def _build_band(m, w, nci, p, bw):
         im = inv_mass[d]
         J = inertia[d]
         for e in range(start[d], start[d + 1]):
-            a = bcon[e]
-            ua = unk[a]
+            a, ua, sa, na, ta = _body_contact(bcon, unk, slot, mode, fric, nci, d, e)
             if ua < 0:
                 continue
-            sa = 0 if slot[a, 0] == d else 1
-            na = _unknowns_of(mode, fric, a)
-            ta = nci + 2 * fric[a]
             for e2 in range(start[d], start[d + 1]):
-                b = bcon[e2]
-                ub = unk[b]
+                b, ub, sb, nb, tb = _body_contact(bcon, unk, slot, mode, fric, nci, d, e2)
                 if ub < 0:
                     continue
-                sb = 0 if slot[b, 0] == d else 1
-                nb = _unknowns_of(mode, fric, b)
-                tb = nci + 2 * fric[b]
                 for ka in range(na):
                     ra = a if ka == 0 else ta
                     r0 = g[ra, sa, 0]
