@@ -8,8 +8,8 @@ import math
 import signal
 import sys
 
-from planar_lcp.cli_support import (SIMULATE_FLAGS, InputError, MissingPackage, ProgressBar, check_output_file,
-                                    finite_number, missing_optional, one_line_errors, raised_while_interrupted,
+from planar_lcp.cli_support import (SIMULATE_FLAGS, InputError, MissingPackage, ProgressBar, add_command,
+                                    check_output_file, finite_number, missing_optional, raised_while_interrupted,
                                     require)
 from planar_lcp.interrupt import catch_sigint, clear, interrupted, raise_if_interrupted
 
@@ -317,7 +317,7 @@ def _simulate(args):
     return 0
 
 
-#: Modules that add subcommands: each has `register(subparsers)`, which adds its parsers with set_defaults(func=...)
+#: Modules that add subcommands: each has `register(subparsers)`, which adds its parsers (cli_support.add_command)
 #: and must import heavy or optional libraries (matplotlib, pymunk, ompl) only inside the command's function.
 COMMAND_MODULES = ["planar_lcp.studies.compare_cli", "planar_lcp.studies.study_cli",
                    "planar_lcp.benchmarks.tradeoff", "planar_lcp.studies.pushdata.cli"]
@@ -350,16 +350,15 @@ def build_parser():
     p.add_argument("--version", action=_VersionAction, help="print the installed version and exit")
     sub = p.add_subparsers(dest="command", required=True)
 
-    d = sub.add_parser("demo", help="the main job: a short tour of what the toolkit does")
+    d = add_command(sub, "demo", cmd_demo, help="the main job: a short tour of what the toolkit does")
     d.add_argument("--out", default="planar_lcp_demo", metavar="DIR",
                    help="where to write the demo's files (default ./planar_lcp_demo)")
-    d.set_defaults(func=cmd_demo)
 
     from planar_lcp.benchmarks.bench import (PILE_SCALING_SIZES, PILE_SCENES, SCALING_KINDS, SCALING_SIZES,
                                               SETTLE_BUDGET_S, STEP_BUDGET_S)
-    b = one_line_errors(sub.add_parser(
-        "bench", help="benchmarks against peers measured in the same run",
-        description="Benchmarks in alternating rounds of thread CPU time (docs/performance.md, Method)."))
+    b = add_command(
+        sub, "bench", cmd_bench, help="benchmarks against peers measured in the same run",
+        description="Benchmarks in alternating rounds of thread CPU time (docs/performance.md, Method).")
     b.add_argument("what", choices=["step", "lcp", "scaling", "pile", "all"],
                    help="step: microseconds per step and compile time; lcp: our Lemke vs QuantEcon's lcp_lemke; "
                         "scaling: cost per step against the number of bodies (the small layouts pile and islands, "
@@ -387,12 +386,12 @@ def build_parser():
                         f"the larger bins (default {SETTLE_BUDGET_S:g})")
     b.add_argument("--scenes", nargs="+", choices=[name for name, _ in PILE_SCENES], metavar="SCENE",
                    help=f"pile: the scenes to run, of {', '.join(name for name, _ in PILE_SCENES)} (default all)")
-    b.set_defaults(func=cmd_bench)
 
-    s = one_line_errors(sub.add_parser(
-        "simulate", help="simulate a scene; print a summary, optionally write CSV, a plot and an animation",
+    s = add_command(
+        sub, "simulate", _cmd_simulate,
+        help="simulate a scene; print a summary, optionally write CSV, a plot and an animation",
         description="Simulate a scene (a shipped name, see `planar-lcp scenes`, or a path to a .toml file). "
-                    "Options override the scene's [sim] table."))
+                    "Options override the scene's [sim] table.")
     s.add_argument("scene", metavar="SCENE", help="a shipped scene name or a path to a .toml scene file")
     s.add_argument("--h", type=finite_number(float, 0, True), metavar="H",
                    help=f"time step [s]; below the duration, and at most {MAX_STEPS} steps in all")
@@ -432,18 +431,16 @@ def build_parser():
     s.epilog = ("Output files are checked before the run (extension, an existing writable directory). A run whose "
                 "trajectory and LCP buffers would need more than a quarter of physical memory is refused before it "
                 "starts, with the estimate (docs/scene-format.md, Limits).")
-    s.set_defaults(func=_cmd_simulate)
 
-    sc = one_line_errors(sub.add_parser("scenes", help="list the shipped scenes with their descriptions"))
-    sc.set_defaults(func=_cmd_scenes)
+    add_command(sub, "scenes", _cmd_scenes, help="list the shipped scenes with their descriptions")
 
-    wu = one_line_errors(sub.add_parser(
-        "warmup", help="compile every simulation kernel into numba's cache now (every solver and formulation)",
+    add_command(
+        sub, "warmup", _cmd_warmup,
+        help="compile every simulation kernel into numba's cache now (every solver and formulation)",
         description="Compile every kernel a run can reach (every solver, formulation and scene: one compilation "
                     "serves them all) into numba's on-disk cache, with a line per stage, so that no later run "
                     "waits for the compiler. The first run on a cold cache does the same for the default solver "
-                    "in a background process."))
-    wu.set_defaults(func=_cmd_warmup)
+                    "in a background process.")
     for module in COMMAND_MODULES:
         importlib.import_module(module).register(sub)
     for ep in sorted(importlib.metadata.entry_points(group=COMMAND_ENTRY_POINTS), key=lambda e: e.name):

@@ -78,6 +78,15 @@ def one_line_errors(parser):
     return parser
 
 
+def add_command(subparsers, name, func=None, **kwargs):
+    """A subcommand's parser (`subparsers.add_parser(name, **kwargs)`) with its argument errors in one line
+    (one_line_errors) and, given `func`, the function the command runs (args.func)."""
+    parser = one_line_errors(subparsers.add_parser(name, **kwargs))
+    if func is not None:
+        parser.set_defaults(func=func)
+    return parser
+
+
 def check_output_file(path, option, suffixes):
     """Before any work: `path` has one of `suffixes` and can be written (its directory exists and is writable, and
     it is not a directory). Raises InputError naming the option."""

@@ -323,19 +323,19 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
     say_resumed(previous, resume, out / RECORDS, len(done), len(planned), "run", width=15)
     writer = RecordWriter(out / RECORDS, header, resume=previous)
     t0 = time.perf_counter()
-    session = dict(lost_workers=[], retried_runs=0)
+    cluster_events = dict(lost_workers=[], retried_runs=0)
 
     def run(live):
         if todo:
-            _run_on_dask(t, todo, limit, iterations, scheduler, jobs, writer, done, t0, session, live)
+            _run_on_dask(t, todo, limit, iterations, scheduler, jobs, writer, done, t0, cluster_events, live)
             close_cluster(live["client"], live["cluster"])
 
     run_recorded(run, writer, planned, len(done), "run",
                  lambda ended: _write_outputs(out, t, planners, planned, header, where, scheduler, jobs, partial=ended),
-                 "a partial summary", info=session, t0=t0)
+                 "a partial summary", info=cluster_events, t0=t0)
     rows, md, wrote = _write_outputs(out, t, planners, planned, header, where, scheduler, jobs)
     print(md)
-    lost, retried = session["lost_workers"], session["retried_runs"]
+    lost, retried = cluster_events["lost_workers"], cluster_events["retried_runs"]
     if lost or retried:
         print(f"{len(lost)} worker(s) lost during the benchmark ({', '.join(lost) or 'none'}); {retried} run(s) "
               "were run again on another worker; every run completed")
@@ -344,9 +344,9 @@ def run_bench(task, planners, runs=10, time_limit=60.0, jobs=None, out=".", iter
     return rows
 
 
-def _run_on_dask(t, todo, limit, iterations, scheduler, jobs, writer, done, t0, session, live):
+def _run_on_dask(t, todo, limit, iterations, scheduler, jobs, writer, done, t0, cluster_events, live):
     """Submit the runs `todo` ((planner, seed) each) and append each finished run to the record file (`writer`) and
-    to `done` as it arrives; the lost workers and retried runs go to `session`. What it opens (client, cluster,
+    to `done` as it arrives; the lost workers and retried runs go to `cluster_events`. What it opens (client, cluster,
     futures, progress bar) goes to `live` as soon as it exists: the caller closes it, also after Ctrl-C."""
     from distributed import as_completed
     from distributed.client import FutureCancelledError
@@ -375,8 +375,8 @@ def _run_on_dask(t, todo, limit, iterations, scheduler, jobs, writer, done, t0, 
         done[(p, seed)] = writer.run((p, seed), r, time.perf_counter() - t0)
         bar.set_postfix_str(f"{p} seed {seed}: {'exact' if r['exact'] else 'no'}")
         bar.update()
-    session["retried_runs"] = retried_runs(client, [f.key for f in futs])
-    session["lost_workers"] = sorted(workers_at_start - set(client.scheduler_info()["workers"]))
+    cluster_events["retried_runs"] = retried_runs(client, [f.key for f in futs])
+    cluster_events["lost_workers"] = sorted(workers_at_start - set(client.scheduler_info()["workers"]))
 
 
 def _write_outputs(out, t, planners, planned, header, where, scheduler, jobs, partial=None):
@@ -389,8 +389,8 @@ def _write_outputs(out, t, planners, planned, header, where, scheduler, jobs, pa
     records = [r for k, r in contents.runs.items() if k in planned_set]
     records.sort(key=lambda r: (planners.index(r["planner"]), r["seed"]))
     limit, iterations, runs = header["time_limit"], header["iterations"], header["runs"]
-    total = sum(contents.session_times().values())
-    ends = list(contents.sessions.values())
+    total = sum(contents.invocation_times().values())
+    ends = list(contents.invocations.values())
     lost = sorted({w for e in ends for w in e["info"].get("lost_workers", [])})
     retried = sum(e["info"].get("retried_runs", 0) for e in ends)
     wrote = []
@@ -418,7 +418,7 @@ def _write_outputs(out, t, planners, planned, header, where, scheduler, jobs, pa
         jobs=None if scheduler else jobs, scheduler=scheduler or "local",
         workers=sorted({r["worker"] for r in records if r["worker"]}), lost_workers=lost, retried_runs=retried,
         total_time=total, planned_runs=len(planned), finished_runs=len(records), complete=not partial,
-        sessions=contents.last_session, records_file=RECORDS, logs=[p.name for p in logs], hosts=hosts,
+        invocations=contents.last_invocation, records_file=RECORDS, logs=[p.name for p in logs], hosts=hosts,
         summary=rows, records=[{k: v for k, v in r.items() if k != "cpuinfo"} for r in records]), indent=1)))
     if records:
         box_plots(records, planners, limit, out / "boxplots.png", t.name)

@@ -9,7 +9,7 @@ import math
 import sys
 from pathlib import Path
 
-from planar_lcp.cli_support import finite_number, one_line_errors
+from planar_lcp.cli_support import add_command, finite_number
 
 from planar_lcp.spec.task import MAX_RUNS, MAX_SEED, MAX_TIME
 
@@ -22,12 +22,12 @@ TASK_HELP = ("a shipped task's name (planar-lcp scenes marks them) or a scene fi
 
 
 def register(sub):
-    p = one_line_errors(sub.add_parser(
-        "plan", help="plan pusher motions for a task with OMPL (our simulator as the forward model)",
+    p = add_command(
+        sub, "plan", cmd_plan, help="plan pusher motions for a task with OMPL (our simulator as the forward model)",
         description="Plan a task (a shipped task or your own task file) with an OMPL kinodynamic planner. Writes "
                     "plan.json (self-contained: it holds the task), plan.png and plan.gif into --out: the first "
                     "exact plan's plan.json and plan.png before it is shortened, so that Ctrl-C while shortening "
-                    "keeps the best exact plan so far (exit status 130). Exit status 0 only for an exact solution."))
+                    "keeps the best exact plan so far (exit status 130). Exit status 0 only for an exact solution.")
     p.add_argument("task", metavar="TASK", help=TASK_HELP)
     p.add_argument("--planner", default=None, metavar="NAME",
                    help=f"one of {', '.join(PLANNERS)} (default: the task's planner, RRT unless its file says "
@@ -48,15 +48,14 @@ def register(sub):
                    help="shorten the first exact plan for S seconds of wall time instead of until it stops paying "
                         "(the default rule, the same on every machine: docs/planning.md, \"When shortening "
                         "stops\"); 0: no candidate. Ctrl-C while shortening keeps the best plan so far")
-    p.set_defaults(func=cmd_plan)
 
-    r = one_line_errors(sub.add_parser(
-        "replay", help="re-simulate a plan's controls open loop and check the goal",
+    r = add_command(
+        sub, "replay", cmd_replay, help="re-simulate a plan's controls open loop and check the goal",
         description="Re-simulate the controls of PLAN.json open loop (our LCP simulator, or pymunk through "
                     "planar_lcp.bridges.pymunk), or execute it closed loop (--closed-loop), optionally in "
                     "a world whose friction and masses differ from the task's (--perturb); report the final goal "
                     "error and the deepest penetration, write replay_SIMULATOR[_closed_loop].png and .gif. Exit "
-                    "status 0 only when the goal holds at the end."))
+                    "status 0 only when the goal holds at the end.")
     r.add_argument("plan", metavar="PLAN.json")
     r.add_argument("--simulator", choices=["lcp", "pymunk"], default="lcp")
     r.add_argument("--closed-loop", action="store_true",
@@ -68,14 +67,13 @@ def register(sub):
     r.add_argument("--out", default=None, metavar="DIR",
                    help="where to write the replay's figure and GIF (default: the plan's dir)")
     r.add_argument("--no-gif", action="store_true", help="skip the replay's GIF")
-    r.set_defaults(func=cmd_replay)
 
-    b = one_line_errors(sub.add_parser(
-        "plan-bench", help="benchmark planners on a task (Dask, OMPL benchmark log and database)",
+    b = add_command(
+        sub, "plan-bench", cmd_bench, help="benchmark planners on a task (Dask, OMPL benchmark log and database)",
         description="Run each planner --runs times with seeds 1..N as Dask tasks, on the cluster at --scheduler or "
                     "on a local cluster of --jobs worker processes (127.0.0.1); write an OMPL benchmark log, its "
                     "SQLite database, summary.md / summary.json and box plots into --out. Each finished run is kept "
-                    "in --out as it arrives: after Ctrl-C or a lost scheduler, --resume finishes the benchmark."))
+                    "in --out as it arrives: after Ctrl-C or a lost scheduler, --resume finishes the benchmark.")
     b.add_argument("task", metavar="TASK", help=TASK_HELP)
     b.add_argument("--planners", nargs="+", default=list(PLANNERS), metavar="NAME",
                    help=f"planners to compare (default: all of {', '.join(PLANNERS)})")
@@ -96,16 +94,16 @@ def register(sub):
                    help="finish the benchmark whose finished runs --out holds (records.jsonl, written as each run "
                         "finishes): only the missing runs run; the task, planners, --runs and budget must be the "
                         "same")
-    b.set_defaults(func=cmd_bench)
 
     from .environments.pusht_eval import ENVS, MAX_EPISODES
-    e = one_line_errors(sub.add_parser(
-        "pusht-eval", help="run PushTPolicy's episodes in gym-pusht's Push-T or ours and score them",
+    e = add_command(
+        sub, "pusht-eval", cmd_pusht_eval,
+        help="run PushTPolicy's episodes in gym-pusht's Push-T or ours and score them",
         description="Episodes of planners.PushTPolicy (a feedback controller with our simulator as its model, "
                     "docs/closed_loop.md) in a Push-T environment as registered (300 actions, success at coverage "
                     "> 0.95): seeds SEED..SEED+N-1. Writes OUT/episodes.csv (one row per episode: success, "
                     "coverage, actions, the policy's compute per action) and OUT/summary.json. Exit status 0 when "
-                    "every episode ran (whatever their success)."))
+                    "every episode ran (whatever their success).")
     e.add_argument("--env", required=True, choices=ENVS, help="the environment")
     e.add_argument("--episodes", type=finite_number(int, 1, False, MAX_EPISODES), required=True, metavar="N")
     e.add_argument("--seed", type=finite_number(int, 0, True, MAX_SEED, " (a reset seed)"), default=0, metavar="S",
@@ -126,7 +124,6 @@ def register(sub):
                    help="run the episodes on a local Dask cluster of N worker processes (127.0.0.1)")
     e.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run them on the Dask scheduler at ADDRESS (docs/planning.md: securing it with TLS)")
-    e.set_defaults(func=cmd_pusht_eval)
 
 
 def shorten_seconds(text):

@@ -23,7 +23,7 @@ def corpus(corpus_dir):
 
 @pytest.fixture(scope="session")
 def tip_plan(tmp_path_factory):
-    """A small plan made once for the session by `planar-lcp plan` (TIP_PLAN_ARGS): (the finished process, its --out
+    """A small plan made once for the whole test run by `planar-lcp plan` (TIP_PLAN_ARGS): (the finished process, its --out
     directory). Tests that replay or read a plan share it; the tests of `plan` itself check it."""
     pytest.importorskip("ompl")
     pytest.importorskip("shapely")
@@ -33,7 +33,7 @@ def tip_plan(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def cold_demo(tmp_path_factory):
-    """`planar-lcp demo` run once for the session on an EMPTY numba cache, as on a user's fresh machine, and the
+    """`planar-lcp demo` run once for the whole test run on an EMPTY numba cache, as on a user's fresh machine, and the
     background compilation it started waited for: (the finished process, its --out directory, the cache). Tests
     that need what a user's first command leaves share it; one that writes to the cache copies it first."""
     pytest.importorskip("ompl")

@@ -306,8 +306,8 @@ def _write_outputs(out, scenes, planned, partial=None):
     write_text_atomic(out / "summary.json", json.dumps(dict(
         command="tradeoff", scenes=list(scenes), quick=contents.header.get("quick"), planned_settings=len(planned),
         finished_settings=len(rows), complete=not partial, stopped=STOPPED.get(partial),
-        sessions=contents.last_session,
-        wall_time=sum(contents.session_times().values()), records_file=RECORDS, per_scene=per_scene), indent=1))
+        invocations=contents.last_invocation,
+        wall_time=sum(contents.invocation_times().values()), records_file=RECORDS, per_scene=per_scene), indent=1))
     for name in scenes:
         sub = [r for r in rows if r["scene"] == name]
         if sub:

@@ -99,7 +99,7 @@ _install_cache_locator()
 # numba's `InlineWorker.inline_ir` copies the callee's IR block by block, a deep copy with a memo of its own per
 # block; every variable refers to the function's scope, which holds all its variables, so each block's copy copies
 # them all again: O(blocks x variables). The step's kernels inline the whole pipeline (engine/step.py), and a cold
-# cache spent 4 to 5 s of the step's 12 to 15 s of compiling there (numba issues #8989 and #9204 name the same
+# cache spent 4 to 5 s of the step's 12 to 15 s of compiling there (numba bugs #8989 and #9204 name the same
 # copies). One deep copy of all the blocks with one memo gives the same blocks, variables and statements (the blocks
 # then share one copy of the scope, as the callee's own blocks share one scope), so the same IR and machine code
 # (tests/simulation/test_golden.py bit for bit). Applied only where the installed numba's source has those lines exactly.

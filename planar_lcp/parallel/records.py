@@ -11,10 +11,10 @@ The lines, in order of writing:
 
 - the header, first: ``{"header": {...}}``, which benchmark this is (the command, its task or scenes, planners,
   budget, runs: what `--resume` compares);
-- one line per finished run: ``{"run": KEY, "session": S, "elapsed": SECONDS, "record": {...}}``, KEY a list naming
-  the item (planner and seed; scene and setting), S the command's session (1 for the first, one more for each
-  `--resume`), SECONDS from the session's start to the record's arrival;
-- one line at each session's end (not after a kill): ``{"session": S, "elapsed": SECONDS, "ended": "complete" |
+- one line per finished run: ``{"run": KEY, "invocation": S, "elapsed": SECONDS, "record": {...}}``, KEY a list naming
+  the item (planner and seed; scene and setting), S the command's invocation (1 for the first, one more for each
+  `--resume`), SECONDS from the invocation's start to the record's arrival;
+- one line at each invocation's end (not after a kill): ``{"invocation": S, "elapsed": SECONDS, "ended": "complete" |
   "interrupted" | "failed", "info": {...}}``.
 
 A crash in the middle of a write can leave the last line cut short: reading ignores it with a note (its run is done
@@ -29,7 +29,7 @@ from pathlib import Path
 
 #: the record file's name in a benchmark's output directory
 RECORDS = "records.jsonl"
-#: how a session that ended before its benchmark did is told in the partial outputs, by its end line's "ended"
+#: how an invocation that ended before its benchmark did is told in the partial outputs, by its end line's "ended"
 STOPPED = {"interrupted": "interrupted by Ctrl-C", "failed": "stopped by an error or a lost scheduler"}
 
 
@@ -55,9 +55,9 @@ class Contents:
     runs : dict
         Item key (tuple) -> its record (dict), in the order written; a key written twice keeps its first record.
     arrivals : list of (int, float)
-        (session, elapsed s) of each run line, in the order written.
-    sessions : dict
-        Session number -> its end line (sessions killed before their end have none).
+        (invocation, elapsed s) of each run line, in the order written.
+    invocations : dict
+        Invocation number -> its end line (invocations killed before their end have none).
     torn : str or None
         A note when the last line was cut short (and is ignored), else None.
     valid_bytes : int
@@ -67,22 +67,22 @@ class Contents:
     header: dict
     runs: dict = field(default_factory=dict)
     arrivals: list = field(default_factory=list)
-    sessions: dict = field(default_factory=dict)
+    invocations: dict = field(default_factory=dict)
     torn: str | None = None
     valid_bytes: int = 0
 
     @property
-    def last_session(self):
-        """The highest session number in the file (0 when no session wrote a line)."""
-        return max([s for s, _ in self.arrivals] + list(self.sessions), default=0)
+    def last_invocation(self):
+        """The highest invocation number in the file (0 when no invocation wrote a line)."""
+        return max([s for s, _ in self.arrivals] + list(self.invocations), default=0)
 
-    def session_times(self):
-        """Session -> its wall time (s): its end line's, or for a session killed before its end, the arrival of its
+    def invocation_times(self):
+        """Invocation -> its wall time (s): its end line's, or for an invocation killed before its end, the arrival of its
         last record."""
         times = {}
         for s, t in self.arrivals:
             times[s] = max(times.get(s, 0.0), t)
-        for s, end in self.sessions.items():
+        for s, end in self.invocations.items():
             times[s] = end["elapsed"]
         return times
 
@@ -132,18 +132,18 @@ def read_records(path):
             contents = Contents(path=path, header=line["header"])
         elif "run" in line:
             if not (isinstance(line["run"], list) and isinstance(line.get("record"), dict)
-                    and isinstance(line.get("session"), int) and isinstance(line.get("elapsed"), (int, float))):
-                raise RecordFileError(f"{path}: line {i} must be a run {{\"run\": [...], \"session\": N, "
+                    and isinstance(line.get("invocation"), int) and isinstance(line.get("elapsed"), (int, float))):
+                raise RecordFileError(f"{path}: line {i} must be a run {{\"run\": [...], \"invocation\": N, "
                                       f"\"elapsed\": S, \"record\": {{...}}}}, got keys {sorted(line)}")
             contents.runs.setdefault(_key(line["run"]), line["record"])
-            contents.arrivals.append((line["session"], float(line["elapsed"])))
+            contents.arrivals.append((line["invocation"], float(line["elapsed"])))
         elif "ended" in line:
-            if not (isinstance(line.get("session"), int) and isinstance(line.get("elapsed"), (int, float))):
-                raise RecordFileError(f"{path}: line {i} must be a session's end {{\"session\": N, \"elapsed\": S, "
+            if not (isinstance(line.get("invocation"), int) and isinstance(line.get("elapsed"), (int, float))):
+                raise RecordFileError(f"{path}: line {i} must be a invocation's end {{\"invocation\": N, \"elapsed\": S, "
                                       f"\"ended\": ...}}, got keys {sorted(line)}")
-            contents.sessions[line["session"]] = line
+            contents.invocations[line["invocation"]] = line
         else:
-            raise RecordFileError(f"{path}: line {i} must be a run or a session's end, got keys {sorted(line)}")
+            raise RecordFileError(f"{path}: line {i} must be a run or a invocation's end, got keys {sorted(line)}")
         contents.valid_bytes += len(raw) + 1
     if contents is None:
         raise RecordFileError(f"{path}: empty: line 1 must be the benchmark's header")
@@ -175,14 +175,14 @@ class RecordWriter:
         The benchmark's description; written as line 1 of a new file.
     resume : Contents or None
         The file's contents to continue: its torn last line (if any) is cut off and appending starts after its
-        intact lines, in a new session. None: a new file (an existing one is replaced).
+        intact lines, in a new invocation. None: a new file (an existing one is replaced).
     """
 
     def __init__(self, path, header, resume=None):
         self.path = Path(path)
         if resume is None:
             self._f = open(self.path, "wb")
-            self.session = 1
+            self.invocation = 1
             self._write({"header": header})
             _fsync_dir(self.path.parent)
         else:
@@ -190,7 +190,7 @@ class RecordWriter:
             self._f.truncate(resume.valid_bytes)
             self._f.seek(resume.valid_bytes)
             os.fsync(self._f.fileno())
-            self.session = resume.last_session + 1
+            self.invocation = resume.last_invocation + 1
 
     def _write(self, obj):
         # allow_nan: a run's record may hold NaN (no solution: no path duration), which json reads back
@@ -204,13 +204,13 @@ class RecordWriter:
         """Append one finished run; returns its record as read back from the line (the outputs are always made
         from records as the file holds them, so that a resumed benchmark's outputs equal an uninterrupted one's).
         """
-        line = self._write({"run": list(key), "session": self.session, "elapsed": float(elapsed),
+        line = self._write({"run": list(key), "invocation": self.invocation, "elapsed": float(elapsed),
                             "record": record})
         return json.loads(line)["record"]
 
     def end(self, ended, elapsed, **info):
-        """Append this session's end ("complete", "interrupted" or "failed") with its wall time and `info`."""
-        self._write({"session": self.session, "elapsed": float(elapsed), "ended": ended, "info": info})
+        """Append this invocation's end ("complete", "interrupted" or "failed") with its wall time and `info`."""
+        self._write({"invocation": self.invocation, "elapsed": float(elapsed), "ended": ended, "info": info})
 
     def close(self):
         self._f.close()

@@ -1,4 +1,4 @@
-"""`planar-lcp compare SCENE --out DIR`: the command over `planar_lcp.studies.compare` (see that module for the files)."""
+"""`planar-lcp compare SCENE --out DIR`: the command over `planar_lcp.studies.compare` (which says what it writes)."""
 
 import math
 import sys
@@ -64,12 +64,13 @@ def _cmd_compare(args):
 
 
 def register(subparsers):
-    from planar_lcp.cli_support import finite_number, one_line_errors
+    from planar_lcp.cli_support import add_command, finite_number
 
-    c = one_line_errors(subparsers.add_parser(
-        "compare", help="run a scene in planar_lcp and in pymunk with the same time step; plots, GIF, report",
+    c = add_command(
+        subparsers, "compare", _cmd_compare,
+        help="run a scene in planar_lcp and in pymunk with the same time step; plots, GIF, report",
         description="Run a scene (a shipped name or a .toml path) in planar_lcp and in pymunk (Chipmunk2D) with the "
-                    "same time step; write overlaid trajectories, frames, a side-by-side GIF and report.md/.csv."))
+                    "same time step; write overlaid trajectories, frames, a side-by-side GIF and report.md/.csv.")
     c.add_argument("scene", metavar="SCENE", help="a shipped scene name or a path to a .toml scene file")
     c.add_argument("--out", required=True, metavar="DIR", help="directory for the files (created if missing)")
     helps = {"--h": ("H", float, 0, True, "time step [s] (default: the scene's)"),
@@ -84,5 +85,4 @@ def register(subparsers):
         metavar, kind, minimum, strict, text = helps[flag]
         c.add_argument(flag, type=finite_number(kind, minimum, strict), metavar=metavar, help=text)
     c.add_argument("--no-gif", action="store_true", help="skip the side-by-side GIF")
-    c.set_defaults(func=_cmd_compare)
     return c

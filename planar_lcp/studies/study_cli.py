@@ -59,12 +59,12 @@ def register(subparsers):
                               description="Reproduce Stewart & Trinkle's section 4 experiments: figures, event tables "
                                           "and the Table 1 error measures over step sizes.")
     sub = s.add_subparsers(dest="study", required=True, metavar="STUDY")
-    from planar_lcp.cli_support import one_line_errors
+    from planar_lcp.cli_support import add_command
 
-    fr = one_line_errors(sub.add_parser(
-        "falling-rod", help="section 4.1: the spinning rod dropped on a table (Figures 2-5)",
+    fr = add_command(
+        sub, "falling-rod", help="section 4.1: the spinning rod dropped on a table (Figures 2-5)",
         description="Falling rod over h = 0.02 ... 0.00125: strobe, velocity plots, events, convergence table, and "
-                    "Stewart & Trinkle's friction moment arm."))
+                    "Stewart & Trinkle's friction moment arm.")
     _add_common(fr)
     fr.add_argument("--restitution", type=restitution_value, metavar="E",
                     help="Newton's coefficient of restitution in [0, 1] of the rod-table contact, for every run of "

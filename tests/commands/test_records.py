@@ -31,7 +31,7 @@ def _write(path, runs, end=None, header=HEADER):
 
 def test_runs_are_appended_and_read_back_exactly(tmp_path):
     """Every value a run's record holds comes back as written (NaN, None, booleans, floats bit for bit); a key
-    written twice keeps its first record; sessions and their times are counted."""
+    written twice keeps its first record; invocations and their times are counted."""
     path = tmp_path / RECORDS
     rec = dict(planner="RRT", seed=1, exact=False, goal_distance=float("nan"), solve_time=0.1 + 0.2, replayed=None,
                iterations=400)
@@ -43,8 +43,8 @@ def test_runs_are_appended_and_read_back_exactly(tmp_path):
     got = c.runs[("RRT", 1)]
     assert json.dumps(got) == json.dumps(rec) and got["replayed"] is None and got["exact"] is False
     assert c.torn is None and c.valid_bytes == path.stat().st_size
-    assert c.last_session == 1 and c.session_times() == {1: 9.0}
-    assert c.sessions[1]["ended"] == "interrupted"
+    assert c.last_invocation == 1 and c.invocation_times() == {1: 9.0}
+    assert c.invocations[1]["ended"] == "interrupted"
     assert count_finished(path, [("RRT", 1), ("RRT", 2)], 7) == 1
     assert count_finished(tmp_path / "none.jsonl", [("RRT", 1)], 7) == 7
 
@@ -78,24 +78,24 @@ def test_a_last_line_cut_short_is_ignored_with_a_note_and_cut_off_on_resume(tmp_
     assert c.torn == (f"{path}: line 3 was cut short (the command stopped while writing it) and is ignored; its run "
                       "is done again")
     w = RecordWriter(path, HEADER, resume=c)
-    assert w.session == 2
+    assert w.invocation == 2
     w.run(("RRT", 2), {"seed": 2}, 0.5)
     w.close()
     c = read_records(path)
     assert path.read_bytes().startswith(first_two) and list(c.runs) == [("RRT", 1), ("RRT", 2)] and c.torn is None
-    assert c.arrivals == [(1, 1.0), (2, 0.5)] and c.session_times() == {1: 1.0, 2: 0.5}
+    assert c.arrivals == [(1, 1.0), (2, 0.5)] and c.invocation_times() == {1: 1.0, 2: 0.5}
 
 
 @pytest.mark.parametrize("content, message", [
     (b"", "empty: line 1 must be the benchmark's header"),
     (b'{"run":["RRT",1]}\n', "line 1 must be the benchmark's header {\"header\": {...}}, got keys ['run']"),
-    (b'{"header":{}}\nnot json\n{"run":["RRT",1],"session":1,"elapsed":1,"record":{}}\n',
+    (b'{"header":{}}\nnot json\n{"run":["RRT",1],"invocation":1,"elapsed":1,"record":{}}\n',
      "line 2 is not a record of this program: Expecting value: line 1 column 1 (char 0)"),
-    (b'{"header":{}}\n{"run":"RRT","session":1}\n{"header":{}}\n',
-     "line 2 must be a run {\"run\": [...], \"session\": N, \"elapsed\": S, \"record\": {...}}, got keys ['run', "
-     "'session']"),
+    (b'{"header":{}}\n{"run":"RRT","invocation":1}\n{"header":{}}\n',
+     "line 2 must be a run {\"run\": [...], \"invocation\": N, \"elapsed\": S, \"record\": {...}}, got keys ['run', "
+     "'invocation']"),
     (b'{"header":{}}\n[1, 2]\n{"header":{}}\n', "line 2 is not a record of this program: a JSON list, not an object"),
-    (b'{"header":{}}\n{"what":1}\n', "line 2 must be a run or a session's end, got keys ['what']"),
+    (b'{"header":{}}\n{"what":1}\n', "line 2 must be a run or a invocation's end, got keys ['what']"),
 ])
 def test_any_other_damage_is_refused_naming_the_line(tmp_path, content, message):
     path = tmp_path / RECORDS

@@ -140,7 +140,7 @@ def test_a_users_first_minute_on_a_cold_cache(tmp_path):
        background process;
     2. `plan push_box` while that compilation runs joins it (the same line) and waits; Ctrl-C (SIGINT to its process
        group, as a terminal sends it) stops it within 2 s, exit status 130, one line, while the compilation, in a
-       session of its own, goes on;
+       process group of its own, goes on;
     3. `plan push_box` again joins it, waits and plans (the same line; an exact plan);
     4. once the compilation has ended, `simulate falling_rod` says nothing and prints what the first run printed."""
     from cli_helpers import ctrl_c_cli

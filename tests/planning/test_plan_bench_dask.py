@@ -208,7 +208,7 @@ def test_ctrl_c_keeps_the_finished_runs_and_resume_ends_as_an_uninterrupted_benc
     assert resumed.returncode == 0, resumed.stderr
     assert resumed.stdout.startswith(f"resume         {rec}: {n} of 3 runs finished before; running the other "
                                      f"{3 - n}\n"), resumed.stdout
-    # the kept runs stay as they were; the others were appended in a second session
+    # the kept runs stay as they were; the others were appended in a second invocation
     lines = rec.read_text().splitlines()
     assert [line for line in lines if line.startswith('{"run"')][:n] == kept
     assert sum(1 for line in lines if line.startswith('{"run"')) == 3
@@ -320,8 +320,8 @@ def test_resume_redoes_a_run_whose_line_was_cut_short_and_keeps_the_others(finis
     rec = out / "records.jsonl"
     lines = rec.read_text().splitlines(keepends=True)
     runs = [i for i, line in enumerate(lines) if line.startswith('{"run"')]
-    assert len(runs) == 2 and lines[-1].startswith('{"session"')
-    # the second run's line half written, no session end: a crash in the middle of the write
+    assert len(runs) == 2 and lines[-1].startswith('{"invocation"')
+    # the second run's line half written, no invocation end: a crash in the middle of the write
     rec.write_text("".join(lines[:runs[1]]) + lines[runs[1]][:len(lines[runs[1]]) // 2])
     r = run_cli("plan-bench", task, *args, "--resume", "--out", out)
     assert r.returncode == 0, r.stderr

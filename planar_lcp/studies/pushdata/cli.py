@@ -683,43 +683,44 @@ def _report_fit(args, names, start, pushes, result, fit_names, bounds, fitted, p
 def register(subparsers):
     import argparse
 
-    from planar_lcp.cli_support import finite_number, one_line_errors
+    from planar_lcp.cli_support import add_command, finite_number
 
-    p = one_line_errors(subparsers.add_parser(
-        "pushdata", help="recorded pushes (the MIT pushing data set): predict them, fit the model's friction",
+    p = add_command(
+        subparsers, "pushdata",
+        help="recorded pushes (the MIT pushing data set): predict them, fit the model's friction",
         description="Recorded pushes of the MIT pushing data set (Yu et al. 2016; docs/real_pushes.md): simulate "
                     "them with the pusher on its recorded path and score the predicted object against the recorded "
-                    "one (predict), or fit the model's parameters to them (fit). Needs the extra 'pushdata'."))
+                    "one (predict), or fit the model's parameters to them (fit). Needs the extra 'pushdata'.")
     sub = p.add_subparsers(dest="pushdata_command", required=True, metavar="{predict,fit}")
 
-    pr = one_line_errors(sub.add_parser(
-        "predict", help="simulate recorded pushes and write the predicted object poses (CSV), figures and scores",
+    pr = add_command(
+        sub, "predict", _cmd_predict,
+        help="simulate recorded pushes and write the predicted object poses (CSV), figures and scores",
         description="Simulate each push with the pusher on its recorded path (mit.push_scene with the model's "
                     "parameters) and write the predicted object pose at every recorded object sample: CSV columns "
                     "file, t (s from the push's first object sample), x, y (m, the data's frame), theta (rad, "
                     "continuous from the recorded start angle). Prints each push's final, rms and max position and "
                     "angle errors and CPU time, then the final displacements' NMSE and the median final errors. A "
-                    "push whose simulation fails is named and left out; the others are written, exit status 1."))
+                    "push whose simulation fails is named and left out; the others are written, exit status 1.")
     pr.add_argument("files", nargs="+", metavar="FILE.h5", help="push files of the data set")
     pr.add_argument("--model", metavar="MODEL.json",
                     help="the parameters (a model file, as `pushdata fit` writes; default mit.DEFAULT_PARAMS)")
     pr.add_argument("--csv", required=True, metavar="OUT.csv", help="the predicted poses (columns file,t,x,y,theta)")
     pr.add_argument("--plots", metavar="DIR",
                     help="a figure per push, DIR/<file stem>.png: recorded and predicted paths and outlines, mm")
-    pr.set_defaults(func=_cmd_predict)
 
     class _Jobs(argparse.Action):
         def __call__(self, parser, namespace, values, option_string=None):
             setattr(namespace, self.dest, values)
             namespace.jobs_given = True
 
-    ft = one_line_errors(sub.add_parser(
-        "fit", help="fit the model's parameters (default: the two frictions) to recorded pushes; write MODEL.json",
+    ft = add_command(
+        sub, "fit", help="fit the model's parameters (default: the two frictions) to recorded pushes; write MODEL.json",
         description="Fit the named parameters of mit.push_scene to every push file (*.h5) below the folders given "
                     "(sorted by path), by least squares of the predicted against the recorded object poses "
                     "(planar_lcp.fitting.fit), from mit.DEFAULT_PARAMS; write the model file (values, standard "
                     "errors, per-push errors, the command line). --jobs N > 1 or --scheduler: the simulations run on "
-                    "Dask, with the same result bit for bit."))
+                    "Dask, with the same result bit for bit.")
     ft.add_argument("dirs", nargs="+", metavar="DIR", help="folders of push files (searched recursively)")
     ft.add_argument("--out", required=True, metavar="MODEL.json", help="the model file to write")
     ft.add_argument("--params", default=",".join(DEFAULT_FIT_PARAMS), metavar="NAME,NAME",
