@@ -1,6 +1,6 @@
-"""What the commands share, here and in the packages that add commands (planar_lcp.benchmarks, planar_lcp.studies, planners): the
-optional packages and their extras, the argument checks that make bad input one line with exit status 2, the output
-checks made before any work, a long run's progress bar, and how an interrupt is recognised.
+"""What the commands share, here and in the rooms that add commands (planar_lcp.benchmarks, planar_lcp.studies,
+planners): the optional packages and their extras, the argument checks that make bad input one line with exit
+status 2, the output checks made before any work, a long run's progress bar, and how an interrupt is recognised.
 
 Nothing here imports the commands, so a command's module may import it without importing `planar_lcp.cli`.
 """

@@ -31,7 +31,7 @@ import numpy as np
 
 from planar_lcp.engine.constants import (BODY_KINEMATIC, BODY_STATIC, SERVO_FORCE_DIRECTIONS,
                                          SERVO_TORQUE_DIRECTIONS)
-from planar_lcp.engine.solvers.lemke import lcp_scale
+from planar_lcp.engine.solvers.certificate import lcp_scale
 
 #: a certificate is accepted when no solution exists with impulses below this many times max |q| / max |M|
 CERTIFICATE_MARGIN = 1e6

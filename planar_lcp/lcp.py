@@ -8,7 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from planar_lcp.compilation.background import wait_for
-from planar_lcp.engine.solvers.lemke import STATUS_NAMES, default_max_pivots, lcp_scale, lemke_solve
+from planar_lcp.engine.solvers.certificate import STATUS_NAMES, lcp_scale
+from planar_lcp.engine.solvers.lemke import default_max_pivots, lemke_solve
 
 #: Default tolerances (see docs/lcp.md for what each one governs).
 DEFAULT_PIV_TOL = 1e-9

@@ -22,7 +22,7 @@ from planar_lcp.engine.interpreted import compiled, python_version
 from planar_lcp.engine.layout import (INT_STATS, NSTAT, STATS, Stat, StepOptions, make_step_work,
                                       work_struct)
 from planar_lcp.engine.rollout import RUN_ROWS, Recording, RolloutRun, make_recording, rollout_lemke, rollout_pgs
-from planar_lcp.engine.solvers.lemke import STATUS_NAMES
+from planar_lcp.engine.solvers.certificate import STATUS_NAMES
 from planar_lcp.engine.step import STEP_LCP_FAILED, STEP_NEEDS_SPACE, STEP_NONFINITE, STEP_OK
 from planar_lcp.model import Model, compile_scene
 from planar_lcp.spec.path import kinematic_velocities

@@ -46,10 +46,10 @@ class Trajectory:
         rows of a step are the contacts in the order they were found (not matched across steps). vt and mode use the
         geometry the LCP was solved with (the linearization pose).
     failures : list of (step index, t, cause) recorded with on_failure="record".
-    options : the SimOptions of the run (a pymunk run: `planar_lcp.bridges.pymunk.PymunkOptions`, with h, solver, formulation).
+    options : the SimOptions of the run (a pymunk run: `bridges.pymunk.PymunkOptions`, with h, solver, formulation).
     scene : the Scene simulated.
 
-    A pymunk run (`planar_lcp.bridges.pymunk.simulate_pymunk`) fills the same fields; its stats are energy, n_contacts and
+    A pymunk run (`bridges.pymunk.simulate_pymunk`) fills the same fields; its stats are energy, n_contacts and
     penetration, its contacts one row per touching shape pair (no vt, no mode).
     """
 

@@ -13,7 +13,8 @@ import numpy as np
 
 from planar_lcp.compilation.notice import COLD_START_SECONDS
 from planar_lcp.engine.layout import LemkeSettings, lemke_work_struct, make_lemke_work
-from planar_lcp.engine.solvers.lemke import STATUS_NAMES, lemke_kernel
+from planar_lcp.engine.solvers.certificate import STATUS_NAMES
+from planar_lcp.engine.solvers.lemke import lemke_kernel
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, default_max_pivots, lemke
 from planar_lcp.benchmarks.lcp_corpus import load_corpus
 

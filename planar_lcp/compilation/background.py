@@ -121,7 +121,8 @@ def start_background(kernel=None):
     try:
         os.makedirs(cache_dir, exist_ok=True)
         env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
-        # its own process group (start_new_session): a Ctrl-C at the terminal stops the run, not the compilation the next run needs
+        # its own process group (start_new_session): a Ctrl-C at the terminal stops the run, not the compilation
+        # the next run needs
         popen = subprocess.Popen([sys.executable, "-m", KERNEL_SETS_MODULE, "default"], env=env,
                                  stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                  start_new_session=True)

@@ -69,7 +69,7 @@ def compilation_stages(kernel_set="default"):
         return stage
 
     def checks():
-        from planar_lcp.engine.solvers.lemke import lcp_scale
+        from planar_lcp.engine.solvers.certificate import lcp_scale
         from planar_lcp.lcp import lemke
         A, b = np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0])
         lcp_scale(A, b)

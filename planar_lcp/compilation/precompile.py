@@ -174,7 +174,8 @@ def _compile_lcp():
     `lemke_kernel`, which the helper has compiled by then."""
     import numpy as np
 
-    from planar_lcp.engine.solvers.lemke import lcp_scale, lemke_solve
+    from planar_lcp.engine.solvers.certificate import lcp_scale
+    from planar_lcp.engine.solvers.lemke import lemke_solve
     A, b = np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0])
     lcp_scale(A, b)
     lemke_solve(A, b, 100, 1e-9, 1e-12, 1e-9, False)

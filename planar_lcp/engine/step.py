@@ -20,7 +20,8 @@ from planar_lcp.engine.constants import SUPPORT_LIMIT_SURFACE
 from planar_lcp.engine.contacts import body_poses, find_contacts, world_vertices
 from planar_lcp.engine.islands import find_islands, island_members
 from planar_lcp.engine.layout import Stat, matrix_view
-from planar_lcp.engine.solvers.lemke import STATUS_NEEDS_SPACE, STATUS_SOLVED, lemke_in_work, solve_island_lemke
+from planar_lcp.engine.solvers.certificate import STATUS_NEEDS_SPACE, STATUS_SOLVED
+from planar_lcp.engine.solvers.lemke import lemke_in_work, solve_island_lemke
 from planar_lcp.engine.solvers.pgs import solve_island_pgs
 
 # The stages are inline='always' (and so are the island solvers, through the pipeline's arguments): every separately

@@ -10,7 +10,8 @@ import pytest
 
 from planar_lcp.engine.layout import LemkeSettings, Stat, lemke_work_struct, make_lemke_work
 from planar_lcp.engine.solvers.block_lemke import block_lemke
-from planar_lcp.engine.solvers.lemke import STATUS_MAX_PIVOTS, STATUS_SOLVED, default_max_pivots, lemke_solve
+from planar_lcp.engine.solvers.certificate import STATUS_MAX_PIVOTS, STATUS_SOLVED
+from planar_lcp.engine.solvers.lemke import default_max_pivots, lemke_solve
 from planar_lcp.benchmarks.lcp_corpus import find_corpus_dir, load_corpus
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL
 from planar_lcp.model import compile_scene
@@ -173,7 +174,7 @@ def test_the_certificates_shortcuts_equal_what_they_replace():
     system (from K^-1, artificial variable basic) equals numpy's solve of M[Z, Z] z = -q[Z] (random positive definite
     LCPs stopped mid-path), so the recomputation it skips would have given a negative z."""
     from planar_lcp.engine.solvers.block_lemke import _complementary_negativity, _residual_csc
-    from planar_lcp.engine.solvers.lemke import lcp_residual
+    from planar_lcp.engine.solvers.certificate import lcp_residual
     ok, its, z, A, b, nci, nf = island_problems(piles.bin_scene(40), 60, 60)[0]
     n = len(b)
     st, piv, res, zb, wk = _block(A, b)

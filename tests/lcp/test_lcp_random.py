@@ -130,7 +130,8 @@ def test_input_validation_names_the_argument():
 
 def test_kernel_reports_invalid_input_instead_of_raising():
     """The stepper calls the kernel directly: non-finite data must come back as a status, not an exception."""
-    from planar_lcp.engine.solvers.lemke import STATUS_INVALID, lemke_solve
+    from planar_lcp.engine.solvers.certificate import STATUS_INVALID
+    from planar_lcp.engine.solvers.lemke import lemke_solve
     z, w, status, pivots, res = lemke_solve(np.array([[np.nan]]), np.array([-1.0]), 10, 1e-12, 1e-12, 1e-9, False)
     assert status == STATUS_INVALID and pivots == 0
 

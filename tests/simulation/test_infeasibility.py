@@ -12,7 +12,7 @@ import itertools
 import numpy as np
 import pytest
 
-from planar_lcp.engine.solvers.lemke import lcp_scale
+from planar_lcp.engine.solvers.certificate import lcp_scale
 from planar_lcp.infeasibility import branch_and_bound, branch_system, farkas_certificate, impulse_bound
 
 pytest.importorskip("scipy")

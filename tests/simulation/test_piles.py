@@ -18,7 +18,8 @@ from planar_lcp.engine.islands import island_members
 from planar_lcp.engine.layout import (NSTAT, LemkeSettings, Stat, lemke_work_struct, make_lemke_work, make_step_work,
                                       work_struct)
 from planar_lcp.engine.solvers.block_lemke import block_lemke
-from planar_lcp.engine.solvers.lemke import STATUS_SOLVED, default_max_pivots
+from planar_lcp.engine.solvers.certificate import STATUS_SOLVED
+from planar_lcp.engine.solvers.lemke import default_max_pivots
 from planar_lcp.engine.solvers.sparse import solve_island_sparse
 from planar_lcp.lcp import DEFAULT_PIV_TOL, DEFAULT_RATIO_TOL, DEFAULT_RES_TOL, lemke
 from planar_lcp.model import compile_scene

@@ -33,8 +33,8 @@ from numba import njit
 
 from planar_lcp.engine.layout import matrix_view
 from planar_lcp.engine.solvers.certificate import (STATUS_INACCURATE, STATUS_INVALID, STATUS_MAX_PIVOTS,
-                                                   STATUS_RAY, STATUS_SOLVED, keep_ties, lcp_residual, lcp_scale,
-                                                   lexicographic_pick, natural_residual, partial_pivot,
+                                                   STATUS_RAY, STATUS_SOLVED, keep_better, keep_ties, lcp_residual,
+                                                   lcp_scale, lexicographic_pick, natural_residual, partial_pivot,
                                                    solve_basic_z, swap_rows)
 
 
@@ -77,13 +77,8 @@ def _direction(M, work, Kinv, col_val, n, k, entering):
     z0 is n). Writes dz[:k] (the basic z, by position in S: work.block_dz) and dw[i] for every row i (meaningful
     where w_i is basic: work.block_dw). col_val, work.block_col_row, work.block_col_start: M's nonzero entries by
     column (values, rows, each column's first entry)."""
-    col_row = work.block_col_row
-    col_start = work.block_col_start
-    cols = work.block_cols
-    rows = work.block_rows
-    row_pos = work.block_row_pos
-    dz = work.block_dz
-    dw = work.block_dw
+    col_row, col_start, cols, rows = work.block_col_row, work.block_col_start, work.block_cols, work.block_rows
+    row_pos, dz, dw = work.block_row_pos, work.block_dz, work.block_dw
     if entering > n:
         # w_p enters: row p leaves the equations, K z_S = -q_C + e_p t
         p = row_pos[entering - n - 1]
@@ -136,15 +131,8 @@ def _ratio_test(M, work, Kinv, n, k, settings, rhs_scale):
     within ratio_tol of the problem's scale go to the artificial variable, then are broken lexicographically on the
     rows of B^-1 (built from K^-1 for the tied candidates only, in work.lemke_lu), then by the largest rate. The
     candidates in work.lemke_perm, their rates in work.lemke_rhs, their values in work.lemke_z_refined."""
-    cols = work.block_cols
-    row_pos = work.block_row_pos
-    xz = work.block_xz
-    xw = work.block_xw
-    dz = work.block_dz
-    dw = work.block_dw
-    cand = work.lemke_perm
-    rate = work.lemke_rhs
-    value = work.lemke_z_refined
+    cols, row_pos, xz, xw, dz = work.block_cols, work.block_row_pos, work.block_xz, work.block_xw, work.block_dz
+    dw, cand, rate, value = work.block_dw, work.lemke_perm, work.lemke_rhs, work.lemke_z_refined
     colmax = 0.0
     for c in range(k):
         colmax = max(colmax, abs(dz[c]))
@@ -170,11 +158,9 @@ def _ratio_test(M, work, Kinv, n, k, settings, rhs_scale):
             value[nc] = max(xw[i], 0.0)
             best = min(best, value[nc] / -dw[i])
             nc += 1
-    if nc == 0:
-        return -1
-    nc = keep_ties(cand, rate, value, nc, best + settings.ratio_tol * max(best, rhs_scale / colmax))
-    if nc == 1:
-        return cand[0]
+    nc = keep_ties(cand, rate, value, nc, best, settings.ratio_tol, rhs_scale, colmax)
+    if nc <= 1:
+        return cand[0] if nc == 1 else -1
     for a in range(nc):
         if cand[a] < k and cols[cand[a]] == n:
             return cand[a]
@@ -206,11 +192,7 @@ def _refactor(M, q, work, Kinv, col_val, n, k):
     values from it (work.block_xz, block_xw): the updates' round-off grows with every pivot. Returns False if K is
     singular to working precision (an elimination pivot below SINGULAR_TOL of K's largest entry): the path has taken
     a pivot the updates could not resolve."""
-    cols = work.block_cols
-    rows = work.block_rows
-    xz = work.block_xz
-    xw = work.block_xw
-    lu = work.lemke_lu
+    cols, rows, xz, xw, lu = work.block_cols, work.block_rows, work.block_xz, work.block_xw, work.lemke_lu
     kmax = 0.0
     for r in range(k):
         for c in range(k):
@@ -295,20 +277,9 @@ def block_lemke(M, q, settings, work):
         return STATUS_SOLVED, 0, 0.0
     Kinv = matrix_view(work.lemke_tableau, n, n)
     col_val = work.lemke_tableau[n * n:2 * n * n]
-    col_row = work.block_col_row
-    col_start = work.block_col_start
-    cols = work.block_cols
-    rows = work.block_rows
-    col_pos = work.block_col_pos
-    row_pos = work.block_row_pos
-    xz = work.block_xz
-    xw = work.block_xw
-    dz = work.block_dz
-    dw = work.block_dw
-    y = work.block_y
-    z = work.lemke_z
-    w = work.lemke_w
-    res_tol = settings.res_tol
+    col_row, col_start, cols, rows = work.block_col_row, work.block_col_start, work.block_cols, work.block_rows
+    col_pos, row_pos, xz, xw, dz = work.block_col_pos, work.block_row_pos, work.block_xz, work.block_xw, work.block_dz
+    dw, y, z, w, res_tol = work.block_dw, work.block_y, work.lemke_z, work.lemke_w, settings.res_tol
     for i in range(n):
         if not np.isfinite(q[i]):
             return STATUS_INVALID, 0, np.inf
@@ -549,17 +520,9 @@ def _certify(M, q, work, Kinv, col_val, k, res_tol, scale):
     never gave the answer there (M[Z, Z] singular, or its answer negative) and was 40 % of the solve. A skip that
     was wrong costs a few more pivots or the tableau, never a wrong answer: what is returned is certified."""
     n = q.shape[0]
-    cols = work.block_cols
-    rows = work.block_rows
-    col_pos = work.block_col_pos
-    col_row = work.block_col_row
-    col_start = work.block_col_start
-    xz = work.block_xz
-    z = work.lemke_z
-    w = work.lemke_w
-    zb = work.lemke_basic
-    zalt = work.lemke_z_refined
-    walt = work.lemke_w_refined
+    cols, rows, col_pos, col_row = work.block_cols, work.block_rows, work.block_col_pos, work.block_col_row
+    col_start, xz, z, w, zb = work.block_col_start, work.block_xz, work.lemke_z, work.lemke_w, work.lemke_basic
+    zalt, walt = work.lemke_z_refined, work.lemke_w_refined
     for i in range(n):
         z[i] = 0.0
     m = np.int64(0)                     # not a literal: numba would compile solve_basic_z for Literal[int](0) too
@@ -572,10 +535,6 @@ def _certify(M, q, work, Kinv, col_val, k, res_tol, scale):
     if res > 1e-3 * res_tol * scale and _complementary_negativity(q, k, Kinv, cols, rows, col_pos) <= 2.0 * res:
         ok, neg = solve_basic_z(M, q, zb, m, zalt, work.lemke_lu, work.lemke_rhs, work.lemke_perm)
         if ok:
-            res2 = max(_residual_csc(col_val, col_row, col_start, q, zalt, walt), -neg)
-            if res2 < res:
-                res = res2
-                for i in range(n):
-                    z[i] = zalt[i]
-                    w[i] = walt[i]
+            res_alt = max(_residual_csc(col_val, col_row, col_start, q, zalt, walt), -neg)
+            res = keep_better(res, res_alt, z, w, zalt, walt, n)
     return res

@@ -138,10 +138,14 @@ def solve_basic_z(M, q, zb, m, z, lu, rhs, perm):
 
 
 @njit(cache=True, inline='always')
-def keep_ties(cand, rate, value, nc, bound):
+def keep_ties(cand, rate, value, nc, best, ratio_tol, rhs_scale, colmax):
     """The ratio test's first level: keep, in order, the candidates cand[:nc] (each with its rate of decrease rate[a]
-    and its value value[a], clipped at 0) whose ratio value / rate is at most bound (the minimum ratio plus the tie
-    tolerance). Returns how many are kept (moved to the front of cand and rate)."""
+    and its value value[a], clipped at 0) whose ratio value / rate is at most the minimum ratio `best` plus the tie
+    tolerance, ratio_tol of the larger of best and rhs_scale / colmax (the problem's scale over the entering
+    column's largest entry). Returns how many are kept (moved to the front of cand and rate); 0 when nc is 0."""
+    if nc == 0:
+        return 0
+    bound = best + ratio_tol * max(best, rhs_scale / colmax)
     m = 0
     for a in range(nc):
         if value[a] / rate[a] <= bound:
@@ -149,6 +153,18 @@ def keep_ties(cand, rate, value, nc, bound):
             rate[m] = rate[a]
             m += 1
     return m
+
+
+@njit(cache=True, inline='always')
+def keep_better(res, res_alt, z, w, z_alt, w_alt, n):
+    """Of two answers to one LCP, the one with the smaller residual: (z_alt, w_alt) copied into (z, w) when res_alt <
+    res. Returns the kept answer's residual."""
+    if res_alt < res:
+        for i in range(n):
+            z[i] = z_alt[i]
+            w[i] = w_alt[i]
+        return res_alt
+    return res
 
 
 @njit(cache=True, inline='always')

@@ -28,10 +28,10 @@ from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, assemble_s
                                         island_is_elastic, island_problem_size, island_servo, record_impulses,
                                         record_servo_lag, servo_within_limits, support_column_count)
 from planar_lcp.engine.layout import LemkeSettings, Stat, lemke_struct, matrix_view
-from planar_lcp.engine.solvers.certificate import (STATUS_INACCURATE, STATUS_INVALID, STATUS_MAX_PIVOTS,  # noqa: F401
-                                                   STATUS_NAMES, STATUS_NEEDS_SPACE, STATUS_RAY, STATUS_SOLVED,
+from planar_lcp.engine.solvers.certificate import (STATUS_INACCURATE, STATUS_INVALID, STATUS_MAX_PIVOTS,
+                                                   STATUS_NEEDS_SPACE, STATUS_RAY, STATUS_SOLVED, keep_better,
                                                    keep_ties, lcp_residual, lcp_scale, lexicographic_pick,
-                                                   natural_residual, solve_basic_z)
+                                                   solve_basic_z)
 from planar_lcp.engine.solvers.block_lemke import block_lemke
 from planar_lcp.engine.solvers.sparse import solve_island_sparse
 
@@ -102,12 +102,9 @@ def _ratio_test(T, basis, n, j, settings, rhs_scale, cand, rate, value):
             rate[nc] = T[i, j]
             value[nc] = b
             nc += 1
-    if nc == 0:
-        return -1
-    # keep the rows tied with the minimum
-    nc = keep_ties(cand, rate, value, nc, best + settings.ratio_tol * max(best, rhs_scale / colmax))
-    if nc == 1:
-        return cand[0]
+    nc = keep_ties(cand, rate, value, nc, best, settings.ratio_tol, rhs_scale, colmax)
+    if nc <= 1:
+        return cand[0] if nc == 1 else -1
     for a in range(nc):
         if basis[cand[a]] == z0:
             return cand[a]
@@ -196,11 +193,7 @@ def _certify(M, q, T, n, work, res_tol, scale):
     for the same basis. Writes the better one into work.lemke_z (work.lemke_w = M z + q) and returns its residual.
     Valid whether or not the artificial variable is still basic: the residual, not the pivoting, decides whether the
     answer is a solution."""
-    basis = work.lemke_basis
-    d = work.lemke_scaling
-    z = work.lemke_z
-    w = work.lemke_w
-    zalt = work.lemke_z_refined
+    basis, d, z, w, zalt = work.lemke_basis, work.lemke_scaling, work.lemke_z, work.lemke_w, work.lemke_z_refined
     walt = work.lemke_w_refined
     rhs_col = 2 * n + 1
     for i in range(n):
@@ -216,12 +209,7 @@ def _certify(M, q, T, n, work, res_tol, scale):
         ok, neg = refine_from_basis(M, q, basis, n, zalt, work.lemke_lu, work.lemke_rhs, work.lemke_perm,
                                     work.lemke_basic, work.lemke_rows)
         if ok:
-            res2 = max(lcp_residual(M, q, zalt, walt), -neg)
-            if res2 < res:
-                res = res2
-                for i in range(n):
-                    z[i] = zalt[i]
-                    w[i] = walt[i]
+            res = keep_better(res, max(lcp_residual(M, q, zalt, walt), -neg), z, w, zalt, walt, n)
     return res
 
 
@@ -249,11 +237,7 @@ def lemke_kernel(M, q, settings, work):
     n = q.shape[0]
     if n == 0:
         return STATUS_SOLVED, 0, 0.0
-    basis = work.lemke_basis
-    z = work.lemke_z
-    w = work.lemke_w
-    d = work.lemke_scaling
-    prow = work.lemke_pivot_row
+    basis, z, w, d, prow = work.lemke_basis, work.lemke_z, work.lemke_w, work.lemke_scaling, work.lemke_pivot_row
     res_tol = settings.res_tol
     # the finiteness check and `lcp_scale(M, q)` in one pass over (M, q): the same comparisons in the same order
     scale = 1.0

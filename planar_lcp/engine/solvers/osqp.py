@@ -26,7 +26,7 @@ from planar_lcp.engine.assemble import (apply_impulses, assemble_lcp, contact_ve
                                         support_column_count)
 from planar_lcp.engine.constants import SERVO_FORCE_DIRECTIONS
 from planar_lcp.engine.layout import Stat, python_view
-from planar_lcp.engine.solvers.lemke import STATUS_INACCURATE, STATUS_SOLVED
+from planar_lcp.engine.solvers.certificate import STATUS_INACCURATE, STATUS_SOLVED
 from planar_lcp.engine.solvers.pgs import solve_island_pgs
 from planar_lcp.engine.rollout import rollout_loop
 from planar_lcp.engine.step import project_positions, step_pipeline

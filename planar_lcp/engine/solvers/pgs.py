@@ -15,7 +15,7 @@ from planar_lcp.engine.assemble import (apply_impulses, column_dot, contact_velo
                                         record_impulses, servo_count, servo_direction, table_column)
 from planar_lcp.engine.constants import BODY_KINEMATIC, SERVO_FORCE_DIRECTIONS, SUPPORT_POINTS
 from planar_lcp.engine.layout import Stat, matrix_view
-from planar_lcp.engine.solvers.lemke import STATUS_NEEDS_SPACE, STATUS_SOLVED
+from planar_lcp.engine.solvers.certificate import STATUS_NEEDS_SPACE, STATUS_SOLVED
 
 
 @njit(cache=True, _nrt=False)

@@ -206,16 +206,8 @@ def _build_band(m, w, nci, p, bw):
     W = w.sparse_band
     for i in range(p * ld):
         W[i] = 0.0
-    g = w.column_g
-    slot = w.column_slot
-    fric = w.sparse_fric
-    mode = w.sparse_mode
-    unk = w.sparse_unknown
-    start = w.sparse_body_start
-    bcon = w.sparse_body_con
-    mu_c = w.sparse_mu
-    pair_mu = m.pair_mu
-    con_pair = w.con_pair
+    g, slot, fric, mode, unk = w.column_g, w.column_slot, w.sparse_fric, w.sparse_mode, w.sparse_unknown
+    start, bcon, mu_c, pair_mu, con_pair = w.sparse_body_start, w.sparse_body_con, w.sparse_mu, m.pair_mu, w.con_pair
     isl = w.island_con
     for a in range(nci):
         md = mode[a]
@@ -257,9 +249,7 @@ def _build_band(m, w, nci, p, bw):
                             c2 = g[tb, sb, 2]
                         j = ub + kb
                         W[i * ld + j - i + bw] += (r0 * c0 + r1 * c1) * im + r2 * c2 / J
-    rhs = w.sparse_rhs
-    b_lcp = w.lcp_vector
-    order = w.sparse_order
+    rhs, b_lcp, order = w.sparse_rhs, w.lcp_vector, w.sparse_order
     for i in range(nci):
         a = order[i]
         u = unk[a]
@@ -324,10 +314,7 @@ def _solve_reduced(w, p, bw):
     if not _factor_band(w, p, bw):
         return False
     ld = 2 * bw + 1
-    W = w.sparse_band
-    x = w.sparse_x
-    r = w.sparse_r
-    rhs = w.sparse_rhs
+    W, x, r, rhs = w.sparse_band, w.sparse_x, w.sparse_r, w.sparse_rhs
     rmax = 0.0
     for i in range(p):
         x[i] = 0.0
@@ -436,9 +423,7 @@ def _answer(m, w, nci, n, nf):
         wv[up] += lam
         wv[up + 1] += lam
         wv[o_lc + f] = mu * z[a] - z[up] - z[up + 1]
-    comp = 0.0
-    zneg = 0.0
-    wneg = 0.0
+    comp, zneg, wneg = 0.0, 0.0, 0.0
     for i in range(n):
         mn = min(z[i], wv[i])
         comp = max(comp, abs(mn))
