@@ -445,15 +445,15 @@ def _cmd(args):
 
 
 def register(sub):
-    p = sub.add_parser("tradeoff", help="measure the speed/accuracy trade of h, solver, formulation and, in the "
-                                        "horizontal plane, the support model and its knob")
+    from planar_lcp.cli_support import add_command, finite_number
+    p = add_command(sub, "tradeoff", _cmd, help="measure the speed/accuracy trade of h, solver, formulation and, in "
+                                                "the horizontal plane, the support model and its knob")
     p.add_argument("--scenes", nargs="+", default=list(DEFAULT_SCENES), metavar="SCENE",
                    help=f"scenes to sweep (default: {' '.join(DEFAULT_SCENES)})")
     p.add_argument("--quick", action="store_true", help="two step sizes, lemke and pgs(20), position form only, "
                    "limit surface K=6 and 14 and points k=8, one timed run")
     p.add_argument("--out", default="tradeoff", metavar="DIR", help="output directory (default ./tradeoff)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    from planar_lcp.cli_support import finite_number
     p.add_argument("--jobs", type=finite_number(int, 0, True), default=None, metavar="J",
                    help="worker processes of the local Dask cluster (default: CPUs)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -462,4 +462,3 @@ def register(sub):
     p.add_argument("--resume", action="store_true",
                    help="finish the sweep whose finished rows --out holds (records.jsonl, written as each setting "
                         "finishes): only the missing settings run; --scenes and --quick must be the same")
-    p.set_defaults(func=_cmd)

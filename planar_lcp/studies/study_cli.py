@@ -55,14 +55,15 @@ def _runner(module_name):
 
 def register(subparsers):
     """Add the `study` command and its sub-commands to the `planar-lcp` parser."""
-    s = subparsers.add_parser("study", help="Stewart & Trinkle's experiments: falling rod, four-disk cascade",
-                              description="Reproduce Stewart & Trinkle's section 4 experiments: figures, event tables "
-                                          "and the Table 1 error measures over step sizes.")
-    sub = s.add_subparsers(dest="study", required=True, metavar="STUDY")
     from planar_lcp.cli_support import add_command
+    s = add_command(subparsers, "study", help="Stewart & Trinkle's experiments: falling rod, four-disk cascade",
+                    description="Reproduce Stewart & Trinkle's section 4 experiments: figures, event tables and the "
+                                "Table 1 error measures over step sizes.")
+    sub = s.add_subparsers(dest="study", required=True, metavar="STUDY")
 
     fr = add_command(
-        sub, "falling-rod", help="section 4.1: the spinning rod dropped on a table (Figures 2-5)",
+        sub, "falling-rod", _runner("falling_rod"),
+        help="section 4.1: the spinning rod dropped on a table (Figures 2-5)",
         description="Falling rod over h = 0.02 ... 0.00125: strobe, velocity plots, events, convergence table, and "
                     "Stewart & Trinkle's friction moment arm.")
     _add_common(fr)
@@ -70,10 +71,10 @@ def register(subparsers):
                     help="Newton's coefficient of restitution in [0, 1] of the rod-table contact, for every run of "
                          "the study (default: the scene's; 0: Stewart & Trinkle's inelastic contact, "
                          "docs/falling-rod.md)")
-    fr.set_defaults(func=_runner("falling_rod"))
-    fd = sub.add_parser("four-disks", help="section 4.2 in elevation: a thrown disk hits a row of three (Figure 6)",
-                        description="Four disks over h = 0.02 ... 0.00125: trajectories, the impulses of the first "
-                                    "disk-disk step, velocities, convergence table.")
+    fd = add_command(
+        sub, "four-disks", _runner("four_disks"),
+        help="section 4.2 in elevation: a thrown disk hits a row of three (Figure 6)",
+        description="Four disks over h = 0.02 ... 0.00125: trajectories, the impulses of the first disk-disk step, "
+                    "velocities, convergence table.")
     _add_common(fd)
-    fd.set_defaults(func=_runner("four_disks"))
     return s

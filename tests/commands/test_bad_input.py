@@ -496,3 +496,34 @@ def test_an_absurd_size_on_the_command_line_is_one_line_and_exit_2(tmp_path):
     assert r.returncode == 2 and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert r.stderr.strip() == (f"planar-lcp simulate: error: {f}: bodies[0].shapes[0].radius must be at most 10000 m "
                                 "(a physical bound), got 1e+308")
+
+
+def _every_subcommand():
+    """(words, parser) of every subcommand of `planar-lcp`, nested ones too (study falling-rod, pushdata fit, ...)."""
+    import argparse
+
+    from planar_lcp.cli import build_parser
+
+    found = []
+
+    def walk(parser, words):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for name, sub in action.choices.items():
+                    found.append(((*words, name), sub))
+                    walk(sub, (*words, name))
+
+    walk(build_parser(), ())
+    return found
+
+
+@pytest.mark.parametrize("words, parser", _every_subcommand(),
+                         ids=lambda v: " ".join(v) if isinstance(v, tuple) else "")
+def test_every_subcommand_refuses_an_unknown_option_in_one_line(words, parser, capsys):
+    """Arguments a command cannot take: one line on stderr, "planar-lcp COMMAND: error: ...", exit status 2 (no usage
+    block, argparse's default)."""
+    with pytest.raises(SystemExit) as e:
+        parser.parse_args(["--no-such-option"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"planar-lcp {' '.join(words)}: error: "), err
