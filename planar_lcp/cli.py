@@ -9,8 +9,8 @@ import signal
 import sys
 
 from planar_lcp.cli_support import (SIMULATE_FLAGS, InputError, MissingPackage, ProgressBar, add_command,
-                                    check_output_file, finite_number, missing_optional, raised_while_interrupted,
-                                    require)
+                                    check_output_file, finite_number, missing_optional, one_line_errors,
+                                    raised_while_interrupted, require)
 from planar_lcp.interrupt import catch_sigint, clear, interrupted, raise_if_interrupted
 
 def _how_it_ran():
@@ -346,7 +346,7 @@ def build_parser():
                                        MAX_LIMIT_SURFACE_RESOLUTION, MAX_LIMIT_SURFACE_TWISTS, MAX_STEPS, SOLVERS,
                                        SUPPORT_MODELS)
 
-    p = argparse.ArgumentParser(prog="planar-lcp", description=__doc__)
+    p = one_line_errors(argparse.ArgumentParser(prog="planar-lcp", description=__doc__))
     p.add_argument("--version", action=_VersionAction, help="print the installed version and exit")
     sub = p.add_subparsers(dest="command", required=True)
 
@@ -462,7 +462,11 @@ def main(argv=None):
 
 def _main(argv):
     try:
-        args = build_parser().parse_args(argv)
+        parser = build_parser()
+        args, extra = parser.parse_known_args(argv)
+        if extra:
+            # named by the command that was given them (argparse's own message comes from the top-level parser)
+            args.command_parser.error(f"unrecognized arguments: {' '.join(extra)}")
     except KeyboardInterrupt:
         # Ctrl-C while the commands' modules load (about a second): the one line of any interrupt
         print("planar-lcp: error: interrupted (Ctrl-C); stopped", file=sys.stderr)

@@ -80,8 +80,10 @@ def one_line_errors(parser):
 
 def add_command(subparsers, name, func=None, **kwargs):
     """A subcommand's parser (`subparsers.add_parser(name, **kwargs)`) with its argument errors in one line
-    (one_line_errors) and, given `func`, the function the command runs (args.func)."""
+    (one_line_errors) and, given `func`, the function the command runs (args.func). args.command_parser is the
+    parser of the (innermost) command given, which reports arguments no parser took."""
     parser = one_line_errors(subparsers.add_parser(name, **kwargs))
+    parser.set_defaults(command_parser=parser)
     if func is not None:
         parser.set_defaults(func=func)
     return parser

@@ -527,3 +527,18 @@ def test_every_subcommand_refuses_an_unknown_option_in_one_line(words, parser, c
     assert e.value.code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith(f"planar-lcp {' '.join(words)}: error: "), err
+
+
+@pytest.mark.parametrize("argv, line", [
+    (["simulate", "falling_rod", "--no-such-option"],
+     "planar-lcp simulate: error: unrecognized arguments: --no-such-option"),
+    (["study", "four-disks", "--out", "x", "--bogus", "1"],
+     "planar-lcp study four-disks: error: unrecognized arguments: --bogus 1"),
+    (["no-such-command"], "planar-lcp: error: argument command: invalid choice: 'no-such-command'"),
+])
+def test_an_argument_no_command_takes_is_one_line_naming_the_command(argv, line):
+    """What no parser took is reported by the command it was given to, in one line (not argparse's usage block from
+    the top-level parser), before anything runs."""
+    r = run_cli(*argv)
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr.count("\n") == 1 and r.stderr.startswith(line), r.stderr
