@@ -8,7 +8,7 @@ import math
 import signal
 import sys
 
-from planar_lcp.cli_support import (SIMULATE_FLAGS, InputError, MissingPackage, ProgressBar, add_command,
+from planar_lcp.cli_support import (SCENE_OPERAND, SIMULATE_FLAGS, InputError, MissingPackage, ProgressBar, add_command,
                                     check_output_file, finite_number, missing_optional, one_line_errors,
                                     raised_while_interrupted, require)
 from planar_lcp.interrupt import catch_sigint, clear, interrupted, raise_if_interrupted
@@ -388,11 +388,10 @@ def build_parser():
                    help=f"pile: the scenes to run, of {', '.join(name for name, _ in PILE_SCENES)} (default all)")
 
     s = add_command(
-        sub, "simulate", _cmd_simulate,
+        sub, "simulate", _cmd_simulate, SCENE_OPERAND,
         help="simulate a scene; print a summary, optionally write CSV, a plot and an animation",
         description="Simulate a scene (a shipped name, see `planar-lcp scenes`, or a path to a .toml file). "
                     "Options override the scene's [sim] table.")
-    s.add_argument("scene", metavar="SCENE", help="a shipped scene name or a path to a .toml scene file")
     s.add_argument("--h", type=finite_number(float, 0, True), metavar="H",
                    help=f"time step [s]; below the duration, and at most {MAX_STEPS} steps in all")
     s.add_argument("--t-end", type=finite_number(float, 0, True), metavar="T",

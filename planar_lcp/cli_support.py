@@ -78,14 +78,21 @@ def one_line_errors(parser):
     return parser
 
 
-def add_command(subparsers, name, func=None, **kwargs):
+#: the positional argument of the commands that run a scene (simulate, compare): add_command's `operand`
+SCENE_OPERAND = ("scene", dict(metavar="SCENE", help="a shipped scene name or a path to a .toml scene file"))
+
+
+def add_command(subparsers, name, func=None, operand=None, **kwargs):
     """A subcommand's parser (`subparsers.add_parser(name, **kwargs)`) with its argument errors in one line
-    (one_line_errors) and, given `func`, the function the command runs (args.func). args.command_parser is the
-    parser of the (innermost) command given, which reports arguments no parser took."""
+    (one_line_errors), given `func` the function the command runs (args.func), given `operand` (name, add_argument's
+    keywords) its first positional argument. args.command_parser is the parser of the (innermost) command given,
+    which reports arguments no parser took."""
     parser = one_line_errors(subparsers.add_parser(name, **kwargs))
     parser.set_defaults(command_parser=parser)
     if func is not None:
         parser.set_defaults(func=func)
+    if operand is not None:
+        parser.add_argument(operand[0], **operand[1])
     return parser
 
 

@@ -17,18 +17,19 @@ from .tasks import PLANNERS, TaskError, check_planner
 
 TIME_BOUND = " s (as a task file's time)"
 SEED_BOUND = " (OMPL's seed)"
-TASK_HELP = ("a shipped task's name (planar-lcp scenes marks them) or a scene file with a [task] table "
-             "(docs/scene-format.md, \"Task files\")")
+#: the positional argument of the commands that take a task (plan, plan-bench): add_command's `operand`
+TASK_OPERAND = ("task", dict(metavar="TASK", help="a shipped task's name (planar-lcp scenes marks them) or a scene "
+                                                  "file with a [task] table (docs/scene-format.md, \"Task files\")"))
 
 
 def register(sub):
     p = add_command(
-        sub, "plan", cmd_plan, help="plan pusher motions for a task with OMPL (our simulator as the forward model)",
+        sub, "plan", cmd_plan, TASK_OPERAND,
+        help="plan pusher motions for a task with OMPL (our simulator as the forward model)",
         description="Plan a task (a shipped task or your own task file) with an OMPL kinodynamic planner. Writes "
                     "plan.json (self-contained: it holds the task), plan.png and plan.gif into --out: the first "
                     "exact plan's plan.json and plan.png before it is shortened, so that Ctrl-C while shortening "
                     "keeps the best exact plan so far (exit status 130). Exit status 0 only for an exact solution.")
-    p.add_argument("task", metavar="TASK", help=TASK_HELP)
     p.add_argument("--planner", default=None, metavar="NAME",
                    help=f"one of {', '.join(PLANNERS)} (default: the task's planner, RRT unless its file says "
                         "otherwise)")
@@ -69,12 +70,12 @@ def register(sub):
     r.add_argument("--no-gif", action="store_true", help="skip the replay's GIF")
 
     b = add_command(
-        sub, "plan-bench", cmd_bench, help="benchmark planners on a task (Dask, OMPL benchmark log and database)",
+        sub, "plan-bench", cmd_bench, TASK_OPERAND,
+        help="benchmark planners on a task (Dask, OMPL benchmark log and database)",
         description="Run each planner --runs times with seeds 1..N as Dask tasks, on the cluster at --scheduler or "
                     "on a local cluster of --jobs worker processes (127.0.0.1); write an OMPL benchmark log, its "
                     "SQLite database, summary.md / summary.json and box plots into --out. Each finished run is kept "
                     "in --out as it arrives: after Ctrl-C or a lost scheduler, --resume finishes the benchmark.")
-    b.add_argument("task", metavar="TASK", help=TASK_HELP)
     b.add_argument("--planners", nargs="+", default=list(PLANNERS), metavar="NAME",
                    help=f"planners to compare (default: all of {', '.join(PLANNERS)})")
     b.add_argument("--runs", type=finite_number(int, 0, True, MAX_RUNS), default=10, metavar="N",

@@ -64,14 +64,13 @@ def _cmd_compare(args):
 
 
 def register(subparsers):
-    from planar_lcp.cli_support import add_command, finite_number
+    from planar_lcp.cli_support import SCENE_OPERAND, add_command, finite_number
 
     c = add_command(
-        subparsers, "compare", _cmd_compare,
+        subparsers, "compare", _cmd_compare, SCENE_OPERAND,
         help="run a scene in planar_lcp and in pymunk with the same time step; plots, GIF, report",
         description="Run a scene (a shipped name or a .toml path) in planar_lcp and in pymunk (Chipmunk2D) with the "
                     "same time step; write overlaid trajectories, frames, a side-by-side GIF and report.md/.csv.")
-    c.add_argument("scene", metavar="SCENE", help="a shipped scene name or a path to a .toml scene file")
     c.add_argument("--out", required=True, metavar="DIR", help="directory for the files (created if missing)")
     helps = {"--h": ("H", float, 0, True, "time step [s] (default: the scene's)"),
              "--t-end": ("T", float, 0, True, "duration [s] (default: the scene's)"),

@@ -23,11 +23,16 @@ def restitution_value(text):
     return e
 
 
-def _add_common(p):
+def _add_study(sub, name, module_name, help, description):
+    """The parser of `study NAME`: the study in module `module_name` of this package, with the options every study
+    takes."""
+    from planar_lcp.cli_support import add_command
+    p = add_command(sub, name, _runner(module_name), help=help, description=description)
     p.add_argument("--out", required=True, metavar="DIR", help="directory for the figures and tables (created)")
     p.add_argument("--quick", action="store_true",
                    help="two step sizes (0.0025, 0.00125) against a reference at h = 0.000625, instead of the "
                         "paper's 0.02 ... 0.0025 against h = 0.00125")
+    return p
 
 
 def _runner(module_name):
@@ -61,20 +66,15 @@ def register(subparsers):
                                 "Table 1 error measures over step sizes.")
     sub = s.add_subparsers(dest="study", required=True, metavar="STUDY")
 
-    fr = add_command(
-        sub, "falling-rod", _runner("falling_rod"),
-        help="section 4.1: the spinning rod dropped on a table (Figures 2-5)",
-        description="Falling rod over h = 0.02 ... 0.00125: strobe, velocity plots, events, convergence table, and "
+    fr = _add_study(sub, "falling-rod", "falling_rod",
+                    "section 4.1: the spinning rod dropped on a table (Figures 2-5)",
+                    "Falling rod over h = 0.02 ... 0.00125: strobe, velocity plots, events, convergence table, and "
                     "Stewart & Trinkle's friction moment arm.")
-    _add_common(fr)
     fr.add_argument("--restitution", type=restitution_value, metavar="E",
                     help="Newton's coefficient of restitution in [0, 1] of the rod-table contact, for every run of "
                          "the study (default: the scene's; 0: Stewart & Trinkle's inelastic contact, "
                          "docs/falling-rod.md)")
-    fd = add_command(
-        sub, "four-disks", _runner("four_disks"),
-        help="section 4.2 in elevation: a thrown disk hits a row of three (Figure 6)",
-        description="Four disks over h = 0.02 ... 0.00125: trajectories, the impulses of the first disk-disk step, "
-                    "velocities, convergence table.")
-    _add_common(fd)
+    _add_study(sub, "four-disks", "four_disks", "section 4.2 in elevation: a thrown disk hits a row of three (Figure 6)",
+               "Four disks over h = 0.02 ... 0.00125: trajectories, the impulses of the first disk-disk step, "
+               "velocities, convergence table.")
     return s
