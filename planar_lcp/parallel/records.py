@@ -139,11 +139,11 @@ def read_records(path):
             contents.arrivals.append((line["invocation"], float(line["elapsed"])))
         elif "ended" in line:
             if not (isinstance(line.get("invocation"), int) and isinstance(line.get("elapsed"), (int, float))):
-                raise RecordFileError(f"{path}: line {i} must be a invocation's end {{\"invocation\": N, \"elapsed\": S, "
+                raise RecordFileError(f"{path}: line {i} must be an invocation's end {{\"invocation\": N, \"elapsed\": S, "
                                       f"\"ended\": ...}}, got keys {sorted(line)}")
             contents.invocations[line["invocation"]] = line
         else:
-            raise RecordFileError(f"{path}: line {i} must be a run or a invocation's end, got keys {sorted(line)}")
+            raise RecordFileError(f"{path}: line {i} must be a run or an invocation's end, got keys {sorted(line)}")
         contents.valid_bytes += len(raw) + 1
     if contents is None:
         raise RecordFileError(f"{path}: empty: line 1 must be the benchmark's header")

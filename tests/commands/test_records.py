@@ -92,10 +92,10 @@ def test_a_last_line_cut_short_is_ignored_with_a_note_and_cut_off_on_resume(tmp_
     (b'{"header":{}}\nnot json\n{"run":["RRT",1],"invocation":1,"elapsed":1,"record":{}}\n',
      "line 2 is not a record of this program: Expecting value: line 1 column 1 (char 0)"),
     (b'{"header":{}}\n{"run":"RRT","invocation":1}\n{"header":{}}\n',
-     "line 2 must be a run {\"run\": [...], \"invocation\": N, \"elapsed\": S, \"record\": {...}}, got keys ['run', "
-     "'invocation']"),
+     "line 2 must be a run {\"run\": [...], \"invocation\": N, \"elapsed\": S, \"record\": {...}}, got keys "
+     "['invocation', 'run']"),
     (b'{"header":{}}\n[1, 2]\n{"header":{}}\n', "line 2 is not a record of this program: a JSON list, not an object"),
-    (b'{"header":{}}\n{"what":1}\n', "line 2 must be a run or a invocation's end, got keys ['what']"),
+    (b'{"header":{}}\n{"what":1}\n', "line 2 must be a run or an invocation's end, got keys ['what']"),
 ])
 def test_any_other_damage_is_refused_naming_the_line(tmp_path, content, message):
     path = tmp_path / RECORDS
