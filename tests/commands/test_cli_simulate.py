@@ -489,12 +489,12 @@ def test_ctrl_c_during_a_compile_is_still_an_interrupt(monkeypatch, capsys):
 
 
 def _with_func(parser, func):
-    """The parser with `func` as the command of every subcommand."""
-    orig = parser.parse_args
+    """The parser with `func` as the command of every subcommand (planar_lcp.cli parses with parse_known_args)."""
+    orig = parser.parse_known_args
 
-    def parse_args(argv=None):
-        args = orig(argv)
+    def parse_known_args(argv=None, namespace=None):
+        args, extra = orig(argv, namespace)
         args.func = func
-        return args
-    parser.parse_args = parse_args
+        return args, extra
+    parser.parse_known_args = parse_known_args
     return parser
