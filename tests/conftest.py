@@ -35,7 +35,8 @@ def tip_plan(tmp_path_factory):
 def cold_demo(tmp_path_factory):
     """`planar-lcp demo` run once for the whole test run on an EMPTY numba cache, as on a user's fresh machine, and the
     background compilation it started waited for: (the finished process, its --out directory, the cache). Tests
-    that need what a user's first command leaves share it; one that writes to the cache copies it first."""
+    that need what a user's first command leaves share it (and one xdist process: xdist_group "cold_demo"); one that
+    writes to the cache copies it first."""
     pytest.importorskip("ompl")
     from planar_lcp.compilation import background
     base = tmp_path_factory.mktemp("cold_demo")

@@ -162,6 +162,7 @@ def test_every_readme_command_has_a_test():
 
 
 @covers("demo")
+@pytest.mark.xdist_group("cold_demo")
 def test_demo(cold_demo):
     """On an EMPTY numba cache, as on a user's fresh machine (conftest.cold_demo): every kernel compiles during the
     demo, the planning part too."""
@@ -565,6 +566,7 @@ def test_bench_pile_json(tmp_path):
 
 
 @covers("warmup")
+@pytest.mark.xdist_group("cold_demo")
 def test_warmup(tmp_path, cold_demo):
     """`planar-lcp warmup` on what the demo left (a copy of conftest.cold_demo's cache), one line per stage; then runs
     of every solver (lemke, pgs, osqp) and formulation and `planar_lcp.lemke` compile nothing, and neither does a

@@ -121,6 +121,7 @@ def test_no_kernel_type_depends_on_the_scene(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("cold_demo")
 def test_after_the_first_run_nothing_compiles(cold_demo):
     """The README's first command's main job (`planar-lcp demo`) on an empty cache (conftest.cold_demo), then every
     shipped scene and task (with the defaults and options), 50 random scenes of both planes, 50 jam scenes, 12 random
