@@ -8,8 +8,8 @@ import math
 import signal
 import sys
 
-from planar_lcp.cli_support import (SCENE_OPERAND, SIMULATE_FLAGS, InputError, MissingPackage, ProgressBar, add_command,
-                                    check_output_file, finite_number, missing_optional, one_line_errors,
+from planar_lcp.cli_support import (SCENE_OPERAND, SIMULATE_FLAGS, InputError, MissingPackage, ProgressBar,
+                                    add_command, check_output_file, finite_number, missing_optional, one_line_errors,
                                     raised_while_interrupted, require)
 from planar_lcp.interrupt import catch_sigint, clear, interrupted, raise_if_interrupted
 
@@ -465,7 +465,8 @@ def _main(argv):
         args, extra = parser.parse_known_args(argv)
         if extra:
             # named by the command that was given them (argparse's own message comes from the top-level parser)
-            args.command_parser.error(f"unrecognized arguments: {' '.join(extra)}")
+            # (a command another package adds without cli_support.add_command has none: the top-level parser says it)
+            getattr(args, "command_parser", parser).error(f"unrecognized arguments: {' '.join(extra)}")
     except KeyboardInterrupt:
         # Ctrl-C while the commands' modules load (about a second): the one line of any interrupt
         print("planar-lcp: error: interrupted (Ctrl-C); stopped", file=sys.stderr)

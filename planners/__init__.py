@@ -42,8 +42,8 @@ def _register_envs():
     except ImportError:
         return
     if "planar_lcp/PushT-v0" not in gymnasium.registry:
-        gymnasium.register(id="planar_lcp/PushT-v0", entry_point="planners.environments.push_t:PushTEnv", max_episode_steps=300,
-                           kwargs={"obs_type": "state"})
+        gymnasium.register(id="planar_lcp/PushT-v0", entry_point="planners.environments.push_t:PushTEnv",
+                           max_episode_steps=300, kwargs={"obs_type": "state"})
     if "planar_lcp/Task-v0" not in gymnasium.registry:
         # truncation is the environment's own (its time_limit in the task's step durations)
         gymnasium.register(id="planar_lcp/Task-v0", entry_point="planners.environments.task_env:TaskEnv")

@@ -324,15 +324,20 @@ def work_sizes(model, dense_capacity=None):
     contact = max(1, 2 * a.pair_a.shape[0])
     dyn = max(1, model.ndyn)
     reduced = min(2 * contact, SPARSE_UNKNOWNS_PER_BODY * dyn)
-    return dict(body=a.body_kind.shape[0], vert=max(1, a.vert_local.shape[0]), pair=max(1, a.pair_a.shape[0]),
-                contact=contact, contact2=2 * contact, dyn=dyn, dyn1=dyn + 1, support=max(1, a.sup_dyn.shape[0]),
-                kin=max(1, model.nkin),
-                unknown=U, dense=D, dense1=D + 1, dense2=D * D, tableau=D * (2 * D + 2), tableau_row=2 * D + 2, reduced=reduced,
-                band=reduced * (2 * SPARSE_MAX_BAND + 1))
+    sizes = dict(body=a.body_kind.shape[0], vert=max(1, a.vert_local.shape[0]), pair=max(1, a.pair_a.shape[0]),
+                 contact=contact, contact2=2 * contact, dyn=dyn, dyn1=dyn + 1, support=max(1, a.sup_dyn.shape[0]),
+                 kin=max(1, model.nkin), reduced=reduced, band=reduced * (2 * SPARSE_MAX_BAND + 1))
+    # the dense buffers as Lemke's own work for islands of up to D unknowns; `unknown` the LCP size bound U
+    return sizes | lemke_work_sizes(D) | dict(unknown=U)
 
 
 #: each work field's shape as (dimension: an int, or the name of a `work_sizes` entry), parsed once; and its itemsize
-_WORK_DIMS = [tuple(int(d) if d.isdigit() else d for d in f.shape.split(" x ")) for f in WORK_LAYOUT]
+def _dims(field):
+    """A field's shape: each dimension an int, or the name of a size (`work_sizes`, `lemke_work_sizes`)."""
+    return tuple(int(d) if d.isdigit() else d for d in field.shape.split(" x "))
+
+
+_WORK_DIMS = [_dims(f) for f in WORK_LAYOUT]
 _WORK_ITEMSIZES = [np.dtype(_DTYPES[f.dtype][1]).itemsize for f in WORK_LAYOUT]
 
 
@@ -373,8 +378,8 @@ def make_lemke_work(n, block=False):
     too, a BlockLemkeWork. `lemke_work_struct` gives the kernels' view of it."""
     sizes = lemke_work_sizes(n)
     layout, view = (LEMKE_LAYOUT + BLOCK_LAYOUT, BlockLemkeWork) if block else (LEMKE_LAYOUT, LemkeWork)
-    return view(*(np.zeros(tuple(int(d) if d.isdigit() else sizes[d] for d in f.shape.split(" x ")),
-                           _DTYPES[f.dtype][1]) for f in layout))
+    return view(*(np.zeros(tuple(d if isinstance(d, int) else sizes[d] for d in _dims(f)), _DTYPES[f.dtype][1])
+                  for f in layout))
 
 
 def _register_struct(struct_typeclass):

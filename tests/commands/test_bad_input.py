@@ -542,3 +542,21 @@ def test_an_argument_no_command_takes_is_one_line_naming_the_command(argv, line)
     r = run_cli(*argv)
     assert r.returncode == 2 and r.stdout == ""
     assert r.stderr.count("\n") == 1 and r.stderr.startswith(line), r.stderr
+
+
+def test_an_argument_a_plainly_added_command_does_not_take_is_one_line(monkeypatch, capsys):
+    """A command another package adds with argparse's own add_parser (no cli_support.add_command): what its parser
+    does not take is still one line, from the top-level parser, exit status 2."""
+    from planar_lcp import cli
+    build = cli.build_parser
+
+    def with_plain_command():
+        parser = build()
+        sub = next(a for a in parser._actions if a.dest == "command")
+        sub.add_parser("plain").set_defaults(func=lambda args: 0)
+        return parser
+    monkeypatch.setattr(cli, "build_parser", with_plain_command)
+    with pytest.raises(SystemExit) as e:
+        cli.main(["plain", "--bogus"])
+    assert e.value.code == 2
+    assert capsys.readouterr().err == "planar-lcp: error: unrecognized arguments: --bogus\n"
