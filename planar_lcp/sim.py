@@ -255,6 +255,20 @@ class Simulator:
         self._last_step_out = (q_out.copy(), v_out.copy(), qk_out.copy())
         return q_out, v_out, qk_out, st
 
+    def step_derivatives(self, q, v, qk, vk, params=()):
+        """The Jacobians of one (cold) step with respect to q, v, qk, vk and the named scene parameters:
+        `planar_lcp.derivatives.StepDerivatives` (dq_dq, dq_dv, dq_dvk, dv_dq, dv_dv, dv_dvk, dv_dp, ..., `exact`,
+        `degenerate`). docs/method.md, "Derivatives of the step"."""
+        from planar_lcp.derivatives import step_derivatives
+        return step_derivatives(self, q, v, qk, vk, params)
+
+    def rollout_derivatives(self, q, v, qk, vk_seq, nsteps, params=()):
+        """A rollout's final state and its Jacobians with respect to the initial state, every step's kinematic
+        velocities and the named scene parameters (the chain over `step_derivatives`):
+        `planar_lcp.derivatives.RolloutDerivatives`."""
+        from planar_lcp.derivatives import rollout_derivatives
+        return rollout_derivatives(self, q, v, qk, vk_seq, nsteps, params)
+
     def rollout(self, q, v, qk, vk_seq, nsteps, stop_on_failure=True, record_contacts=False, trajectory_rows=False):
         """nsteps steps by the jitted kernels (one call for a short rollout, chunks for a long one).
         vk_seq: (nvk, nkin, 3), step i uses vk_seq[min(i, nvk - 1)].

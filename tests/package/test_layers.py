@@ -157,7 +157,7 @@ ROOM_NAMES = {"planners": "`planners/`", "environments": "`planners/environments
               "bridges": "`planar_lcp/bridges/`", "parallel": "`planar_lcp/parallel/`", "cli": "`planar_lcp/cli.py`",
               "viz": "`planar_lcp/viz.py`", "core": "core", "compilation": "`planar_lcp/compilation/`",
               "spec": "`planar_lcp/spec/`", "geometry": "`planar_lcp/geometry.py`", "frames": "`planar_lcp/frames.py`",
-              "engine": "`planar_lcp/engine/`"}
+              "engine": "`planar_lcp/engine/`", "derivatives": "`planar_lcp/derivatives/`"}
 
 
 def _room(module):

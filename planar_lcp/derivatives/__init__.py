@@ -1,0 +1,575 @@
+"""Derivatives of the time step: Jacobians of (q+, v+, qk+) with respect to the state, the kinematic velocities and
+named scene parameters, at the step's certified LCP basis (docs/method.md, "Derivatives of the step").
+
+    d = sim.step_derivatives(q, v, qk, vk, params=["world.friction"])
+    d.dv_dv, d.dv_dq, d.dv_dvk, d.dv_dp[:, 0], d.exact, d.degenerate
+
+The step's own code runs on forward-mode dual numbers (forward.py): every branch as the compiled step takes it, every
+value bit for bit the compiled step's, and the derivatives of the final LCP basis's linear solve through Lemke's
+pivots. Where the basis stays optimal for every small change of the inputs (every LCP index strictly complementary,
+or degenerate in a way no first-order change can undo) and no contact sits on a switch of its geometry, the step is
+differentiable and these are its derivatives: `exact` is True. Elsewhere they are the derivatives of the branch the
+step takes at the point (one of its one-sided derivatives) and `degenerate` says where and why.
+
+Scene parameters are named as `planar_lcp.fit` names them (`world.friction`, `world.restitution`,
+`bodies.NAME.mass`, `bodies.NAME.inertia`, `bodies.NAME.support_friction`, `friction_pairs.A.B`,
+`restitution_pairs.A.B`): the compiled model's arrays they change are differentiated by central differences of the
+compile (the arrays are linear or rational in them: error about 1e-10 relative), the step on from there by duals.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from planar_lcp.derivatives import forward
+from planar_lcp.derivatives.dual import Dual, grads, seeded, values, with_derivatives
+
+__all__ = ["Degenerate", "StepDerivatives", "RolloutDerivatives", "step_derivatives", "rollout_derivatives",
+           "scene_with_param", "scene_param"]
+
+#: an LCP index counts as zero on both sides (degenerate) when |z_i| and |w_i| are below the certificate's residual
+#: tolerance (SimOptions.res_tol) times the LCP's scale; a degenerate index is harmless when its derivatives vanish
+#: to this fraction of the largest derivative of z (or w) along the same input direction
+GRAD_RTOL = 1e-7
+#: the pose step (m or rad, times max(1, |coordinate|)) of the one-sided differences that find a contact on a switch
+#: of its geometry, and how much the two sides' rates may differ (relative): far above the collision kernel's
+#: tolerance (1e-10 of the coordinates) and its round-off, far below a real switch's O(1) change of rate
+SWITCH_STEP = 1e-7
+SWITCH_RTOL = 1e-3
+
+
+@dataclass(frozen=True)
+class Degenerate:
+    """Why a step is not differentiable at the point: `kind` ("complementarity", "face-face", "failed",
+    "uncertified", "solver", "parameter"), `where` (the contact or LCP index, by body names) and `detail`."""
+
+    kind: str
+    where: str
+    detail: str
+
+    def __str__(self):
+        return f"{self.kind} at {self.where}: {self.detail}"
+
+
+@dataclass
+class StepDerivatives:
+    """The Jacobians of one step (q, v, qk, vk) -> (q+, v+, qk+) over the flattened states.
+
+    States flatten row-major: q, v (ndyn, 3) -> 3 ndyn entries (body 0's x, y, theta, then body 1's, ...); qk, vk
+    (nkin, 3) -> 3 nkin. `dA_dB` is d(A+)/dB, shape (size of A, size of B): e.g. dv_dq (3 ndyn, 3 ndyn); dq_dp,
+    dv_dp, dqk_dp have one column per name in `params`. Units follow the states' (m, rad, m/s, rad/s) and the
+    parameters' own.
+    """
+
+    q: np.ndarray
+    v: np.ndarray
+    qk: np.ndarray
+    status: int
+    jacobian: np.ndarray            # (3 ndyn + 3 ndyn + 3 nkin, 6 ndyn + 6 nkin + len(params))
+    ndyn: int
+    nkin: int
+    params: tuple = ()
+    exact: bool = True
+    degenerate: tuple = ()
+    #: the one-sided derivatives along each input (+e_k and -e_k); `jacobian` is their mean, which is what central
+    #: differences converge to; equal where `exact`
+    jacobian_right: np.ndarray | None = None
+    jacobian_left: np.ndarray | None = None
+
+    def _block(self, out, inp):
+        n, k = 3 * self.ndyn, 3 * self.nkin
+        rows = {"q": slice(0, n), "v": slice(n, 2 * n), "qk": slice(2 * n, 2 * n + k)}[out]
+        o = 2 * n + 2 * k
+        cols = {"q": slice(0, n), "v": slice(n, 2 * n), "qk": slice(2 * n, 2 * n + k),
+                "vk": slice(2 * n + k, o), "p": slice(o, o + len(self.params))}[inp]
+        return self.jacobian[rows, cols]
+
+    dq_dq = property(lambda s: s._block("q", "q"))
+    dq_dv = property(lambda s: s._block("q", "v"))
+    dq_dqk = property(lambda s: s._block("q", "qk"))
+    dq_dvk = property(lambda s: s._block("q", "vk"))
+    dq_dp = property(lambda s: s._block("q", "p"))
+    dv_dq = property(lambda s: s._block("v", "q"))
+    dv_dv = property(lambda s: s._block("v", "v"))
+    dv_dqk = property(lambda s: s._block("v", "qk"))
+    dv_dvk = property(lambda s: s._block("v", "vk"))
+    dv_dp = property(lambda s: s._block("v", "p"))
+    dqk_dq = property(lambda s: s._block("qk", "q"))
+    dqk_dv = property(lambda s: s._block("qk", "v"))
+    dqk_dqk = property(lambda s: s._block("qk", "qk"))
+    dqk_dvk = property(lambda s: s._block("qk", "vk"))
+    dqk_dp = property(lambda s: s._block("qk", "p"))
+
+    @property
+    def state_jacobian(self):
+        """d(q+, v+, qk+)/d(q, v, qk): the square block a rollout's chain multiplies."""
+        n = 6 * self.ndyn + 3 * self.nkin
+        return self.jacobian[:, :n]
+
+
+# --- scene parameters --------------------------------------------------------------------------------------------
+
+def _pair_entry(pairs, a, b):
+    for i, (x, y, _) in enumerate(pairs):
+        if {x, y} == {a, b}:
+            return i
+    return -1
+
+
+def scene_param(scene, name):
+    """The value of the scene parameter `name` (module docstring); KeyError naming what is missing."""
+    parts = name.split(".")
+    if parts[0] == "world" and len(parts) == 2 and parts[1] in ("friction", "restitution", "damping",
+                                                                   "support_gravity"):
+        return float(getattr(scene.world, parts[1]))
+    if parts[0] == "bodies" and len(parts) == 3 and parts[2] in ("mass", "inertia", "support_friction"):
+        b = scene.body(parts[1])
+        val = getattr(b, parts[2])
+        if val is None:
+            raise KeyError(f"parameter {name!r}: body {parts[1]!r} gives no {parts[2]} (it is computed from its "
+                           "shapes or taken from the world); name the key the scene sets")
+        return float(val)
+    if parts[0] in ("friction_pairs", "restitution_pairs") and len(parts) == 3:
+        f = scene.friction_between if parts[0] == "friction_pairs" else scene.restitution_between
+        return float(f(parts[1], parts[2]))
+    raise KeyError(f"parameter {name!r}: expected world.friction, world.restitution, world.damping, "
+                   "world.support_gravity, bodies.NAME.mass, bodies.NAME.inertia, bodies.NAME.support_friction, "
+                   "friction_pairs.A.B or restitution_pairs.A.B")
+
+
+def scene_with_param(scene, name, value):
+    """The scene with parameter `name` set to `value` (a new Scene; module docstring for the names)."""
+    scene_param(scene, name)                    # the name's check
+    parts = name.split(".")
+    value = float(value)
+    if parts[0] == "world":
+        return dataclasses.replace(scene, world=dataclasses.replace(scene.world, **{parts[1]: value}))
+    if parts[0] == "bodies":
+        bodies = tuple(dataclasses.replace(b, **{parts[2]: value}) if b.name == parts[1] else b
+                       for b in scene.bodies)
+        return dataclasses.replace(scene, bodies=bodies)
+    pairs = list(getattr(scene.world, parts[0]))
+    i = _pair_entry(pairs, parts[1], parts[2])
+    if i >= 0:
+        pairs[i] = (pairs[i][0], pairs[i][1], value)
+    else:
+        pairs.append((parts[1], parts[2], value))
+    return dataclasses.replace(scene, world=dataclasses.replace(scene.world, **{parts[0]: tuple(pairs)}))
+
+
+def _compile_like(model, scene):
+    """`scene` compiled with the settings `model` was compiled with (its table friction's)."""
+    from planar_lcp.engine.constants import SUPPORT_POINTS
+    from planar_lcp.model import compile_scene
+    from planar_lcp.spec.scene import SUPPORT_MODELS
+    a = model.arrays
+    points = int(a.support_model) == SUPPORT_POINTS
+    return compile_scene(scene, friction_directions=a.fric_dirs.shape[0] if points else None,
+                         seed_friction_arm=bool(a.seed_friction_arm),
+                         support_model=SUPPORT_MODELS[int(a.support_model)],
+                         limit_surface_twists=None if points else a.ls_wrench.shape[1])
+
+
+def _model_with_param_derivatives(model, params, first, k):
+    """model.arrays with the float arrays the parameters change as object arrays of duals (their derivatives by
+    central differences of the compile, columns first, first + 1, ... of k)."""
+    arrays = model.arrays
+    if not params:
+        return arrays, []
+    notes = []
+    derivs = {}
+    for i, name in enumerate(params):
+        p0 = scene_param(model.scene, name)
+        dp = 1e-5 * max(abs(p0), 1e-3)
+        lo = p0 - dp
+        if p0 >= 0.0 and lo < 0.0:
+            # a coefficient at 0 (no friction, no restitution): the one-sided derivative into the physical range
+            lo = p0
+            notes.append(Degenerate("parameter", name, f"{name} = 0: the derivative is one-sided (towards > 0) and "
+                                    "the step at 0 has no friction or restitution rows to differentiate"))
+        hi = p0 + dp
+        mp = _compile_like(model, scene_with_param(model.scene, name, hi)).arrays
+        mm = _compile_like(model, scene_with_param(model.scene, name, lo)).arrays
+        for fname in arrays._fields:
+            a0 = getattr(arrays, fname)
+            if not (isinstance(a0, np.ndarray) and a0.dtype == np.float64):
+                continue
+            ap, am = getattr(mp, fname), getattr(mm, fname)
+            if ap.shape != a0.shape or am.shape != a0.shape:
+                raise ValueError(f"parameter {name!r} changes the model's {fname} shape {a0.shape}: its derivative "
+                                 "is not defined (a parameter must not change the scene's structure)")
+            diff = (ap - am) / (hi - lo)
+            if np.any(diff):
+                derivs.setdefault(fname, np.zeros(a0.shape + (k,)))[..., first + i] = diff
+    replaced = {f: with_derivatives(getattr(arrays, f), d) for f, d in derivs.items()}
+    return arrays._replace(**replaced), notes
+
+
+# --- the step ----------------------------------------------------------------------------------------------------
+
+def _check_state(sim, q, v, qk, vk):
+    m = sim.model
+    out = []
+    for name, a, rows in (("q", q, m.ndyn), ("v", v, m.ndyn), ("qk", qk, m.nkin), ("vk", vk, m.nkin)):
+        a = np.asarray(a, dtype=np.float64)
+        if a.shape != (rows, 3):
+            raise ValueError(f"step_derivatives: {name} must have shape ({rows}, 3), got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"step_derivatives: {name} must be finite")
+        out.append(np.ascontiguousarray(a))
+    return out
+
+
+def _contact_name(model, pair):
+    a = model.arrays
+    names = [b.name for b in model.scene.bodies]
+    sa, sb = int(a.pair_a[pair]), int(a.pair_b[pair])
+    return f"contact {names[int(a.shape_body[sa])]}-{names[int(a.shape_body[sb])]}"
+
+
+def _lcp_index_name(model, layout, i):
+    """What LCP unknown i of an island (or of the velocity form's projection) is, by body names: the blocks of
+    engine/assemble.py, z = [c_n | beta (contacts) | beta (table) | lambda (contacts) | lambda (table) | lags]."""
+    a = model.arrays
+    names = [b.name for b in model.scene.bodies]
+    if layout is None:
+        return f"LCP unknown {i}"
+    if layout[0] == "projection":
+        return f"the projection's normal impulse of {_contact_name(model, int(layout[1][i]))}"
+    _, pairs, sups, _, _ = layout
+    nci, nsi = len(pairs), len(sups)
+    fric = [c for c in range(nci) if a.pair_mu[pairs[c]] > 0.0]
+    nf = len(fric)
+    k = model.support_columns()
+    table = lambda s: f"table friction of {names[int(a.dyn_body[int(a.sup_dyn[int(sups[s])])])]}"
+    if i < nci:
+        return f"normal impulse of {_contact_name(model, int(pairs[i]))}"
+    i -= nci
+    if i < 2 * nf:
+        return f"friction impulse ({'+' if i % 2 == 0 else '-'}t) of {_contact_name(model, int(pairs[fric[i // 2]]))}"
+    i -= 2 * nf
+    if i < k * nsi:
+        return f"column {i % k} of the {table(i // k)}"
+    i -= k * nsi
+    if i < nf:
+        return f"sliding speed (friction slack) of {_contact_name(model, int(pairs[fric[i]]))}"
+    i -= nf
+    if i < nsi:
+        return f"sliding speed of the {table(i)}"
+    return "lag of a force-limited kinematic body"
+
+
+def _geometry_switches(model, q_hat, qk_lin, con_pair, con_p, con_cn, ncon, margin, impulse_tol):
+    """Loaded contacts whose geometry (gap, normal, point) sits on a switch of the contact kernel's branches: a box
+    flat on a box of the same width (which face gives the normal), a vertex at the end of the face it touches, a
+    contact count that changes. Found by one-sided differences of the kernel (compiled: `contacts_at`) along each
+    pose coordinate of the contact's bodies: where the two sides' rates differ, the step's derivatives do too."""
+    from planar_lcp.engine.constants import BODY_DYNAMIC, BODY_KINEMATIC
+    from planar_lcp.engine.contacts import contacts_at
+    a = model.arrays
+    m = model.struct
+    out = []
+    seen = set()
+
+    def geometry(pair, point, q, qk):
+        got = contacts_at(a, q, qk, margin, m=m)
+        rows = np.flatnonzero(got[0] == pair)
+        if len(rows) == 0:
+            return None, 0
+        i = rows[np.argmin(np.hypot(*(got[3][rows] - point).T))]
+        return np.concatenate([[got[1][i]], got[2][i], got[3][i]]), len(rows)
+
+    for j in range(ncon):
+        p = int(con_pair[j])
+        if not con_cn[j] > impulse_tol or p in seen:
+            continue
+        g0, n0 = geometry(p, con_p[j], q_hat, qk_lin)
+        if g0 is None:
+            continue
+        switch = False
+        for s in (int(a.pair_a[p]), int(a.pair_b[p])):
+            body = int(a.shape_body[s])
+            kind = int(a.body_kind[body])
+            if kind not in (BODY_DYNAMIC, BODY_KINEMATIC):
+                continue
+            for c in range(3):
+                rates = []
+                for sign in (1.0, -1.0):
+                    qq, kk = q_hat.copy(), qk_lin.copy()
+                    arr = qq if kind == BODY_DYNAMIC else kk
+                    eps = SWITCH_STEP * max(1.0, abs(arr[int(a.body_slot[body]), c]))
+                    arr[int(a.body_slot[body]), c] += sign * eps
+                    g, n = geometry(p, con_p[j], qq, kk)
+                    if g is None or n != n0:
+                        switch = True
+                        break
+                    rates.append(sign * (g - g0) / eps)
+                if switch or np.max(np.abs(rates[0] - rates[1])) > SWITCH_RTOL * max(1.0, np.max(np.abs(rates))):
+                    switch = True
+                    break
+            if switch:
+                break
+        if switch:
+            seen.add(p)
+            out.append(Degenerate("geometry", _contact_name(model, p),
+                                  "the contact's gap, normal or point changes at different rates on the two sides of "
+                                  "the pose (a switch of the contact's features, e.g. two faces of equal extent)"))
+    return out
+
+
+#: one-sided derivatives that agree to this, relative to the largest derivative in the entry's row or column (the
+#: round-off of the derivative LCPs), make the step differentiable along that input
+SIDES_RTOL = 1e-9
+#: and to this fraction of the Jacobian's largest entry (a row and a column of round-off zeros are no scale)
+SIDES_FLOOR = 1e-12
+
+_twins = {}
+
+
+def _dense_twin(sim):
+    """The simulator whose step is differentiated: `sim` itself, or for options that send large islands to the sparse
+    solver (SimOptions.sparse_min_unknowns > 0: it writes no dense LCP to differentiate) a simulator of the same model
+    and options with every island on the dense path (made once per simulator)."""
+    if sim.options.sparse_min_unknowns == 0 or sim.model.max_unknowns() < sim.options.sparse_min_unknowns:
+        return sim
+    twin = _twins.get(id(sim))
+    if twin is None or twin[0] is not sim:
+        twin = (sim, type(sim)(sim.model, dataclasses.replace(sim.options, sparse_min_unknowns=0)))
+        _twins.clear()
+        _twins[id(sim)] = twin
+    return twin[1]
+
+
+def _run_on_duals(sim, m, q, v, qk, vk, K, sign):
+    """The step on duals seeded with sign * e_k along the K inputs (q, v, qk, vk, then the parameters': the model
+    arrays m carry those). Returns (outputs (q+, v+, qk+) as object arrays, status, stats, the Recorder)."""
+    from planar_lcp.engine.layout import StepWork
+    from planar_lcp.engine.rollout import lemke_step, pgs_step
+    nd, nk = len(q), len(qk)
+    w = StepWork(*[forward.objects(a) for a in sim.work])
+    w.warm_size[:] = -1
+    w.sparse_pair_mode[:] = -1
+    opt = sim.kopt._replace(warm_start=False)
+    state = [seeded(a, first, K) for a, first in ((q, 0), (v, 3 * nd), (qk, 6 * nd), (vk, 6 * nd + 3 * nk))]
+    if sign < 0:
+        state = [_flip(a) for a in state]
+    out = (np.zeros((nd, 3), dtype=object), np.zeros((nd, 3), dtype=object), np.zeros((nk, 3), dtype=object))
+    stats = np.zeros(len(sim.stats), dtype=object)
+    kernel = pgs_step if sim.options.solver == "pgs" else lemke_step
+    rec = forward.Recorder(sim.options.res_tol)
+    st = forward.run(kernel, (m, tuple(state), float(sim.h), opt, w, out, stats), rec)
+    return out, int(st), stats, w, rec
+
+
+def _flip(a):
+    """An object array of duals with the same values and the derivatives negated (the directions -e_k)."""
+    out = np.empty(a.shape, dtype=object)
+    for idx, x in np.ndenumerate(a):
+        out[idx] = Dual(x.v, -x.d) if isinstance(x, Dual) else x
+    return out
+
+
+#: the one-sided differences of the compiled step that check the one-sided derivatives: their steps (times
+#: max(1, |x|); either may agree: the smaller can fall within the certified solves' tolerance, where a small body's
+#: friction impulse is accepted as zero, the larger can reach a contact a few micrometres away), and how far they may
+#: differ (relative to the column's largest entry, at least NEARBY_FLOOR): O(step) for a smooth step, O(1) across a
+#: switch
+NEARBY_STEPS = (1e-6, 1e-5)
+NEARBY_RTOL = 1e-3
+NEARBY_FLOOR = 1e-3
+
+
+def _switches_nearby(sim, state, right, left):
+    """Inputs along which the compiled step's one-sided differences over NEARBY_STEP disagree with the one-sided
+    derivatives: a switch of one of the engine's discrete choices that the analysis of the LCP and of the contact
+    geometry does not see (which of two equally deep vertices is a contact's first row, the active-set check's
+    penetration threshold), at the state or within NEARBY_STEP of it."""
+    shapes = [a.shape for a in state]
+    x = np.concatenate([a.ravel() for a in state])
+
+    def f(xx):
+        parts, o = [], 0
+        for shp in shapes:
+            n = int(np.prod(shp))
+            parts.append(xx[o:o + n].reshape(shp))
+            o += n
+        sim.reset_warm_start()
+        q1, v1, qk1, _ = sim.step(*parts)
+        return np.concatenate([q1.ravel(), v1.ravel(), qk1.ravel()])
+
+    f0 = f(x)
+    names = ([f"q[{i // 3}, {i % 3}]" for i in range(shapes[0][0] * 3)]
+             + [f"v[{i // 3}, {i % 3}]" for i in range(shapes[1][0] * 3)]
+             + [f"qk[{i // 3}, {i % 3}]" for i in range(shapes[2][0] * 3)]
+             + [f"vk[{i // 3}, {i % 3}]" for i in range(shapes[3][0] * 3)])
+    bad = []
+    for k in range(len(x)):
+        agree = False
+        for rel in NEARBY_STEPS:
+            e = rel * max(1.0, abs(x[k]))
+            xp, xm = x.copy(), x.copy()
+            xp[k] += e
+            xm[k] -= e
+            fr, fl = (f(xp) - f0) / e, (f0 - f(xm)) / e
+            scale = max(np.max(np.abs(right[:, k])), np.max(np.abs(left[:, k])), np.max(np.abs(fr)),
+                        np.max(np.abs(fl)), NEARBY_FLOOR)
+            if max(np.max(np.abs(fr - right[:, k])), np.max(np.abs(fl - left[:, k]))) <= NEARBY_RTOL * scale:
+                agree = True
+                break
+        if not agree:
+            bad.append(names[k])
+    sim.reset_warm_start()
+    if not bad:
+        return []
+    return [Degenerate("switch", ", ".join(bad), "the step's one-sided differences along these inputs change at "
+                       "another rate than its one-sided derivatives: one of the engine's discrete choices (a "
+                       "contact's row order, the active-set check's penetration threshold) switches at the state or "
+                       f"within {NEARBY_STEPS[0]:g} of it")]
+
+
+def step_derivatives(sim, q, v, qk, vk, params=()):
+    """The Jacobians of `sim.step(q, v, qk, vk)` (a `StepDerivatives`); `params`, scene parameter names (module
+    docstring). The step is the cold one (no warm start: a function of its inputs alone)."""
+    from planar_lcp.engine.layout import Stat
+    from planar_lcp.engine.step import FORM_VELOCITY, STEP_OK
+    if sim.options.solver == "osqp":
+        raise ValueError("step_derivatives: solver 'osqp' is not differentiable here (its QP solver is a C library); "
+                         "use solver 'lemke'")
+    params = tuple(params)
+    q, v, qk, vk = _check_state(sim, q, v, qk, vk)
+    model = sim.model
+    sim = _dense_twin(sim)
+    nd, nk = model.ndyn, model.nkin
+    K = 6 * nd + 6 * nk + len(params)
+    m, notes = _model_with_param_derivatives(model, params, 6 * nd + 6 * nk, K)
+    # the compiled step first: its answer is the reference, and it grows the dense buffers the LCPs need
+    sim.reset_warm_start()
+    q1, v1, qk1, status = sim.step(q, v, qk, vk)
+    sim.reset_warm_start()
+    if params:
+        m_minus = m._replace(**{f: _flip(getattr(m, f)) for f in m._fields
+                                if getattr(getattr(m, f), "dtype", None) == object})
+    else:
+        m_minus = m
+    jac = {}
+    for sign, mm in ((1, m), (-1, m_minus)):
+        out, st, stats, w, rec = _run_on_duals(sim, mm, q, v, qk, vk, K, sign)
+        qd, vd, qkd = (values(a) for a in out)
+        # the fixed-point form on duals may iterate on past the compiled step (forward.py, FP_DERIVATIVE_RTOL): its
+        # values then move by less than the iteration's tolerance
+        tol_q = 0.0 if not rec.fp_extra else 10.0 * sim.options.fixed_point_tol * (1.0 + np.max(np.abs(q1)))
+        if st != int(status) or not (np.allclose(qd, q1, rtol=0.0, atol=tol_q)
+                                     and np.allclose(vd, v1, rtol=0.0, atol=tol_q / sim.h)
+                                     and np.allclose(qkd, qk1, rtol=0.0, atol=tol_q)):
+            raise RuntimeError("step_derivatives: the step run on dual numbers does not reproduce the compiled step "
+                               f"(status {st} vs {status}; largest difference "
+                               f"{max(np.max(np.abs(qd - q1), initial=0), np.max(np.abs(vd - v1), initial=0)):.3g})")
+        jac[sign] = sign * np.concatenate([grads(a, K).reshape(-1, K) for a in out], axis=0)
+        if sign == 1:
+            first = (stats, w, rec)
+    stats, w, rec = first
+    right, left = jac[1], jac[-1]
+    big = np.maximum(np.abs(right), np.abs(left))
+    scale = np.maximum(np.max(big, axis=0)[None, :], np.max(big, axis=1)[:, None])
+    floor = SIDES_FLOOR * float(np.max(big, initial=0.0))
+    sides_agree = bool(np.all(np.abs(right - left) <= SIDES_RTOL * scale + floor))
+
+    degenerate = list(notes)
+    if status != STEP_OK:
+        degenerate.append(Degenerate("failed", "the step", f"status {status}: no certified LCP answer"))
+    if sim.options.solver == "pgs":
+        degenerate.append(Degenerate("solver", "the step", "PGS's iterate is not an LCP solution: the derivatives "
+                                     "are those of its fixed number of sweeps"))
+    if rec.unrecorded:
+        degenerate.append(Degenerate("uncertified", "the step", f"{rec.unrecorded} answer(s) from a solver that writes "
+                                     "no LCP (PGS after a failed solve): complementarity not checked"))
+    if rec.unsolved:
+        degenerate.append(Degenerate("complementarity", "the step", f"{rec.unsolved} derivative LCP(s) without a "
+                                     "solution: the derivative of Lemke's final basis was kept there"))
+    for A, b, z, beta, layout, nonunique in rec.solves:
+        for idx in nonunique:
+            degenerate.append(Degenerate("non-unique", ", ".join(_lcp_index_name(model, layout, i) for i in idx),
+                                         "the LCP's answers form a segment here that a change of the inputs "
+                                         "breaks (two coinciding friction columns): the step's answer nearby is "
+                                         "not the limit of its answer here"))
+    if not sides_agree:
+        for A, b, z, beta, layout, _ in rec.solves:
+            for i in np.flatnonzero(beta):
+                degenerate.append(Degenerate("complementarity", _lcp_index_name(model, layout, int(i)),
+                                             "z = 0 and w = 0: the contact's mode (touching or not, sticking or "
+                                             "sliding) can switch here"))
+        for where in sorted(set(rec.ties)):
+            degenerate.append(Degenerate("tie", where, "max or min of two equal values with different "
+                                         "derivatives (a kink of the step's rows)"))
+        if len(degenerate) == len(notes):
+            degenerate.append(Degenerate("sides", "the step", "the one-sided derivatives differ"))
+    ncon = int(values(stats)[Stat.N_CONTACTS])
+    velocity_form = sim.kopt.formulation == FORM_VELOCITY
+    degenerate += _switches_nearby(sim, (q, v, qk, vk), right, left)
+    degenerate += _geometry_switches(model, values(w.q_hat), qk if velocity_form else values(w.qk_hat),
+                                     w.con_pair, values(w.con_p[:ncon]), values(w.con_cn[:ncon]), ncon,
+                                     sim.options.contact_margin, sim.options.impulse_tol)
+    return StepDerivatives(q=q1, v=v1, qk=qk1, status=int(status), jacobian=0.5 * (right + left), ndyn=nd, nkin=nk,
+                           params=params, exact=not degenerate, degenerate=tuple(degenerate),
+                           jacobian_right=right, jacobian_left=left)
+
+
+# --- a rollout -----------------------------------------------------------------------------------------------------
+
+@dataclass
+class RolloutDerivatives:
+    """A rollout's states (q, v (n + 1, ndyn, 3), qk (n + 1, nkin, 3)) and the Jacobians of its final state
+    x_n = (q_n, v_n, qk_n) (flattened as `StepDerivatives`): `dx_dx0` (the initial state's), `dx_dvk`
+    (n, size of x_n, 3 nkin: the kinematic velocities of each step) and `dx_dp` (the parameters'). `exact`: every
+    step's; `degenerate`: (step, Degenerate) pairs."""
+
+    q: np.ndarray
+    v: np.ndarray
+    qk: np.ndarray
+    dx_dx0: np.ndarray
+    dx_dvk: np.ndarray
+    dx_dp: np.ndarray
+    params: tuple = ()
+    exact: bool = True
+    degenerate: tuple = field(default_factory=tuple)
+
+
+def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=()):
+    """`nsteps` steps from (q, v, qk), step i with vk_seq[min(i, len - 1)] ((nvk, nkin, 3)), and the chain rule over
+    their `step_derivatives`: the final state's Jacobians (a `RolloutDerivatives`). Stops with a RuntimeError at a
+    step that fails."""
+    vk_seq = np.asarray(vk_seq, dtype=np.float64)
+    m = sim.model
+    if vk_seq.ndim != 3 or vk_seq.shape[1:] != (m.nkin, 3) or len(vk_seq) < 1:
+        raise ValueError(f"rollout_derivatives: vk_seq must have shape (nvk >= 1, {m.nkin}, 3), got {vk_seq.shape}")
+    if int(nsteps) < 1:
+        raise ValueError(f"rollout_derivatives: nsteps must be >= 1, got {nsteps}")
+    nsteps = int(nsteps)
+    params = tuple(params)
+    nx = 6 * m.ndyn + 3 * m.nkin
+    nvk = 3 * m.nkin
+    dx = np.eye(nx)
+    dvk = np.zeros((nsteps, nx, nvk))
+    dp = np.zeros((nx, len(params)))
+    qs, vs, qks = [np.asarray(q, float)], [np.asarray(v, float)], [np.asarray(qk, float)]
+    degenerate = []
+    for i in range(nsteps):
+        d = step_derivatives(sim, qs[-1], vs[-1], qks[-1], vk_seq[min(i, len(vk_seq) - 1)], params)
+        if d.status != 0:
+            raise RuntimeError(f"rollout_derivatives: step {i} failed (status {d.status})")
+        J = d.state_jacobian
+        Jvk = d.jacobian[:, nx:nx + nvk]
+        Jp = d.jacobian[:, nx + nvk:]
+        dx = J @ dx
+        dvk[:i] = np.einsum("ab,ibc->iac", J, dvk[:i])
+        dvk[i] = Jvk
+        dp = J @ dp + Jp
+        degenerate += [(i, g) for g in d.degenerate]
+        qs.append(d.q)
+        vs.append(d.v)
+        qks.append(d.qk)
+    return RolloutDerivatives(q=np.array(qs), v=np.array(vs), qk=np.array(qks), dx_dx0=dx, dx_dvk=dvk, dx_dp=dp,
+                              params=params, exact=not degenerate, degenerate=tuple(degenerate))
