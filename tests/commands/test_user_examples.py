@@ -71,6 +71,17 @@ def test_fit_friction_recovers_the_recorded_coefficient(tmp_path):
     assert abs(mu - 0.35) < 3.0 * stderr, out
 
 
+def test_fit_friction_gradient_recovers_mu_from_the_derivatives(tmp_path):
+    """Gauss-Newton on the rollout's exact derivative: the incline's mu (0.3) from 0.1, to round-off."""
+    lines = run_example("fit_friction_gradient.py", tmp_path).splitlines()
+    assert len(lines) == 3
+    for line in lines:
+        assert "exact derivatives: True" in line
+    mu, err = numbers(lines[-1])[:2]
+    assert mu == pytest.approx(0.3, abs=1e-9)
+    assert err < 1e-12
+
+
 @pytest.mark.slow
 def test_closed_loop_reaches_the_goal_where_open_loop_misses(tmp_path):
     pytest.importorskip("ompl")
