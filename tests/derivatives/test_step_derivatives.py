@@ -305,20 +305,21 @@ def test_a_box_flat_on_a_larger_face_is_smooth():
 
 # --- scene parameters ----------------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("name, params, nsteps", [
-    # pushed at constant speed, a box's motion does not depend on its mass (friction and inertia scale alike)
-    ("box_push", ["world.friction", "bodies.box.support_friction"], 400),
-    ("random_push_6", ["bodies.object.support_friction", "world.friction"], 100),     # limit surface
-    ("random_push_1", ["bodies.object.support_friction"], 100),                       # support points
-    ("bouncing_disk", ["world.restitution"], 1000),                                    # its two impacts
-    ("four_disks", ["bodies.thrown.mass", "bodies.d1.mass", "world.friction"], 400),
+@pytest.mark.parametrize("name, params, start, nsteps", [
+    # pushed at constant speed, a box's motion does not depend on its mass (friction and inertia scale alike); the
+    # pusher reaches the box at step 270
+    ("box_push", ["world.friction", "bodies.box.support_friction"], 250, 400),
+    ("random_push_6", ["bodies.object.support_friction", "world.friction"], 0, 100),     # limit surface
+    ("random_push_1", ["bodies.object.support_friction"], 0, 100),                       # support points
+    ("bouncing_disk", ["world.restitution"], 0, 1000),                                    # its two impacts
+    ("four_disks", ["bodies.thrown.mass", "bodies.d1.mass", "world.friction"], 150, 400),  # impacts from 170
 ])
-def test_parameter_derivatives_agree_with_finite_differences_of_the_scene(name, params, nsteps):
+def test_parameter_derivatives_agree_with_finite_differences_of_the_scene(name, params, start, nsteps):
     scene = random_pushing_scene(int(name.split('_')[-1])) if name.startswith("random_push") else load_scene(name)
     sim = Simulator(compile_scene(scene), SimOptions())
     q, v, qk, vk = sim.initial_state()
     checked = np.zeros(len(params), int)
-    for n, (q, v, qk, vk) in enumerate(states_along(sim, q, v, qk, vk, nsteps, 1)):
+    for n, (q, v, qk, vk) in enumerate(states_along(sim, q, v, qk, vk, nsteps, 1)[start:]):
         d = step_derivatives(sim, q, v, qk, vk, params=params)
         # every state whose derivatives are not zero (an impact, a push), and a few where they are
         if not d.exact or (n % 25 and not np.any(np.abs(d.jacobian[:, -len(params):]) > 1e-9)):
