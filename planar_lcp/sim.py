@@ -258,7 +258,8 @@ class Simulator:
     def step_derivatives(self, q, v, qk, vk, params=()):
         """The Jacobians of one (cold) step with respect to q, v, qk, vk and the named scene parameters:
         `planar_lcp.derivatives.StepDerivatives` (dq_dq, dq_dv, dq_dvk, dv_dq, dv_dv, dv_dvk, dv_dp, ..., `exact`,
-        `degenerate`). docs/method.md, "Derivatives of the step"."""
+        `degenerate`). docs/method.md, "Derivatives of the step". The step differentiated is the cold one (no warm
+        start), and the simulator's warm-start memory is reset as by `reset_warm_start()`."""
         from planar_lcp.derivatives import step_derivatives
         return step_derivatives(self, q, v, qk, vk, params)
 

@@ -5,11 +5,12 @@ named scene parameters, at the step's certified LCP basis (docs/method.md, "Deri
     d.dv_dv, d.dv_dq, d.dv_dvk, d.dv_dp[:, 0], d.exact, d.degenerate
 
 The step's own code runs on forward-mode dual numbers (forward.py): every branch as the compiled step takes it, every
-value bit for bit the compiled step's, and the derivatives of the final LCP basis's linear solve through Lemke's
-pivots. Where the basis stays optimal for every small change of the inputs (every LCP index strictly complementary,
-or degenerate in a way no first-order change can undo) and no contact sits on a switch of its geometry, the step is
-differentiable and these are its derivatives: `exact` is True. Elsewhere they are the derivatives of the branch the
-step takes at the point (one of its one-sided derivatives) and `degenerate` says where and why.
+value bit for bit the compiled step's, and each LCP answer's derivatives those of its basis's linear solve, or at a
+degenerate answer its directional derivatives (the derivative LCP). Run once along +e_k and once along -e_k, it gives
+the one-sided derivatives along every input. Where they agree, no LCP answer is non-unique in a way the inputs
+break, no contact sits on a switch of its geometry and the compiled step's one-sided differences agree with them,
+the step is differentiable and these are its derivatives: `exact` is True. Elsewhere `jacobian` is the mean of the
+two sides and `degenerate` says where and why.
 
 Scene parameters are named as `planar_lcp.fit` names them (`world.friction`, `world.restitution`,
 `bodies.NAME.mass`, `bodies.NAME.inertia`, `bodies.NAME.support_friction`, `friction_pairs.A.B`,
@@ -30,10 +31,6 @@ from planar_lcp.derivatives.dual import Dual, grads, seeded, values, with_deriva
 __all__ = ["Degenerate", "StepDerivatives", "RolloutDerivatives", "step_derivatives", "rollout_derivatives",
            "scene_with_param", "scene_param"]
 
-#: an LCP index counts as zero on both sides (degenerate) when |z_i| and |w_i| are below the certificate's residual
-#: tolerance (SimOptions.res_tol) times the LCP's scale; a degenerate index is harmless when its derivatives vanish
-#: to this fraction of the largest derivative of z (or w) along the same input direction
-GRAD_RTOL = 1e-7
 #: the pose step (m or rad, times max(1, |coordinate|)) of the one-sided differences that find a contact on a switch
 #: of its geometry, and how much the two sides' rates may differ (relative): far above the collision kernel's
 #: tolerance (1e-10 of the coordinates) and its round-off, far below a real switch's O(1) change of rate
@@ -43,8 +40,9 @@ SWITCH_RTOL = 1e-3
 
 @dataclass(frozen=True)
 class Degenerate:
-    """Why a step is not differentiable at the point: `kind` ("complementarity", "face-face", "failed",
-    "uncertified", "solver", "parameter"), `where` (the contact or LCP index, by body names) and `detail`."""
+    """Why a step is not differentiable at the point (docs/method.md, "Derivatives of the step"): `kind`
+    ("complementarity", "tie", "non-unique", "geometry", "switch", "failed", "uncertified", "solver", "parameter"),
+    `where` (the contact, LCP unknown or input, by body names) and `detail`."""
 
     kind: str
     where: str
@@ -175,7 +173,8 @@ def _compile_like(model, scene):
 
 def _model_with_param_derivatives(model, params, first, k):
     """model.arrays with the float arrays the parameters change as object arrays of duals (their derivatives by
-    central differences of the compile, columns first, first + 1, ... of k)."""
+    central differences of the compile, columns first, first + 1, ... of the k inputs along +e, and k + first, ...
+    along -e)."""
     arrays = model.arrays
     if not params:
         return arrays, []
@@ -203,7 +202,9 @@ def _model_with_param_derivatives(model, params, first, k):
                                  "is not defined (a parameter must not change the scene's structure)")
             diff = (ap - am) / (hi - lo)
             if np.any(diff):
-                derivs.setdefault(fname, np.zeros(a0.shape + (k,)))[..., first + i] = diff
+                d = derivs.setdefault(fname, np.zeros(a0.shape + (2 * k,)))
+                d[..., first + i] = diff                 # the direction +e (module docstring: both signs)
+                d[..., k + first + i] = -diff
     replaced = {f: with_derivatives(getattr(arrays, f), d) for f, d in derivs.items()}
     return arrays._replace(**replaced), notes
 
@@ -343,9 +344,11 @@ def _dense_twin(sim):
     return twin[1]
 
 
-def _run_on_duals(sim, m, q, v, qk, vk, K, sign):
-    """The step on duals seeded with sign * e_k along the K inputs (q, v, qk, vk, then the parameters': the model
-    arrays m carry those). Returns (outputs (q+, v+, qk+) as object arrays, status, stats, the Recorder)."""
+def _run_on_duals(sim, m, q, v, qk, vk, K):
+    """The step on duals along 2 K directions: +e_k (columns 0 ... K - 1) and -e_k (K ... 2 K - 1) of the K inputs
+    (q, v, qk, vk, then the parameters': the model arrays m carry those). Every direction is propagated on its own
+    (the dual `max` and `min` and the derivative LCP act column by column), so one run gives both one-sided
+    derivatives. Returns (outputs (q+, v+, qk+) as object arrays, status, stats, work, the Recorder)."""
     from planar_lcp.engine.layout import StepWork
     from planar_lcp.engine.rollout import lemke_step, pgs_step
     nd, nk = len(q), len(qk)
@@ -353,23 +356,14 @@ def _run_on_duals(sim, m, q, v, qk, vk, K, sign):
     w.warm_size[:] = -1
     w.sparse_pair_mode[:] = -1
     opt = sim.kopt._replace(warm_start=False)
-    state = [seeded(a, first, K) for a, first in ((q, 0), (v, 3 * nd), (qk, 6 * nd), (vk, 6 * nd + 3 * nk))]
-    if sign < 0:
-        state = [_flip(a) for a in state]
+    state = tuple(seeded(a, first, K, both_signs=True)
+                  for a, first in ((q, 0), (v, 3 * nd), (qk, 6 * nd), (vk, 6 * nd + 3 * nk)))
     out = (np.zeros((nd, 3), dtype=object), np.zeros((nd, 3), dtype=object), np.zeros((nk, 3), dtype=object))
     stats = np.zeros(len(sim.stats), dtype=object)
     kernel = pgs_step if sim.options.solver == "pgs" else lemke_step
     rec = forward.Recorder(sim.options.res_tol)
-    st = forward.run(kernel, (m, tuple(state), float(sim.h), opt, w, out, stats), rec)
+    st = forward.run(kernel, (m, state, float(sim.h), opt, w, out, stats), rec)
     return out, int(st), stats, w, rec
-
-
-def _flip(a):
-    """An object array of duals with the same values and the derivatives negated (the directions -e_k)."""
-    out = np.empty(a.shape, dtype=object)
-    for idx, x in np.ndenumerate(a):
-        out[idx] = Dual(x.v, -x.d) if isinstance(x, Dual) else x
-    return out
 
 
 #: the one-sided differences of the compiled step that check the one-sided derivatives: their steps (times
@@ -449,29 +443,19 @@ def step_derivatives(sim, q, v, qk, vk, params=()):
     sim.reset_warm_start()
     q1, v1, qk1, status = sim.step(q, v, qk, vk)
     sim.reset_warm_start()
-    if params:
-        m_minus = m._replace(**{f: _flip(getattr(m, f)) for f in m._fields
-                                if getattr(getattr(m, f), "dtype", None) == object})
-    else:
-        m_minus = m
-    jac = {}
-    for sign, mm in ((1, m), (-1, m_minus)):
-        out, st, stats, w, rec = _run_on_duals(sim, mm, q, v, qk, vk, K, sign)
-        qd, vd, qkd = (values(a) for a in out)
-        # the fixed-point form on duals may iterate on past the compiled step (forward.py, FP_DERIVATIVE_RTOL): its
-        # values then move by less than the iteration's tolerance
-        tol_q = 0.0 if not rec.fp_extra else 10.0 * sim.options.fixed_point_tol * (1.0 + np.max(np.abs(q1)))
-        if st != int(status) or not (np.allclose(qd, q1, rtol=0.0, atol=tol_q)
-                                     and np.allclose(vd, v1, rtol=0.0, atol=tol_q / sim.h)
-                                     and np.allclose(qkd, qk1, rtol=0.0, atol=tol_q)):
-            raise RuntimeError("step_derivatives: the step run on dual numbers does not reproduce the compiled step "
-                               f"(status {st} vs {status}; largest difference "
-                               f"{max(np.max(np.abs(qd - q1), initial=0), np.max(np.abs(vd - v1), initial=0)):.3g})")
-        jac[sign] = sign * np.concatenate([grads(a, K).reshape(-1, K) for a in out], axis=0)
-        if sign == 1:
-            first = (stats, w, rec)
-    stats, w, rec = first
-    right, left = jac[1], jac[-1]
+    out, st, stats, w, rec = _run_on_duals(sim, m, q, v, qk, vk, K)
+    qd, vd, qkd = (values(a) for a in out)
+    # the fixed-point form on duals may iterate on past the compiled step (forward.py, FP_DERIVATIVE_RTOL): its
+    # values then move by less than the iteration's tolerance
+    tol_q = 0.0 if not rec.fp_extra else 10.0 * sim.options.fixed_point_tol * (1.0 + np.max(np.abs(q1)))
+    if st != int(status) or not (np.allclose(qd, q1, rtol=0.0, atol=tol_q)
+                                 and np.allclose(vd, v1, rtol=0.0, atol=tol_q / sim.h)
+                                 and np.allclose(qkd, qk1, rtol=0.0, atol=tol_q)):
+        raise RuntimeError("step_derivatives: the step run on dual numbers does not reproduce the compiled step "
+                           f"(status {st} vs {status}; largest difference "
+                           f"{max(np.max(np.abs(qd - q1), initial=0), np.max(np.abs(vd - v1), initial=0)):.3g})")
+    both = np.concatenate([grads(a, 2 * K).reshape(-1, 2 * K) for a in out], axis=0)
+    right, left = both[:, :K], -both[:, K:]
     big = np.maximum(np.abs(right), np.abs(left))
     scale = np.maximum(np.max(big, axis=0)[None, :], np.max(big, axis=1)[:, None])
     floor = SIDES_FLOOR * float(np.max(big, initial=0.0))

@@ -14,6 +14,7 @@ the solution of the derivative LCP over the degenerate indices (docs/method.md, 
 the step once with the directions +e_k and once with -e_k gives the two one-sided derivatives along each input.
 """
 
+import itertools
 import math
 import types
 
@@ -29,10 +30,13 @@ from planar_lcp.engine.solvers import lemke as _lemke
 
 
 class Recorder:
-    """What one step run on duals met: `solves`, one record per LCP answer it applied (A, b, z as duals after the
-    correction, the degenerate indices, kind "island" or "projection"), `unrecorded` (answers from a solver that
-    writes no dense LCP: the sparse solver, PGS), `ties` (the functions where max or min met a tie),
-    `unsolved` (derivative LCPs Lemke did not solve: their branch's derivative was kept)."""
+    """What one step run on duals met: `solves`, one record per LCP answer it applied, (A, b, z, beta, layout,
+    nonunique): the LCP and its answer as duals (z's derivatives set by `_directional`), the degenerate indices' mask,
+    the island's layout (its contacts' pairs, support elements, servos and each friction unknown's lambda; or the
+    velocity form's projection's pairs) and the unknowns of the free directions the inputs break (`_check_unique`);
+    `unrecorded` (answers from a solver that writes no dense LCP: PGS), `ties` (the functions where max or min met a
+    tie), `unsolved` (derivative LCPs Lemke did not solve: the basis's derivative was kept), `fp_extra` (the
+    fixed-point iterations run past the compiled step's for its derivatives)."""
 
     def __init__(self, res_tol):
         self.res_tol = res_tol
@@ -143,9 +147,37 @@ def _mixed_lcp(Aaa, Aab, Aba, Abb, ra, rb):
     na = len(ra)
     M = np.block([[Aaa, -Aaa, Aab], [-Aaa, Aaa, -Aab], [Aba, -Aba, Abb]])
     res = lemke(M, np.concatenate([ra, -ra, rb]))
-    if not res.solved:
+    if res.solved:
+        return res.z[:na] - res.z[na:2 * na], res.z[2 * na:]
+    return _enumerate_mixed_lcp(Aaa, Aab, Aba, Abb, ra, rb)
+
+
+#: the most degenerate indices whose 2^n sign patterns `_enumerate_mixed_lcp` tries
+ENUMERATE_MAX = 10
+
+
+def _enumerate_mixed_lcp(Aaa, Aab, Aba, Abb, ra, rb):
+    """The mixed LCP of `_mixed_lcp` by its sign patterns, where Lemke ends on a ray (the split problem is not
+    copositive-plus, as with a force-limited body's lag blocks, minus each other's transpose): for each subset B of
+    the degenerate indices (fewest first), dz_B free with their rows held, the others at zero, accepted when dz_B >= 0
+    and the others' rows >= 0 (to round-off). None if no pattern is a solution, or there are too many to try."""
+    na, nb = len(ra), len(rb)
+    if nb > ENUMERATE_MAX:
         return None
-    return res.z[:na] - res.z[na:2 * na], res.z[2 * na:]
+    A = np.block([[Aaa, Aab], [Aba, Abb]])
+    r = np.concatenate([ra, rb])
+    tol = 1e-9 * max(1.0, float(np.max(np.abs(A), initial=0.0)), float(np.max(np.abs(r), initial=0.0)))
+    for size in range(nb + 1):
+        for B in itertools.combinations(range(nb), size):
+            rows = list(range(na)) + [na + i for i in B]
+            x = np.linalg.lstsq(A[np.ix_(rows, rows)], -r[rows], rcond=None)[0]
+            dz = np.zeros(na + nb)
+            dz[rows] = x
+            dw = A @ dz + r
+            if (np.max(np.abs(dw[rows]), initial=0.0) <= tol and np.all(dz[na:] >= -tol)
+                    and np.all(dw[na:] >= -tol)):
+                return dz[:na], np.maximum(dz[na:], 0.0)
+    return None
 
 
 def _after_solve(w, A, b, n):

@@ -196,6 +196,7 @@ def test_shipped_scenes_agree_with_finite_differences(name, formulation):
 N_RANDOM = 14
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("formulation", ["position", "fixed_point"])
 @pytest.mark.parametrize("seed", range(N_RANDOM))
 def test_random_scenes_agree_with_finite_differences(seed, formulation):
@@ -205,6 +206,25 @@ def test_random_scenes_agree_with_finite_differences(seed, formulation):
         sim = Simulator(compile_scene(scene), options(formulation))
         q, v, qk, vk = sim.initial_state()
         _check_states(sim, states_along(sim, q, v, qk, vk, 60, 15), 1)
+
+
+@pytest.mark.parametrize("max_force", [4.0])
+@pytest.mark.parametrize("formulation", ["position", "fixed_point"])
+def test_a_force_limited_pusher_agrees_with_finite_differences(max_force, formulation):
+    """A disk pusher with a force limit of 4 N against a 1 kg box on a table (mu 0.3: 2.94 N to slide it): it pushes
+    at its limit, lagging, while the box speeds up, then at the box's pace."""
+    pusher = {"name": "pusher", "type": "kinematic", "position": [-0.15, 0.01], "velocity": [0.2, 0.0],
+              "max_force": max_force, "shapes": [{"type": "disk", "radius": 0.05}]}
+    box = {"name": "box", "type": "dynamic", "mass": 1.0, "position": [0.0, 0.0], "support_friction": 0.3,
+           "shapes": [{"type": "box", "width": 0.2, "height": 0.2}]}
+    scene = parse_scene({"name": "servo", "world": {"plane": "horizontal", "friction": 0.5},
+                         "sim": {"h": 0.01, "t_end": 0.5}, "bodies": [box, pusher]})
+    sim = Simulator(compile_scene(scene), options(formulation))
+    q, v, qk, vk = sim.initial_state()
+    states = states_along(sim, q, v, qk, vk, 30, 5)
+    lag = [sim.step_derivatives(*s).dqk_dvk[0, 0] for s in states]
+    assert min(lag) < 0.01 * sim.h and max(lag) == pytest.approx(sim.h), "the pusher lags, then keeps its pace"
+    _check_states(sim, states, 2)
 
 
 def test_the_oracles_cover_at_least_200_states():
@@ -305,6 +325,7 @@ def test_a_box_flat_on_a_larger_face_is_smooth():
 
 # --- scene parameters ----------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, params, start, nsteps", [
     # pushed at constant speed, a box's motion does not depend on its mass (friction and inertia scale alike); the
     # pusher reaches the box at step 270
