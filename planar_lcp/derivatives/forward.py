@@ -10,8 +10,8 @@ derivative of the LCP at that basis.
 
 Where the answer is degenerate (an index with z_i = 0 and w_i = 0) that basis is one of several, and its derivative
 holds on one side at most: `_directional` replaces them by the directional derivative along each seeded direction,
-the solution of the derivative LCP over the degenerate indices (docs/method.md, "Derivatives of the step"). Running
-the step once with the directions +e_k and once with -e_k gives the two one-sided derivatives along each input.
+the solution of the derivative LCP over the degenerate indices (docs/method.md, "Derivatives of the step"). Seeded
+with the directions +e_k and -e_k side by side, one run gives the two one-sided derivatives along each input.
 """
 
 import itertools
