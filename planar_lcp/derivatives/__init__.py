@@ -376,11 +376,12 @@ NEARBY_RTOL = 1e-3
 NEARBY_FLOOR = 1e-3
 
 
-def _switches_nearby(sim, state, right, left):
-    """Inputs along which the compiled step's one-sided differences over NEARBY_STEP disagree with the one-sided
+def _switches_nearby(sim, state, f0, right, left):
+    """Inputs along which the compiled step's one-sided differences over NEARBY_STEPS disagree with the one-sided
     derivatives: a switch of one of the engine's discrete choices that the analysis of the LCP and of the contact
     geometry does not see (which of two equally deep vertices is a contact's first row, the active-set check's
-    penetration threshold), at the state or within NEARBY_STEP of it."""
+    penetration threshold), at the state or within NEARBY_STEPS[0] of it. f0: the step's (q+, v+, qk+) at the state,
+    flattened."""
     shapes = [a.shape for a in state]
     x = np.concatenate([a.ravel() for a in state])
 
@@ -394,7 +395,6 @@ def _switches_nearby(sim, state, right, left):
         q1, v1, qk1, _ = sim.step(*parts)
         return np.concatenate([q1.ravel(), v1.ravel(), qk1.ravel()])
 
-    f0 = f(x)
     names = ([f"q[{i // 3}, {i % 3}]" for i in range(shapes[0][0] * 3)]
              + [f"v[{i // 3}, {i % 3}]" for i in range(shapes[1][0] * 3)]
              + [f"qk[{i // 3}, {i % 3}]" for i in range(shapes[2][0] * 3)]
@@ -492,7 +492,8 @@ def step_derivatives(sim, q, v, qk, vk, params=()):
             degenerate.append(Degenerate("sides", "the step", "the one-sided derivatives differ"))
     ncon = int(values(stats)[Stat.N_CONTACTS])
     velocity_form = sim.kopt.formulation == FORM_VELOCITY
-    degenerate += _switches_nearby(sim, (q, v, qk, vk), right, left)
+    degenerate += _switches_nearby(sim, (q, v, qk, vk), np.concatenate([q1.ravel(), v1.ravel(), qk1.ravel()]), right,
+                                   left)
     degenerate += _geometry_switches(model, values(w.q_hat), qk if velocity_form else values(w.qk_hat),
                                      w.con_pair, values(w.con_p[:ncon]), values(w.con_cn[:ncon]), ncon,
                                      sim.options.contact_margin, sim.options.impulse_tol)

@@ -129,21 +129,20 @@ def tied(a, b):
 def dual_max(*args):
     """max() of duals and numbers: the value as max() takes it; at a tie between operands with different derivatives,
     the elementwise largest derivative, which is the one-sided derivative of max along each seeded direction."""
-    if len(args) == 1:
-        args = tuple(args[0])
-    best = args[0]
-    for a in args[1:]:
-        best = _pick(best, a, True)
-    return best
+    return _fold(args, True)
 
 
 def dual_min(*args):
     """min() as `dual_max` is max()."""
+    return _fold(args, False)
+
+
+def _fold(args, largest):
     if len(args) == 1:
         args = tuple(args[0])
     best = args[0]
     for a in args[1:]:
-        best = _pick(best, a, False)
+        best = _pick(best, a, largest)
     return best
 
 
@@ -177,11 +176,6 @@ def record_tie():
 def value(x):
     """The float value of a dual or a number."""
     return x.v if isinstance(x, Dual) else float(x)
-
-
-def grad(x, k):
-    """The (k,) derivatives of a dual (zeros for a number)."""
-    return x.d if isinstance(x, Dual) else np.zeros(k)
 
 
 def values(a):
