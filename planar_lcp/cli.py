@@ -120,7 +120,7 @@ def demo_plan(out, written):
 
 #: `bench` options -> the benchmarks they apply to
 BENCH_OPTION_USERS = {"kinds": ("scaling",), "sizes": ("scaling",), "step_budget": ("scaling",),
-                      "settle_budget": ("scaling",), "steps": ("scaling", "pile"), "scenes": ("pile",)}
+                      "settle_budget": ("scaling",), "steps": ("scaling", "pile"), "scenes": ("pile", "derivatives")}
 
 
 def cmd_bench(args):
@@ -142,6 +142,8 @@ def _bench_options(args):
         if getattr(args, dest) is not None and args.what not in users:
             flag = "--" + dest.replace("_", "-")
             raise InputError(f"{flag} applies to bench {' and '.join(users)} only, got bench {args.what}")
+    if args.scenes is not None:
+        _check_bench_scenes(args.what, args.scenes)
     if args.kinds is not None and len(set(args.kinds)) != len(args.kinds):
         raise InputError(f"--kinds must be distinct, got {' '.join(args.kinds)}")
     if args.sizes is not None:
@@ -154,6 +156,25 @@ def _bench_options(args):
     return dict(kinds=args.kinds, sizes=args.sizes, steps=args.steps, rounds=args.rounds, scenes=args.scenes,
                 step_budget_s=STEP_BUDGET_S if args.step_budget is None else args.step_budget,
                 settle_budget_s=SETTLE_BUDGET_S if args.settle_budget is None else args.settle_budget)
+
+
+def _check_bench_scenes(what, scenes):
+    """--scenes: distinct names, of PILE_SCENES for pile, shipped scenes for derivatives (each readable)."""
+    from planar_lcp.benchmarks.bench import PILE_SCENES
+    from planar_lcp.spec.scene import SceneError, load_scene
+    if len(set(scenes)) != len(scenes):
+        raise InputError(f"--scenes must be distinct, got {' '.join(scenes)}")
+    if what == "pile":
+        names = [name for name, _ in PILE_SCENES]
+        for s in scenes:
+            if s not in names:
+                raise InputError(f"--scenes: expected one of {', '.join(names)} for bench pile, got {s!r}")
+        return
+    for s in scenes:
+        try:
+            load_scene(s)
+        except SceneError as e:
+            raise InputError(f"--scenes: {e}") from None
 
 
 #: Output files of `simulate`: the extensions each writer produces (matplotlib's savefig(format="png"), PillowWriter).
@@ -354,17 +375,18 @@ def build_parser():
     d.add_argument("--out", default="planar_lcp_demo", metavar="DIR",
                    help="where to write the demo's files (default ./planar_lcp_demo)")
 
-    from planar_lcp.benchmarks.bench import (PILE_SCALING_SIZES, PILE_SCENES, SCALING_KINDS, SCALING_SIZES,
-                                              SETTLE_BUDGET_S, STEP_BUDGET_S)
+    from planar_lcp.benchmarks.bench import (DERIVATIVE_SCENES, PILE_SCALING_SIZES, PILE_SCENES, SCALING_KINDS,
+                                              SCALING_SIZES, SETTLE_BUDGET_S, STEP_BUDGET_S)
     b = add_command(
         sub, "bench", cmd_bench, help="benchmarks against peers measured in the same run",
         description="Benchmarks in alternating rounds of thread CPU time (docs/performance.md, Method).")
-    b.add_argument("what", choices=["step", "lcp", "scaling", "pile", "all"],
+    b.add_argument("what", choices=["step", "lcp", "scaling", "pile", "derivatives", "all"],
                    help="step: microseconds per step and compile time; lcp: our Lemke vs QuantEcon's lcp_lemke; "
                         "scaling: cost per step against the number of bodies (the small layouts pile and islands, "
                         "and the large piles tower, pyramid, bin with the sparse solver and the dense path); pile: "
-                        "towers and a bin against Box2D v3; all: step, lcp and scaling's pile and islands (the "
-                        "large piles and pile are runs of their own)")
+                        "towers and a bin against Box2D v3; derivatives: all the Jacobians of a step against central "
+                        "differences and MuJoCo's mjd_transitionFD; all: step, lcp and scaling's pile and islands "
+                        "(the large piles, pile and derivatives are runs of their own)")
     b.add_argument("--json", metavar="FILE", help="also write the measurements as JSON")
     b.add_argument("--rounds", type=finite_number(int, 1, False), metavar="N",
                    help="alternating rounds (default 15; 7 for scaling and pile)")
@@ -384,8 +406,10 @@ def build_parser():
     b.add_argument("--settle-budget", type=finite_number(float, 0, True), metavar="S",
                    help=f"scaling: a bin whose settling takes more thread CPU seconds than this is skipped, as are "
                         f"the larger bins (default {SETTLE_BUDGET_S:g})")
-    b.add_argument("--scenes", nargs="+", choices=[name for name, _ in PILE_SCENES], metavar="SCENE",
-                   help=f"pile: the scenes to run, of {', '.join(name for name, _ in PILE_SCENES)} (default all)")
+    b.add_argument("--scenes", nargs="+", metavar="SCENE",
+                   help=f"pile: the scenes to run, of {', '.join(name for name, _ in PILE_SCENES)} (default all); "
+                        f"derivatives: shipped scene names (default {' '.join(DERIVATIVE_SCENES)}; MuJoCo's peer "
+                        "where planar_lcp.bridges.mujoco maps the scene)")
 
     s = add_command(
         sub, "simulate", _cmd_simulate, SCENE_OPERAND,

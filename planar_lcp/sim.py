@@ -263,6 +263,13 @@ class Simulator:
         from planar_lcp.derivatives import step_derivatives
         return step_derivatives(self, q, v, qk, vk, params)
 
+    def smoothed_derivatives(self, q, v, qk, vk, sigma, samples=64, seed=0, method="zeroth"):
+        """The Jacobian of the step smoothed by Gaussian noise of standard deviation `sigma` on its inputs (randomized
+        smoothing, for planning and optimisation through contact): `planar_lcp.derivatives.smoothing.
+        SmoothedDerivatives`, with its Monte Carlo standard error. docs/method.md, "Smoothed derivatives"."""
+        from planar_lcp.derivatives.smoothing import smoothed_derivatives
+        return smoothed_derivatives(self, q, v, qk, vk, sigma, samples, seed, method)
+
     def rollout_derivatives(self, q, v, qk, vk_seq, nsteps, params=()):
         """A rollout's final state and its Jacobians with respect to the initial state, every step's kinematic
         velocities and the named scene parameters (the chain over `step_derivatives`):

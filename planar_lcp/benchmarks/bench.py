@@ -970,14 +970,199 @@ def format_pile_table(rows):
     return "\n".join(lines)
 
 
+# --- the step's derivatives -------------------------------------------------------------------------------------
+
+#: the scenes of `bench derivatives`: the falling rod (vertical plane) and the pushed box (horizontal plane)
+DERIVATIVE_SCENES = ("falling_rod", "box_push")
+#: central differences' step (times max(1, |x|)) of the differences peer
+DIFFERENCE_STEP = 1e-6
+
+
+def derivative_state(sim, scene):
+    """The state (q, v, qk, vk) and its time where `bench derivatives` differentiates the step: half-way through the
+    scene's run (t_end / 2) when that step meets a contact, else the first state whose step does (None if no step
+    does)."""
+    from planar_lcp.engine.layout import Stat
+    from planar_lcp.spec.path import kinematic_velocities
+    n = int(round(scene.sim.t_end / scene.sim.h))
+    q, v, qk, _ = sim.initial_state()
+    vks = kinematic_velocities(scene, sim.model.kin_names, sim.h, n)
+    r = sim.rollout(q, v, qk, vks, n)
+    touching = np.flatnonzero(r["stats"][:r["steps_done"], Stat.N_CONTACTS] > 0)
+    if len(touching) == 0:
+        return None
+    k = n // 2 if n // 2 in set(touching.tolist()) else int(touching[0])
+    vk = vks[min(k, len(vks) - 1)]
+    return r["q"][k].copy(), r["v"][k].copy(), r["qk"][k].copy(), np.array(vk, dtype=float), k * sim.h
+
+
+def central_differences(sim, q, v, qk, vk, step=DIFFERENCE_STEP):
+    """The Jacobian of `sim.step` (cold) at (q, v, qk, vk) by central differences, in `StepDerivatives.jacobian`'s
+    layout (rows q+, v+, qk+; columns q, v, qk, vk): 2 n + 1 steps for n inputs (the last at the state itself, which
+    a user needs beside the Jacobian)."""
+    parts = [np.array(a, dtype=float) for a in (q, v, qk, vk)]
+    nq, nqk = parts[0].size, parts[2].size
+    J = np.empty((2 * nq + nqk, sum(a.size for a in parts)))
+
+    def step_into(out):
+        sim.reset_warm_start()
+        q1, v1, qk1, _ = sim.step(*parts)
+        out[:nq], out[nq:2 * nq], out[2 * nq:] = q1.ravel(), v1.ravel(), qk1.ravel()
+
+    plus, minus = np.empty(J.shape[0]), np.empty(J.shape[0])
+    step_into(plus)                         # the state's own step
+    col = 0
+    for a in parts:
+        flat = a.reshape(-1)                # a view: the step reads the perturbed entry
+        for k in range(flat.size):
+            x = flat[k]
+            e = step * max(1.0, abs(x))
+            flat[k] = x + e
+            step_into(plus)
+            flat[k] = x - e
+            step_into(minus)
+            flat[k] = x
+            J[:, col] = (plus - minus) / (2.0 * e)
+            col += 1
+    return J
+
+
+def bench_derivatives(scenes=DERIVATIVE_SCENES, rounds=ROUNDS, min_round_s=MIN_ROUND_S, mujoco=True, progress=None):
+    """The cost of all the Jacobians of one step, in the same process and alternating rounds of thread CPU time
+    (`alternate_rounds`): `Simulator.step_derivatives` and central differences of `Simulator.step` (2 n + 1 steps for
+    n inputs) against one `Simulator.step`, all cold (no warm start), at `derivative_state`; and where MuJoCo
+    installs (`mujoco`), its `mjd_transitionFD` (centred, eps 1e-6) against its `mj_step` on the scene's MuJoCo model
+    (planar_lcp.bridges.mujoco) at the same poses and velocities. Each ratio is the median over rounds of the two
+    times measured back to back, with its spread; `derivatives_steps` is the derivatives' cost in steps.
+    progress: called with a line as each scene starts."""
+    from planar_lcp.model import compile_scene
+    from planar_lcp.sim import SimOptions, Simulator
+    from planar_lcp.spec.scene import load_scene
+    rows = []
+    for i, name in enumerate(scenes):
+        if progress is not None:
+            progress(f"{name} ({i + 1} of {len(scenes)})")
+        sc = load_scene(name)
+        options = SimOptions(h=sc.sim.h, solver=sc.sim.solver, formulation=sc.sim.formulation)
+        sim = Simulator(compile_scene(sc), options)
+        at = derivative_state(sim, sc)
+        if at is None:
+            rows.append(dict(scene=name, skipped="no step of its run meets a contact"))
+            continue
+        q, v, qk, vk, t = at
+        d = sim.step_derivatives(q, v, qk, vk)
+
+        def one_step(sim=sim, q=q, v=v, qk=qk, vk=vk):
+            sim.reset_warm_start()
+            sim.step(q, v, qk, vk)
+
+        runners = dict(step=one_step,
+                       derivatives=lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.step_derivatives(q, v, qk, vk),
+                       differences=lambda sim=sim, q=q, v=v, qk=qk, vk=vk: central_differences(sim, q, v, qk, vk))
+        peer = _mujoco_runners(sc, options.contact_margin, q, v, qk, vk) if mujoco else None
+        if peer is not None and "runners" in peer:
+            runners.update(peer["runners"])
+        m = alternate_rounds(runners, rounds=rounds, min_round_s=min_round_s)
+        per = m["per_unit"]
+        row = dict(scene=name, t=float(t), inputs=int(d.jacobian.shape[1]), exact=bool(d.exact),
+                   contacts=_contacts_at(sim, q, v, qk, vk),
+                   step_us=float(np.median(per["step"])) * 1e6,
+                   derivatives_us=float(np.median(per["derivatives"])) * 1e6,
+                   differences_us=float(np.median(per["differences"])) * 1e6,
+                   rounds=rounds, runs_per_round={k: int(x) for k, x in m["reps"].items()},
+                   other_threads_cpu_share=m["other_threads_cpu_share"])
+        row.update(_ratio_fields("derivatives_steps", ratio_stats(per["derivatives"], per["step"])))
+        row.update(_ratio_fields("differences_steps", ratio_stats(per["differences"], per["step"])))
+        row.update(_ratio_fields("derivatives_vs_differences", ratio_stats(per["derivatives"], per["differences"])))
+        if peer is not None and "unmapped" in peer:
+            row["mujoco_unmapped"] = peer["unmapped"]
+        elif peer is not None:
+            row.update(mujoco_version=peer["version"], mujoco_inputs=peer["inputs"], mujoco_contacts=peer["contacts"],
+                       mujoco_step_us=float(np.median(per["mujoco_step"])) * 1e6,
+                       mujoco_fd_us=float(np.median(per["mujoco_fd"])) * 1e6)
+            row.update(_ratio_fields("mujoco_fd_steps", ratio_stats(per["mujoco_fd"], per["mujoco_step"])))
+            row.update(_ratio_fields("derivatives_vs_mujoco_fd", ratio_stats(per["derivatives"], per["mujoco_fd"])))
+        rows.append(row)
+    return rows
+
+
+def _contacts_at(sim, q, v, qk, vk):
+    """The contacts in the active set of the (cold) step at the state."""
+    from planar_lcp.engine.layout import Stat
+    sim.reset_warm_start()
+    sim.step(q, v, qk, vk)
+    sim.reset_warm_start()
+    return int(sim.stats[Stat.N_CONTACTS])
+
+
+def _mujoco_runners(scene, margin, q, v, qk, vk):
+    """MuJoCo's runners at our state (`bench_derivatives`), None where mujoco does not import, or {"unmapped": why}
+    for a scene the bridge does not map."""
+    try:
+        import mujoco
+    except ImportError:
+        return None
+    from planar_lcp.bridges.mujoco import UnsupportedScene, mujoco_scene
+    try:
+        ms = mujoco_scene(scene, margin=margin)
+    except UnsupportedScene as e:
+        return dict(unmapped=str(e))
+    ms.set_state(q, v, qk, vk)
+    model, data = ms.model, ms.data
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state, spec)
+    nx = 2 * model.nv + model.na
+    A, B = np.zeros((nx, nx)), np.zeros((nx, model.nu))
+
+    def step():
+        mujoco.mj_setState(model, data, state, spec)
+        mujoco.mj_step(model, data)
+
+    def fd():
+        mujoco.mj_setState(model, data, state, spec)
+        mujoco.mjd_transitionFD(model, data, 1e-6, True, A, B, None, None)
+
+    return dict(runners=dict(mujoco_step=step, mujoco_fd=fd), version=mujoco.__version__, inputs=nx + model.nu,
+                contacts=int(data.ncon))
+
+
+def _count(n, noun):
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def format_derivatives_table(rows):
+    """The markdown table of `bench_derivatives`' rows."""
+    lines = ["| scene | state | inputs | exact | step µs | derivatives µs | in steps median [min-max] | "
+             "central differences in steps | MuJoCo mjd_transitionFD in its steps | derivatives / mjd_transitionFD |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if "skipped" in r:
+            lines.append(f"| {r['scene']} | {r['skipped']} | | | | | | | | |")
+            continue
+        mj = "MuJoCo not installed", "-"
+        if "mujoco_unmapped" in r:
+            mj = f"not mapped: {r['mujoco_unmapped']}", "-"
+        elif "mujoco_fd_us" in r:
+            mj = (f"{_fmt_ratio(r, 'mujoco_fd_steps')} ({r['mujoco_inputs']} inputs, {_count(r['mujoco_contacts'], 'contact')})",
+                  _fmt_ratio(r, "derivatives_vs_mujoco_fd"))
+        lines.append(f"| {r['scene']} | t = {r['t']:.3g} s, {_count(r['contacts'], 'contact')} | {r['inputs']} | "
+                     f"{'yes' if r['exact'] else 'no'} | {_fmt_us(r['step_us'])} | {_fmt_us(r['derivatives_us'])} | "
+                     f"{_fmt_ratio(r, 'derivatives_steps')} | {_fmt_ratio(r, 'differences_steps')} | {mj[0]} | "
+                     f"{mj[1]} |")
+    return "\n".join(lines)
+
+
 def run_bench(which, json_path=None, kinds=None, sizes=None, steps=None, rounds=None, scenes=None,
               step_budget_s=STEP_BUDGET_S, settle_budget_s=SETTLE_BUDGET_S):
-    """Run the benchmark `which` (step, lcp, scaling, pile or all), print its tables and optionally write the JSON.
+    """Run the benchmark `which` (step, lcp, scaling, pile, derivatives or all), print its tables and optionally write
+    the JSON.
 
     `all` is step, lcp and scaling's small layouts (pile, islands): the run of record docs/figures/performance/
     bench.json; the large piles and `pile` are runs of their own. kinds, sizes, steps: scaling's kinds (default all
     of SCALING_KINDS), body counts (default SCALING_SIZES for the layouts, PILE_SCALING_SIZES for the piles) and
-    steps per timed run; steps and scenes (names of PILE_SCENES) for pile; rounds for any (default: each
+    steps per timed run; steps and scenes (names of PILE_SCENES) for pile; scenes (shipped scene names) for
+    derivatives; rounds for any (default: each
     benchmark's own)."""
     report = {}
 
@@ -1004,6 +1189,11 @@ def run_bench(which, json_path=None, kinds=None, sizes=None, steps=None, rounds=
             report["scaling_piles"] = dict(rows=rows, fits=fits, fit_spread=fit_spread, fit_bodies=fit_bodies,
                                            clock="thread_time", step_budget_s=step_budget_s,
                                            settle_budget_s=settle_budget_s, settle_extra_s=SETTLE_EXTRA_S)
+    if which == "derivatives":
+        rows = bench_derivatives(scenes=tuple(scenes) if scenes else DERIVATIVE_SCENES, rounds=rounds or ROUNDS,
+                                 progress=say("derivatives"))
+        print(format_derivatives_table(rows))
+        report["derivatives"] = dict(rows=rows, clock="thread_time")
     if which == "pile":
         chosen = tuple(sc for sc in PILE_SCENES if sc[0] in scenes) if scenes else PILE_SCENES
         rows = bench_pile(scenes=chosen, steps=steps or PILE_STEPS, rounds=rounds or PILE_ROUNDS,

@@ -472,7 +472,7 @@ def step_derivatives(sim, q, v, qk, vk, params=()):
                                      "no LCP (PGS after a failed solve): complementarity not checked"))
     if rec.unsolved:
         degenerate.append(Degenerate("complementarity", "the step", f"{rec.unsolved} derivative LCP(s) without a "
-                                     "solution: the derivative of Lemke's final basis was kept there"))
+                                     "solution: there the derivatives hold the positive impulses' rows, the degenerate ones at zero"))
     for A, b, z, beta, layout, nonunique in rec.solves:
         for idx in nonunique:
             degenerate.append(Degenerate("non-unique", ", ".join(_lcp_index_name(model, layout, i) for i in idx),

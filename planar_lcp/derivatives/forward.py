@@ -35,7 +35,7 @@ class Recorder:
     the island's layout (its contacts' pairs, support elements, servos and each friction unknown's lambda; or the
     velocity form's projection's pairs) and the unknowns of the free directions the inputs break (`_check_unique`);
     `unrecorded` (answers from a solver that writes no dense LCP: PGS), `ties` (the functions where max or min met a
-    tie), `unsolved` (derivative LCPs Lemke did not solve: the basis's derivative was kept), `fp_extra` (the
+    tie), `unsolved` (derivative LCPs Lemke did not solve: the positive z's rows' derivative was kept), `fp_extra` (the
     fixed-point iterations run past the compiled step's for its derivatives)."""
 
     def __init__(self, res_tol):
@@ -103,8 +103,7 @@ def _directional(A, b, z, res_tol, rec):
             continue                                        # dz_beta = 0: the degenerate indices stay at zero
         sol = _mixed_lcp(Aaa, Aab, Aba, Abb, ra, rb)
         if sol is None:
-            rec.unsolved += 1
-            dz[:, c] = dual.grads(np.array(z, dtype=object), k)[:, c]
+            rec.unsolved += 1               # dz as the positive z's rows give it, the degenerate indices at zero
             continue
         dz[ia, c], dz[ib, c] = sol
     for i in range(n):
@@ -198,9 +197,38 @@ def _after_solve(w, A, b, n):
     rec.pending = (A[:n, :n].copy(), np.array(b[:n], dtype=object), zs, beta, layout, nonunique)
 
 
+def _on_values(w, A, b, n, settings, block):
+    """Lemke's kernel (block Lemke's with `block`), compiled, on the values of the LCP (A, b) of size n and of the
+    work's Lemke buffers, its results written back into them: the pivots compute no derivatives (`_directional` sets
+    the answer's from the LCP data), and compiled they cost what a step's do. The same floating-point operations as
+    the kernel's Python function on duals (no fast-math), so the same answer bit for bit, which `step_derivatives`
+    checks against the compiled step. Returns the kernel's (status, pivots, residual)."""
+    from planar_lcp.engine.layout import (BLOCK_LAYOUT, LEMKE_LAYOUT, BlockLemkeWork, LemkeWork,
+                                          lemke_work_struct)
+    from planar_lcp.engine.solvers.block_lemke import block_lemke
+    layout = LEMKE_LAYOUT + BLOCK_LAYOUT if block else LEMKE_LAYOUT
+    arrays = []
+    for f in layout:
+        a = getattr(w, f.name)
+        arrays.append(np.ascontiguousarray(dual.values(a) if a.dtype == object else a))
+    work = (BlockLemkeWork if block else LemkeWork)(*arrays)
+    Av = np.ascontiguousarray(dual.values(A[:n, :n]))
+    bv = np.ascontiguousarray(dual.values(b[:n]))
+    kernel = block_lemke if block else _lemke.lemke_kernel
+    out = kernel(Av, bv, settings, lemke_work_struct(work))
+    for f, a in zip(layout, arrays):
+        target = getattr(w, f.name)
+        target[...] = a if target.dtype != object else a.astype(object)
+    return out
+
+
 def _hook_lemke_in_work(inner):
     def lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate, max_pivots=-1):
-        out = inner(w, A, b, n, opt, piv_tol, equilibrate, max_pivots)
+        from planar_lcp.engine.layout import LemkeSettings
+        if max_pivots < 0:
+            max_pivots = _lemke.default_max_pivots(n)
+        out = _on_values(w, A, b, n, LemkeSettings(max_pivots, piv_tol, opt.ratio_tol, opt.res_tol,
+                                                   np.bool_(equilibrate)), False)
         _after_solve(w, A, b, n)
         return out
     return lemke_in_work
@@ -208,7 +236,9 @@ def _hook_lemke_in_work(inner):
 
 def _hook_block_lemke_in_work(inner):
     def block_lemke_in_work(w, A, b, n, opt):
-        out = inner(w, A, b, n, opt)
+        from planar_lcp.engine.layout import LemkeSettings
+        out = _on_values(w, A, b, n, LemkeSettings(_lemke.BLOCK_PIVOTS_PER_UNKNOWN * n + 100, opt.piv_tol,
+                                                   opt.ratio_tol, opt.res_tol, np.bool_(False)), True)
         _after_solve(w, A, b, n)
         return out
     return block_lemke_in_work

@@ -360,8 +360,12 @@ def test_bench_json_writes_the_large_piles_beside_the_layouts(tmp_path):
     (["scaling", "--settle-budget", "nan"], "--settle-budget", "finite number, got 'nan'"),
     (["step", "--sizes", "16", "32"], "--sizes", "applies to bench scaling only, got bench step"),
     (["lcp", "--steps", "5"], "--steps", "applies to bench scaling and pile only, got bench lcp"),
-    (["scaling", "--scenes", "tower_16"], "--scenes", "applies to bench pile only, got bench scaling"),
-    (["pile", "--scenes", "tower_3"], "--scenes", "invalid choice: 'tower_3'"),
+    (["scaling", "--scenes", "tower_16"], "--scenes", "applies to bench pile and derivatives only, got bench scaling"),
+    (["pile", "--scenes", "tower_3"], "--scenes", "expected one of tower_16, tower_64, bin_40 for bench pile, got "
+                                                  "'tower_3'"),
+    (["pile", "--scenes", "tower_16", "tower_16"], "--scenes", "distinct, got tower_16 tower_16"),
+    (["derivatives", "--scenes", "no_such_scene"], "--scenes", "unknown scene 'no_such_scene'"),
+    (["derivatives", "--steps", "5"], "--steps", "applies to bench scaling and pile only, got bench derivatives"),
     (["scaling", "--json", "out.txt"], "--json", "must end in .json, got '.txt'"),
 ])
 def test_bench_bad_options_exit_2_with_one_line(capsys, monkeypatch, argv, flag, expected):
@@ -392,3 +396,82 @@ def test_bench_lcp_table(corpus_dir):
         assert r["us"] > 0 and r["public_us"] > 0
     table = format_lcp_table(rows)
     assert "median ratio ours/QuantEcon" in table and "thread CPU time" in table
+
+
+# --- bench derivatives -------------------------------------------------------------------------------------------
+
+
+@needs_jit
+def test_the_differences_peer_computes_the_jacobian_step_derivatives_gives():
+    """The peer `bench derivatives` times is what it says: central differences of the step (2 n + 1 steps) whose
+    Jacobian agrees with `Simulator.step_derivatives` at the bench's state of each default scene (an exact state)."""
+    from planar_lcp.model import compile_scene
+    from planar_lcp.sim import SimOptions, Simulator
+    from planar_lcp.spec.scene import load_scene
+    for name in bench.DERIVATIVE_SCENES:
+        sc = load_scene(name)
+        sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
+        q, v, qk, vk, t = bench.derivative_state(sim, sc)
+        assert math.isclose(t, sc.sim.t_end / 2)           # half-way, where both scenes' steps meet a contact
+        d = sim.step_derivatives(q, v, qk, vk)
+        assert d.exact, d.degenerate
+        calls = []
+        real_step = sim.step
+        sim.step = lambda *a: calls.append(1) or real_step(*a)
+        J = bench.central_differences(sim, q, v, qk, vk)
+        assert len(calls) == 2 * J.shape[1] + 1
+        scale = np.maximum(np.max(np.abs(d.jacobian), axis=0), 1.0)
+        assert np.max(np.abs(J - d.jacobian) / scale) < 1e-5, name
+
+
+@needs_jit
+def test_bench_derivatives_rows_and_table(monkeypatch):
+    """Every runner of a scene is timed in the same alternating rounds; the ratios come with their spread; MuJoCo's
+    fields where it installs, and a scene its bridge does not map is measured without it."""
+    try:
+        import mujoco  # noqa: F401
+        has_mujoco = True
+    except ImportError:
+        has_mujoco = False
+    timed = []
+    real = bench.alternate_rounds
+    monkeypatch.setattr(bench, "alternate_rounds", lambda runners, **kw: timed.append(sorted(runners)) or
+                        real(runners, **kw))
+    rows = bench.bench_derivatives(scenes=("falling_rod", "box_tip"), rounds=2, min_round_s=1e-4)
+    ours = ["derivatives", "differences", "step"]
+    assert timed == [sorted(ours + (["mujoco_fd", "mujoco_step"] if has_mujoco else [])), ours]
+    rod, tip = rows
+    assert rod["scene"] == "falling_rod" and rod["inputs"] == 6 and rod["exact"] and rod["contacts"] >= 1
+    assert tip["inputs"] == 12                                 # the box's q, v and the finger's qk, vk
+    for r in rows:
+        for key in ("derivatives_steps", "differences_steps", "derivatives_vs_differences"):
+            assert r[key + "_min"] <= r[key] <= r[key + "_max"]
+        assert r["derivatives_us"] > 0 and r["step_us"] > 0 and r["differences_us"] > 0
+    if has_mujoco:
+        assert rod["mujoco_inputs"] == 6 and rod["mujoco_contacts"] >= 1          # 2 nv, no actuators
+        assert rod["mujoco_fd_steps_min"] <= rod["mujoco_fd_steps"] <= rod["mujoco_fd_steps_max"]
+        assert "kinematic body in the vertical plane" in tip["mujoco_unmapped"]
+    else:
+        assert "mujoco_fd_us" not in rod and "mujoco_unmapped" not in tip
+    table = bench.format_derivatives_table(rows)
+    assert table.count("\n") == 3 and "| falling_rod | t = 0.5 s" in table
+
+
+def test_bench_derivatives_skips_a_scene_without_contacts(monkeypatch):
+    monkeypatch.setattr(bench, "derivative_state", lambda sim, sc: None)
+    rows = bench.bench_derivatives(scenes=("falling_rod",), rounds=1)
+    assert rows == [dict(scene="falling_rod", skipped="no step of its run meets a contact")]
+    assert "no step of its run meets a contact" in bench.format_derivatives_table(rows)
+
+
+@needs_jit
+def test_bench_derivatives_command_writes_its_json(tmp_path):
+    """`planar-lcp bench derivatives` end to end, in a subprocess as a user runs it (docs/performance.md)."""
+    from cli_helpers import run_cli
+    out = tmp_path / "d.json"
+    r = run_cli("bench", "derivatives", "--scenes", "falling_rod", "--rounds", "2", "--json", out)
+    assert r.returncode == 0, r.stderr
+    assert "| falling_rod |" in r.stdout and f"wrote {out}" in r.stdout
+    d = json.loads(out.read_text())["derivatives"]
+    assert d["clock"] == "thread_time" and [row["scene"] for row in d["rows"]] == ["falling_rod"]
+    assert {"derivatives_steps", "differences_steps", "derivatives_vs_differences"} <= set(d["rows"][0])
