@@ -107,6 +107,52 @@ def predict_run(doc: dict, recording, **sim_options):
     return t, out
 
 
+def _residuals_by_derivatives(doc, recording, every, length_scale, sim_options, params):
+    """The residual vector of one recording (as `_residuals`, bit for bit) and its Jacobian with respect to the
+    scene parameters `params` (rows the residuals, one column per name), by `rollout_derivatives` over the run
+    `predict_run` simulates: each predicted pose's derivative interpolated as the pose is."""
+    from planar_lcp.derivatives import rollout_derivatives
+    from planar_lcp.frames import com_to_frame
+    from planar_lcp.sim import Simulator, run_setup
+    from planar_lcp.spec.path import kinematic_velocities
+    setup = run_setup(run_scene(doc, recording), record_contacts=False, **sim_options)
+    model, opts, n = setup.model, setup.options, setup.nsteps
+    sim = Simulator(model, opts)
+    vk_seq = kinematic_velocities(model.scene, model.kin_names, opts.h, n)
+    try:
+        r = rollout_derivatives(sim, model.q0, model.v0, model.qk0, vk_seq, n, params)
+    except RuntimeError as e:
+        raise RuntimeError(f"recording {getattr(recording, 'source', '?')}: {e}") from None
+    nd, p = model.ndyn, len(params)
+    traj_t = np.arange(n + 1) * opts.h
+    q_frame = com_to_frame(r.q, model.com_local)
+    dq = r.dx_dp_steps[:, :3 * nd, :].reshape(n + 1, nd, 3, p).copy()
+    if model.com_local.any():
+        # the body-frame origin is the COM plus -R(theta) com_local: its derivative adds the offset's rate in theta
+        c, s = np.cos(r.q[..., 2]), np.sin(r.q[..., 2])
+        cx, cy = model.com_local[:, 0], model.com_local[:, 1]
+        dq[:, :, 0, :] += (s * cx + c * cy)[..., None] * dq[:, :, 2, :]
+        dq[:, :, 1, :] += (-(c * cx - s * cy))[..., None] * dq[:, :, 2, :]
+    t = np.asarray(recording.t, dtype=np.float64) - float(recording.t[0])
+    obs = _observed(doc, recording)
+    names = list(recording.names)
+    pred = np.empty((len(t), len(obs), 3))
+    dpred = np.empty((len(t), len(obs), 3, p))
+    for j, name in enumerate(obs):
+        k = model.dyn_names.index(name)
+        for c3 in range(3):
+            pred[:, j, c3] = np.interp(t, traj_t, q_frame[:, k, c3])
+            for a in range(p):
+                dpred[:, j, c3, a] = np.interp(t, traj_t, dq[:, k, c3, a])
+    rec = np.asarray(recording.poses)[:, [names.index(nm) for nm in obs]]
+    keep = _residuals_size(recording, every)
+    d = (pred - rec)[keep]
+    d[..., 2] *= length_scale
+    J = dpred[keep]
+    J[..., 2, :] *= length_scale
+    return d.reshape(-1), J.reshape(-1, p)
+
+
 def _residuals(doc, recording, every, length_scale, sim_options):
     """The residual vector of one recording (predicted minus recorded x, y, length_scale * angle per sample kept)."""
     _, pred = predict_run(doc, recording, **sim_options)
@@ -125,7 +171,8 @@ def _residuals(doc, recording, every, length_scale, sim_options):
 class FitResult:
     """A fit's outcome. values, stderr, stderr_by_run by parameter name (module docstring); cost: half
     the sum of squared residuals (m^2); per_run: per recording, its rms and final position (m) and angle (rad)
-    errors at the fitted values; nfev: simulations of all the recordings; message: scipy's."""
+    errors at the fitted values; nfev: simulations of all the recordings (a derivative run of them counts one);
+    message: scipy's."""
 
     params: tuple
     values: dict
@@ -159,7 +206,8 @@ def _run_errors(doc, recording, sim_options):
 
 
 def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=1, length_scale=None,
-        map_runs=None, progress=None, max_nfev=200, diff_step=1e-4, **sim_options) -> FitResult:
+        map_runs=None, progress=None, max_nfev=200, diff_step=1e-4, jacobian="differences",
+        **sim_options) -> FitResult:
     """Least squares of predicted against recorded poses over many recordings, for the named scene parameters.
 
     Parameters
@@ -184,6 +232,11 @@ def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=
     map_runs : callable(fn, list of args) -> list
         How the recordings' runs are evaluated (default: in this process, in order); e.g. a Dask client's map.
     progress : callable(evaluations_done) or None
+    jacobian : "differences" or "derivatives"
+        How the residuals' Jacobian is found: forward differences (steps `diff_step` times max(|x|, 0.01); one run
+        of every recording per parameter), or the step's derivatives (`Simulator.rollout_derivatives`: exact where
+        the steps are, one derivative run of every recording; parameters named as `planar_lcp.derivatives.
+        scene_param` names them, the scene given as documents and no `setters`).
     sim_options : keywords for `planar_lcp.simulate` (h, solver, support_model, ...).
 
     Notes
@@ -206,6 +259,11 @@ def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=
                              f"recording")
     elif x0 is None:
         raise ValueError("fit: a scene given as a function needs x0, the parameters' starting values")
+    if jacobian not in ("differences", "derivatives"):
+        raise ValueError(f"fit: jacobian must be 'differences' or 'derivatives', got {jacobian!r}")
+    if jacobian == "derivatives" and (build is not None or setters):
+        raise ValueError("fit: jacobian='derivatives' differentiates named scene parameters (planar_lcp.derivatives."
+                         "scene_param): give the scene as documents and no setters")
     if x0 is None:
         x0 = [_read_param(docs[0], p) for p in params]
     x0 = np.asarray(x0, dtype=np.float64)
@@ -248,6 +306,14 @@ def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=
         return cache[key]
 
     def jac(x):
+        if jacobian == "derivatives":
+            jobs = [(with_values(i, x), rec, every, length_scale, sim_options, params)
+                    for i, rec in enumerate(recordings)]
+            parts = mapper(_residuals_by_derivatives, jobs)
+            evaluations[0] += 1
+            if progress is not None:
+                progress(evaluations[0])
+            return np.vstack([J for _, J in parts])
         # forward differences, all parameters' runs in one batch; a step into a bound goes the other way
         steps = diff_step * np.maximum(np.abs(x), 1e-2)
         xs = []
@@ -285,7 +351,7 @@ def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=
                      stderr_by_run=dict(zip(names, map(float, np.sqrt(np.diag(cov))))),
                      covariance=cov_iid, cost=float(res.cost), per_run=per_run, nfev=evaluations[0],
                      success=bool(res.success), message=str(res.message),
-                     settings={"every": every, "length_scale": float(length_scale),
+                     settings={"every": every, "length_scale": float(length_scale), "jacobian": jacobian,
                                "sim_options": {k2: v for k2, v in sim_options.items()}})
 
 

@@ -597,31 +597,15 @@ def _give_back(sim):
     _keep(_idle_simulators, (id(sim.model), sim.options), sim, IDLE_SIMULATORS)
 
 
-def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_point_iterations=None,
-             friction_directions=None, pgs_iterations=None, support_model=None, limit_surface_twists=None,
-             limit_surface_resolution=None, restitution=None, on_failure="raise", record_contacts=True,
-             seed_friction_arm=False, option_names=None, progress=None, **options) -> Trajectory:
-    """Simulate a scene (a Scene, a scene dict as a TOML file's document, e.g. `planar_lcp.spec.piles`'s, a shipped
-    scene name, or a .toml path). Keywords override the scene's [sim], and
-    support_model ("limit_surface" or "points") its world.support_model: the horizontal plane's table friction
-    (docs/method.md, "Table friction"; limit_surface_twists and limit_surface_resolution are that model's knobs), and
-    restitution (in [0, 1]) its world.restitution: the coefficient of every contact pair without a
-    world.restitution_pairs entry (docs/method.md, "Restitution").
-
-    on_failure: "raise" (default) raises SimulationError at the first failed step (one where no method gave a
-    certified answer); "record" continues (the failed island takes PGS's uncertified answer) and lists every failure
-    in Trajectory.failures. seed_friction_arm applies contact
-    friction at the shapes' core points, as Stewart & Trinkle's rod does (see compile_scene). option_names: how error
-    messages name the keywords, e.g. {"t_end": "--t-end", "on_failure": "--on-failure record"} for a command line
-    (default: the keywords themselves). progress: called as progress(steps_done, nsteps) every quarter second or so
-    of a long run (`Simulator.progress`). Further keywords go to SimOptions.
-
-    Every override is checked by the rules of the scene file's [sim] table (docs/scene-format.md, "Limits"), and the
-    run's memory (`check_run_size`) before anything is allocated: SceneError (a ValueError) names the setting, the
-    expected and the actual value.
-    """
-    if on_failure not in ("raise", "record"):
-        raise ValueError(f"on_failure must be 'raise' or 'record', got {on_failure!r}")
+def run_setup(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_point_iterations=None,
+              friction_directions=None, pgs_iterations=None, support_model=None, limit_surface_twists=None,
+              limit_surface_resolution=None, restitution=None, record_contacts=True, seed_friction_arm=False,
+              option_names=None, **options):
+    """The run `simulate(scene, ...)` makes with these keywords, before it runs (a `_RunSetup`): `run_scene` (the
+    scene with the restitution override), `nsteps`, `options` (SimOptions) and the compiled `model`; the run starts
+    at the model's initial state with the kinematic velocities `kinematic_velocities(model.scene, model.kin_names, h,
+    nsteps)`. Checked as simulate checks them (SceneError naming the setting); kept for the next call with the same
+    keywords."""
     if isinstance(scene, dict):
         scene = parse_scene(scene)                       # SceneError (a ValueError) naming the field
     elif isinstance(scene, (str, os.PathLike)):
@@ -653,6 +637,41 @@ def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_
         setup = _RunSetup(scene, run_scene, nsteps, opts, model)
         if key is not None and _hashes(scene):
             _keep(_run_setups, key, setup, RUN_SETUPS)
+    return setup
+
+
+def simulate(scene, *, t_end=None, h=None, solver=None, formulation=None, fixed_point_iterations=None,
+             friction_directions=None, pgs_iterations=None, support_model=None, limit_surface_twists=None,
+             limit_surface_resolution=None, restitution=None, on_failure="raise", record_contacts=True,
+             seed_friction_arm=False, option_names=None, progress=None, **options) -> Trajectory:
+    """Simulate a scene (a Scene, a scene dict as a TOML file's document, e.g. `planar_lcp.spec.piles`'s, a shipped
+    scene name, or a .toml path). Keywords override the scene's [sim], and
+    support_model ("limit_surface" or "points") its world.support_model: the horizontal plane's table friction
+    (docs/method.md, "Table friction"; limit_surface_twists and limit_surface_resolution are that model's knobs), and
+    restitution (in [0, 1]) its world.restitution: the coefficient of every contact pair without a
+    world.restitution_pairs entry (docs/method.md, "Restitution").
+
+    on_failure: "raise" (default) raises SimulationError at the first failed step (one where no method gave a
+    certified answer); "record" continues (the failed island takes PGS's uncertified answer) and lists every failure
+    in Trajectory.failures. seed_friction_arm applies contact
+    friction at the shapes' core points, as Stewart & Trinkle's rod does (see compile_scene). option_names: how error
+    messages name the keywords, e.g. {"t_end": "--t-end", "on_failure": "--on-failure record"} for a command line
+    (default: the keywords themselves). progress: called as progress(steps_done, nsteps) every quarter second or so
+    of a long run (`Simulator.progress`). Further keywords go to SimOptions.
+
+    Every override is checked by the rules of the scene file's [sim] table (docs/scene-format.md, "Limits"), and the
+    run's memory (`check_run_size`) before anything is allocated: SceneError (a ValueError) names the setting, the
+    expected and the actual value.
+    """
+    if on_failure not in ("raise", "record"):
+        raise ValueError(f"on_failure must be 'raise' or 'record', got {on_failure!r}")
+    setup = run_setup(scene, t_end=t_end, h=h, solver=solver, formulation=formulation,
+                      fixed_point_iterations=fixed_point_iterations, friction_directions=friction_directions,
+                      pgs_iterations=pgs_iterations, support_model=support_model,
+                      limit_surface_twists=limit_surface_twists, limit_surface_resolution=limit_surface_resolution,
+                      restitution=restitution, record_contacts=record_contacts, seed_friction_arm=seed_friction_arm,
+                      option_names=option_names, **options)
+    names = {**_KEYWORD_NAMES, **(option_names or {})}
     scene, nsteps, opts, model = setup.run_scene, setup.nsteps, setup.options, setup.model
     h = opts.h
     simr = _take_simulator(model, opts)

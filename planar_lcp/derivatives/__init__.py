@@ -171,13 +171,29 @@ def _compile_like(model, scene):
                          limit_surface_twists=None if points else a.ls_wrench.shape[1])
 
 
+#: the last model's arrays with parameter derivatives (`_model_with_param_derivatives`): a rollout's steps share them
+_param_models = {}
+
+
 def _model_with_param_derivatives(model, params, first, k):
     """model.arrays with the float arrays the parameters change as object arrays of duals (their derivatives by
     central differences of the compile, columns first, first + 1, ... of the k inputs along +e, and k + first, ...
-    along -e)."""
+    along -e). Made once per model and parameters (the step reads them, never writes)."""
     arrays = model.arrays
     if not params:
         return arrays, []
+    key = (id(model), tuple(params), first, k)
+    known = _param_models.get(key)
+    if known is not None and known[0] is model:
+        return known[1], list(known[2])
+    out = _param_arrays(model, params, first, k)
+    _param_models.clear()
+    _param_models[key] = (model, *out)
+    return out[0], list(out[1])
+
+
+def _param_arrays(model, params, first, k):
+    arrays = model.arrays
     notes = []
     derivs = {}
     for i, name in enumerate(params):
@@ -508,8 +524,9 @@ def step_derivatives(sim, q, v, qk, vk, params=()):
 class RolloutDerivatives:
     """A rollout's states (q, v (n + 1, ndyn, 3), qk (n + 1, nkin, 3)) and the Jacobians of its final state
     x_n = (q_n, v_n, qk_n) (flattened as `StepDerivatives`): `dx_dx0` (the initial state's), `dx_dvk`
-    (n, size of x_n, 3 nkin: the kinematic velocities of each step) and `dx_dp` (the parameters'). `exact`: every
-    step's; `degenerate`: (step, Degenerate) pairs."""
+    (n, size of x_n, 3 nkin: the kinematic velocities of each step) and `dx_dp` (the parameters'); `dx_dp_steps`
+    (n + 1, size of x, len(params)): the parameters' Jacobian of every state of the rollout (row 0 zero, row n
+    `dx_dp`). `exact`: every step's; `degenerate`: (step, Degenerate) pairs."""
 
     q: np.ndarray
     v: np.ndarray
@@ -520,6 +537,7 @@ class RolloutDerivatives:
     params: tuple = ()
     exact: bool = True
     degenerate: tuple = field(default_factory=tuple)
+    dx_dp_steps: np.ndarray | None = None
 
 
 def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=()):
@@ -539,6 +557,7 @@ def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=()):
     dx = np.eye(nx)
     dvk = np.zeros((nsteps, nx, nvk))
     dp = np.zeros((nx, len(params)))
+    dp_steps = np.zeros((nsteps + 1, nx, len(params)))
     qs, vs, qks = [np.asarray(q, float)], [np.asarray(v, float)], [np.asarray(qk, float)]
     degenerate = []
     for i in range(nsteps):
@@ -551,10 +570,11 @@ def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=()):
         dx = J @ dx
         dvk[:i] = np.einsum("ab,ibc->iac", J, dvk[:i])
         dvk[i] = Jvk
-        dp = J @ dp + Jp
+        dp = dp_steps[i + 1] = J @ dp + Jp
         degenerate += [(i, g) for g in d.degenerate]
         qs.append(d.q)
         vs.append(d.v)
         qks.append(d.qk)
     return RolloutDerivatives(q=np.array(qs), v=np.array(vs), qk=np.array(qks), dx_dx0=dx, dx_dvk=dvk, dx_dp=dp,
-                              params=params, exact=not degenerate, degenerate=tuple(degenerate))
+                              params=params, exact=not degenerate, degenerate=tuple(degenerate),
+                              dx_dp_steps=dp_steps)

@@ -104,3 +104,57 @@ def test_noisy_recordings_give_the_parameters_within_their_stated_uncertainty():
         assert err < 3.0 * result.stderr[name], (name, err, result.stderr[name])
         assert 0.0 < result.stderr[name] < 0.05
         assert result.stderr_by_run[name] > 0.0
+
+
+# --- the Jacobian by the step's derivatives ---------------------------------------------------------------------
+
+def test_the_derivatives_jacobian_is_that_of_the_residuals():
+    """jacobian="derivatives": its residuals are `_residuals`' bit for bit (the same run, stepped one step at a time),
+    and its Jacobian is central differences' of them, on a push through the middle and one whose pusher slides."""
+    from planar_lcp.fitting import _residuals, _residuals_by_derivatives
+    runs = recordings()
+    params = list(TRUE)
+    start = (0.25, 0.2)
+    for run in (runs[0], runs[3]):
+        r, J = _residuals_by_derivatives(scene_doc(*start), run, 2, 0.05, {}, params)
+        np.testing.assert_array_equal(r, _residuals(scene_doc(*start), run, 2, 0.05, {}))
+        for j in range(len(params)):
+            e = 1e-6
+            plus, minus = list(start), list(start)
+            plus[j] += e
+            minus[j] -= e
+            fd = (_residuals(scene_doc(*plus), run, 2, 0.05, {}) - _residuals(scene_doc(*minus), run, 2, 0.05, {}))
+            fd /= 2 * e
+            assert np.max(np.abs(J[:, j] - fd)) <= 1e-6 * max(np.max(np.abs(fd)), 1e-3), (run.source, params[j])
+    assert np.max(np.abs(J[:, 1])) > 1e-3          # the sliding pusher's friction moves the box
+
+
+def test_a_fit_by_derivatives_gives_back_the_parameters():
+    """From the first 0.4 s of a push whose pusher slides along the box (both parameters move the box), 15 % off."""
+    run = recordings()[3]
+    short = Run(t=run.t[:41], names=run.names, poses=run.poses[:41], source=run.source)
+    result = fit(scene_doc(0.3, 0.25), [short], params=list(TRUE), jacobian="derivatives")
+    assert result.success and result.settings["jacobian"] == "derivatives"
+    for name, value in TRUE.items():
+        assert abs(result.values[name] - value) < 1e-6, (name, result.values)
+
+
+def test_the_measurement_of_the_two_jacobians_runs():
+    """docs/real_pushes.md's command, end to end on one short push."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[2] / "examples" / "measurements" / "fit_jacobians.py"
+    r = subprocess.run([sys.executable, str(script), "--pushes", "1", "--seconds", "0.2", "--rounds", "1"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert "derivatives / differences" in r.stdout and r.stdout.count("largest error") == 2
+
+
+def test_a_fit_by_derivatives_refuses_what_it_cannot_differentiate():
+    runs = recordings()[:1]
+    with pytest.raises(ValueError, match="'differences' or 'derivatives'"):
+        fit(scene_doc(), runs, params=list(TRUE), jacobian="exact")
+    with pytest.raises(ValueError, match="no setters"):
+        fit(scene_doc(), runs, params=["ring"], setters={"ring": lambda doc, v: None}, x0=[0.1],
+            jacobian="derivatives")
