@@ -3,15 +3,15 @@
 `dual_version(kernel)` is the kernel's Python function (as engine/interpreted.py makes it) whose calls go to the
 Python functions of the numba dispatchers it calls, recursively, with `numpy`, `math`, `max` and `min` replaced by
 the dual-aware stand-ins of dual.py. Run on dual inputs, every floating-point operation of the step (contacts,
-assembly, Lemke's pivots, the certificate, integration) computes its value as the compiled kernel does and its
-derivatives along the seeded directions. Lemke's pivots are rational operations on the LCP data along the path the
-values choose, so an answer's derivatives are those of the final basis's linear solve: the implicit-function
-derivative of the LCP at that basis.
+assembly, the certificate, integration) computes its value as the compiled kernel does and its derivatives along the
+seeded directions. Lemke's pivots are the exception: they run compiled on the LCP's values (`_on_values`, the same
+answer bit for bit), and the answer's derivatives are set from the LCP data's at its basis (`_directional`): the
+positive z's rows held, the implicit-function derivative of the LCP there.
 
-Where the answer is degenerate (an index with z_i = 0 and w_i = 0) that basis is one of several, and its derivative
-holds on one side at most: `_directional` replaces them by the directional derivative along each seeded direction,
-the solution of the derivative LCP over the degenerate indices (docs/method.md, "Derivatives of the step"). Seeded
-with the directions +e_k and -e_k side by side, one run gives the two one-sided derivatives along each input.
+Where the answer is degenerate (an index with z_i = 0 and w_i = 0) the basis is one of several, and its derivative
+holds on one side at most: `_directional` gives the directional derivative along each seeded direction instead, the
+solution of the derivative LCP over the degenerate indices (docs/method.md, "Derivatives of the step"). Seeded with
+the directions +e_k and -e_k side by side, one run gives the two one-sided derivatives along each input.
 """
 
 import itertools
@@ -222,7 +222,8 @@ def _on_values(w, A, b, n, settings, block):
     return out
 
 
-def _hook_lemke_in_work(inner):
+def _hook_lemke_in_work(_dual_pivots):
+    """Lemke on the values (the dual version of the pivots is not run), then the answer's derivatives."""
     def lemke_in_work(w, A, b, n, opt, piv_tol, equilibrate, max_pivots=-1):
         from planar_lcp.engine.layout import LemkeSettings
         if max_pivots < 0:
@@ -234,7 +235,8 @@ def _hook_lemke_in_work(inner):
     return lemke_in_work
 
 
-def _hook_block_lemke_in_work(inner):
+def _hook_block_lemke_in_work(_dual_pivots):
+    """Block Lemke on the values, then the answer's derivatives."""
     def block_lemke_in_work(w, A, b, n, opt):
         from planar_lcp.engine.layout import LemkeSettings
         out = _on_values(w, A, b, n, LemkeSettings(_lemke.BLOCK_PIVOTS_PER_UNKNOWN * n + 100, opt.piv_tol,
