@@ -7,6 +7,7 @@
     p.save("plan.json"); p.plot("plan.png")
     planners.load_plan("plan.json").replay()       # bit for bit the planner's states
     planners.load_plan("plan.json").replay("pymunk", closed_loop=True)   # with feedback (planners.PlanTracker)
+    planners.refine(p)                             # less pusher travel by gradients, the goal held
 
 A task is a scene file with a [task] table (docs/scene-format.md, "Task files"; docs/planning.md, "Plan your own
 task"). Importing this package does not import ompl: `plan` does, when it is called.
@@ -19,10 +20,12 @@ gymnasium nothing is registered and the rest works as before.
 from planar_lcp.spec.task import DEFAULT_PLANNER, PLANNERS, Goal, Task, TaskError, load_task, shipped_tasks
 
 from .plans import Plan, ShorteningInterrupted, load_plan, plan
+from .refine import refine
 from .tasks import TaskModel
 
 __all__ = ["DEFAULT_PLANNER", "PLANNERS", "Goal", "Plan", "PlanTracker", "PushController", "PushTPolicy",
-           "ShorteningInterrupted", "Task", "TaskError", "TaskModel", "load_plan", "load_task", "plan", "shipped_tasks"]
+           "ShorteningInterrupted", "Task", "TaskError", "TaskModel", "load_plan", "load_task", "plan", "refine",
+           "shipped_tasks"]
 
 # the feedback controllers (docs/closed_loop.md), imported when first named: planners.PushTPolicy needs shapely
 _LAZY = {"PlanTracker": "closed_loop", "PushController": "closed_loop", "PushTPolicy": "pusht"}

@@ -41,8 +41,8 @@ SWITCH_RTOL = 1e-3
 @dataclass(frozen=True)
 class Degenerate:
     """Why a step is not differentiable at the point (docs/method.md, "Derivatives of the step"): `kind`
-    ("complementarity", "tie", "non-unique", "geometry", "switch", "failed", "uncertified", "solver", "parameter"),
-    `where` (the contact, LCP unknown or input, by body names) and `detail`."""
+    ("complementarity", "tie", "non-unique", "geometry", "switch", "unbounded", "failed", "uncertified", "solver",
+    "parameter"), `where` (the contact, LCP unknown or input, by body names) and `detail`."""
 
     kind: str
     where: str
@@ -392,6 +392,13 @@ NEARBY_RTOL = 1e-3
 NEARBY_FLOOR = 1e-3
 
 
+def _input_names(nd, nk, params):
+    """The names of the Jacobian's columns: q[i, c], v[i, c], qk[i, c], vk[i, c], then the parameters'."""
+    return ([f"q[{i // 3}, {i % 3}]" for i in range(3 * nd)] + [f"v[{i // 3}, {i % 3}]" for i in range(3 * nd)]
+            + [f"qk[{i // 3}, {i % 3}]" for i in range(3 * nk)] + [f"vk[{i // 3}, {i % 3}]" for i in range(3 * nk)]
+            + list(params))
+
+
 def _switches_nearby(sim, state, f0, right, left):
     """Inputs along which the compiled step's one-sided differences over NEARBY_STEPS disagree with the one-sided
     derivatives: a switch of one of the engine's discrete choices that the analysis of the LCP and of the contact
@@ -411,10 +418,7 @@ def _switches_nearby(sim, state, f0, right, left):
         q1, v1, qk1, _ = sim.step(*parts)
         return np.concatenate([q1.ravel(), v1.ravel(), qk1.ravel()])
 
-    names = ([f"q[{i // 3}, {i % 3}]" for i in range(shapes[0][0] * 3)]
-             + [f"v[{i // 3}, {i % 3}]" for i in range(shapes[1][0] * 3)]
-             + [f"qk[{i // 3}, {i % 3}]" for i in range(shapes[2][0] * 3)]
-             + [f"vk[{i // 3}, {i % 3}]" for i in range(shapes[3][0] * 3)])
+    names = _input_names(shapes[0][0], shapes[2][0], ())
     bad = []
     for k in range(len(x)):
         agree = False
@@ -472,12 +476,18 @@ def step_derivatives(sim, q, v, qk, vk, params=()):
                            f"{max(np.max(np.abs(qd - q1), initial=0), np.max(np.abs(vd - v1), initial=0)):.3g})")
     both = np.concatenate([grads(a, 2 * K).reshape(-1, 2 * K) for a in out], axis=0)
     right, left = both[:, :K], -both[:, K:]
+    unbounded = ~np.all(np.isfinite(right) & np.isfinite(left), axis=0)
     big = np.maximum(np.abs(right), np.abs(left))
     scale = np.maximum(np.max(big, axis=0)[None, :], np.max(big, axis=1)[:, None])
     floor = SIDES_FLOOR * float(np.max(big, initial=0.0))
     sides_agree = bool(np.all(np.abs(right - left) <= SIDES_RTOL * scale + floor))
 
     degenerate = list(notes)
+    if unbounded.any():
+        degenerate.append(Degenerate("unbounded", ", ".join(_input_names(nd, nk, params)[i]
+                                                            for i in np.flatnonzero(unbounded)),
+                                     "the derivatives along these inputs overflow (not finite): the step is not "
+                                     "differentiable there"))
     if status != STEP_OK:
         degenerate.append(Degenerate("failed", "the step", f"status {status}: no certified LCP answer"))
     if sim.options.solver == "pgs":

@@ -97,6 +97,9 @@ def _directional(A, b, z, res_tol, rec):
     tol = 1e-9 * max(1.0, float(np.max(np.abs(Av), initial=0.0)))
     for c in range(k):
         ra, rb = r[ia, c], r[ib, c]
+        if not (np.all(np.isfinite(ra)) and np.all(np.isfinite(rb))):
+            dz[:, c] = np.nan           # the data's derivative overflowed: step_derivatives reports it unbounded
+            continue
         consistent = np.max(np.abs(Aaa @ dz[ia, c] + ra), initial=0.0) <= tol * max(1.0, np.max(np.abs(ra),
                                                                                                   initial=0.0))
         if consistent and (len(ib) == 0 or np.all(rb + Aba @ dz[ia, c] >= 0.0)):
@@ -358,6 +361,41 @@ def _hook_needs_another_solve(inner):
     return needs_another_solve
 
 
+#: m/s (and rad/s): a body whose free-motion velocity is below this in every component is at rest up to round-off
+#: (the velocities a resting body decays to: 1e-20 and less) for the derivative of its table's re-centred column
+REST_SPEED = 1e-12
+
+
+def _hook_recentre(inner):
+    def recentre_limit_surfaces(m, w):
+        """engine.assemble.recentre_limit_surfaces, with the derivatives of a body's free-motion velocity (and of
+        its angle) left out where the body is at rest up to round-off (REST_SPEED). The re-centred column follows
+        the velocity's direction in the body frame, whose derivative grows as 1 / |v~|: at |v~| = 1e-260 (a resting
+        body's velocity decays that far) it overflows, where the compiled step takes the direction as it comes.
+        Without derivatives there the column is fixed in the body frame for the derivatives, as it is for a body
+        exactly at rest (the fixed column 0)."""
+        held = []                                   # (array, index, the dual it held)
+        for d in range(w.v_tilde.shape[0]):
+            if max(abs(_value(w.v_tilde[d, c])) for c in range(3)) >= REST_SPEED:
+                continue
+            # the body frame's angle too: it turns v~ into the body frame, and its derivative times 1 / |v~|
+            # overflows as well; the column is rotated back to the world with the angle's derivatives (assembly)
+            for arr, idx in [(w.v_tilde, (d, c)) for c in range(3)] + [(w.body_pose, (m.dyn_body[d], 2))]:
+                if isinstance(arr[idx], Dual):
+                    held.append((arr, idx, arr[idx]))
+                    arr[idx] = arr[idx].v
+        try:
+            return inner(m, w)
+        finally:
+            for arr, idx, saved in held:
+                arr[idx] = saved
+    return recentre_limit_surfaces
+
+
+def _value(x):
+    return x.v if isinstance(x, Dual) else float(x)
+
+
 def _python(f):
     """A kernel's Python function (a numba dispatcher's py_func; the function itself under NUMBA_DISABLE_JIT=1)."""
     return getattr(f, "py_func", f)
@@ -369,6 +407,7 @@ _HOOKS = {
     _python(_lemke.lemke_in_work): _hook_lemke_in_work,
     _python(_lemke.block_lemke_in_work): _hook_block_lemke_in_work,
     _python(_assemble.apply_impulses): _hook_apply_impulses,
+    _python(_assemble.recentre_limit_surfaces): _hook_recentre,
     _python(_step.project_out_of_penetration): _hook_project,
 }
 
