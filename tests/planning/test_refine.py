@@ -40,3 +40,18 @@ def test_refine_refuses_a_plan_that_does_not_reach_its_goal(tip_plan):
     plan.data = dict(plan.data, exact=False)
     with pytest.raises(ValueError, match="not exact"):
         planners.refine(plan)
+
+
+@pytest.mark.slow    # plans tip_box (5000 iterations) and refines it: about 15 s
+def test_the_measurement_on_the_shipped_tasks_runs():
+    """docs/planning.md's command, end to end on tip_box with one refinement step."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[2] / "examples" / "measurements" / "refine_plans.py"
+    r = subprocess.run([sys.executable, str(script), "--tasks", "tip_box", "--iterations", "1"], capture_output=True,
+                       text=True, timeout=900)
+    assert r.returncode == 0, r.stdout + r.stderr
+    row = next(line for line in r.stdout.splitlines() if line.startswith("| tip_box |"))
+    before, after = (float(x) for x in row.split("|")[4:6])
+    assert after < before
