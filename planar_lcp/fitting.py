@@ -98,13 +98,31 @@ def predict_run(doc: dict, recording, **sim_options):
         # e.g. a start where the recorded poses overlap: the recording is named, not a "<dict>"
         raise SceneError(f"recording {getattr(recording, 'source', '?')}: {e}") from None
     t = np.asarray(recording.t, dtype=np.float64) - float(recording.t[0])
-    obs = _observed(doc, recording)
-    out = np.empty((len(t), len(obs), 3))
-    for j, name in enumerate(obs):
-        k = traj.body_names.index(name)
-        for c in range(3):
-            out[:, j, c] = np.interp(t, traj.t, traj.q[:, k, c])
-    return t, out
+    idx = [traj.body_names.index(name) for name in _observed(doc, recording)]
+    return t, _interpolated(t, traj.t, traj.q[:, idx])
+
+
+def _interpolated(t, run_t, series):
+    """series (len(run_t), ...) at the times t, linearly between the run's steps, each trailing entry on its own."""
+    flat = series.reshape(len(run_t), -1)
+    out = np.empty((len(t), flat.shape[1]))
+    for c in range(flat.shape[1]):
+        out[:, c] = np.interp(t, run_t, flat[:, c])
+    return out.reshape((len(t),) + series.shape[1:])
+
+
+def _recorded(doc, recording):
+    """The recorded poses (T, nobs, 3) of the recording's observed bodies, in `_observed`'s order."""
+    names = list(recording.names)
+    return np.asarray(recording.poses)[:, [names.index(n) for n in _observed(doc, recording)]]
+
+
+def _kept(a, recording, every, length_scale):
+    """a (T, nobs, 3, ...) at the samples the residuals keep (`_residuals_size`), its angle entries times
+    length_scale."""
+    out = a[_residuals_size(recording, every)]
+    out[:, :, 2] *= length_scale
+    return out
 
 
 def _residuals_by_derivatives(doc, recording, every, length_scale, sim_options, params):
@@ -112,7 +130,7 @@ def _residuals_by_derivatives(doc, recording, every, length_scale, sim_options, 
     scene parameters `params` (rows the residuals, one column per name), by `rollout_derivatives` over the run
     `predict_run` simulates: each predicted pose's derivative interpolated as the pose is."""
     from planar_lcp.derivatives import rollout_derivatives
-    from planar_lcp.frames import com_to_frame
+    from planar_lcp.frames import frame_state
     from planar_lcp.sim import Simulator, run_setup
     from planar_lcp.spec.path import kinematic_velocities
     setup = run_setup(run_scene(doc, recording), record_contacts=False, **sim_options)
@@ -124,47 +142,23 @@ def _residuals_by_derivatives(doc, recording, every, length_scale, sim_options, 
     except RuntimeError as e:
         raise RuntimeError(f"recording {getattr(recording, 'source', '?')}: {e}") from None
     nd, p = model.ndyn, len(params)
-    traj_t = np.arange(n + 1) * opts.h
-    q_frame = com_to_frame(r.q, model.com_local)
-    dq = r.dx_dp_steps[:, :3 * nd, :].reshape(n + 1, nd, 3, p).copy()
-    if model.com_local.any():
-        # the body-frame origin is the COM plus -R(theta) com_local: its derivative adds the offset's rate in theta
-        c, s = np.cos(r.q[..., 2]), np.sin(r.q[..., 2])
-        cx, cy = model.com_local[:, 0], model.com_local[:, 1]
-        dq[:, :, 0, :] += (s * cx + c * cy)[..., None] * dq[:, :, 2, :]
-        dq[:, :, 1, :] += (-(c * cx - s * cy))[..., None] * dq[:, :, 2, :]
+    # the body frame's poses and their derivatives: a pose's derivative turns into the frame's as a velocity does
+    # (the origin's offset from the COM turns with the angle), one parameter's at a time on the leading axis
+    dq_com = np.moveaxis(r.dx_dp_steps[:, :3 * nd, :].reshape(n + 1, nd, 3, p), -1, 0)
+    q_frame, dq_frame = frame_state(r.q, dq_com, model.com_local)
+    idx = [model.dyn_names.index(name) for name in _observed(doc, recording)]
     t = np.asarray(recording.t, dtype=np.float64) - float(recording.t[0])
-    obs = _observed(doc, recording)
-    names = list(recording.names)
-    pred = np.empty((len(t), len(obs), 3))
-    dpred = np.empty((len(t), len(obs), 3, p))
-    for j, name in enumerate(obs):
-        k = model.dyn_names.index(name)
-        for c3 in range(3):
-            pred[:, j, c3] = np.interp(t, traj_t, q_frame[:, k, c3])
-            for a in range(p):
-                dpred[:, j, c3, a] = np.interp(t, traj_t, dq[:, k, c3, a])
-    rec = np.asarray(recording.poses)[:, [names.index(nm) for nm in obs]]
-    keep = _residuals_size(recording, every)
-    d = (pred - rec)[keep]
-    d[..., 2] *= length_scale
-    J = dpred[keep]
-    J[..., 2, :] *= length_scale
-    return d.reshape(-1), J.reshape(-1, p)
+    traj_t = np.arange(n + 1) * opts.h
+    pred = _interpolated(t, traj_t, q_frame[:, idx])
+    dpred = _interpolated(t, traj_t, np.moveaxis(dq_frame, 0, -1)[:, idx])
+    d = _kept(pred - _recorded(doc, recording), recording, every, length_scale)
+    return d.reshape(-1), _kept(dpred, recording, every, length_scale).reshape(-1, p)
 
 
 def _residuals(doc, recording, every, length_scale, sim_options):
     """The residual vector of one recording (predicted minus recorded x, y, length_scale * angle per sample kept)."""
     _, pred = predict_run(doc, recording, **sim_options)
-    obs = _observed(doc, recording)
-    names = list(recording.names)
-    rec = np.asarray(recording.poses)[:, [names.index(n) for n in obs]]
-    keep = np.arange(0, len(pred), every)
-    if keep[-1] != len(pred) - 1:
-        keep = np.append(keep, len(pred) - 1)         # the final pose always counts
-    d = (pred - rec)[keep]
-    d[..., 2] *= length_scale
-    return d.reshape(-1)
+    return _kept(pred - _recorded(doc, recording), recording, every, length_scale).reshape(-1)
 
 
 @dataclass
@@ -195,9 +189,7 @@ class FitResult:
 
 def _run_errors(doc, recording, sim_options):
     _, pred = predict_run(doc, recording, **sim_options)
-    obs = _observed(doc, recording)
-    names = list(recording.names)
-    rec = np.asarray(recording.poses)[:, [names.index(n) for n in obs]]
+    rec = _recorded(doc, recording)
     pos = np.hypot(*(pred[..., :2] - rec[..., :2]).transpose(2, 0, 1))
     ang = np.abs(pred[..., 2] - rec[..., 2])
     return {"source": str(getattr(recording, "source", "")), "rms_position": float(np.sqrt(np.mean(pos ** 2))),
@@ -356,6 +348,7 @@ def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=
 
 
 def _residuals_size(recording, every):
+    """The indices of the samples the residuals keep: every `every`-th, and the final pose always."""
     n = len(recording.t)
     keep = np.arange(0, n, every)
     return keep if keep[-1] == n - 1 else np.append(keep, n - 1)

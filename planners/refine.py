@@ -67,6 +67,7 @@ def object_jacobian(tm, sim, x0, controls, steps):
     `rollout_derivatives` over the plan's run: rows the body frame's x, y (the goal's position is the frame's), the
     angle, and the velocities vx, vy, omega of the centre of mass; and whether every step's derivatives were exact."""
     from planar_lcp.derivatives import rollout_derivatives
+    from planar_lcp.frames import frame_state
     q, v, qk, vk, segment = _run_inputs(tm, x0, controls, steps)
     r = rollout_derivatives(sim, q, v, qk, vk, len(vk))
     nd = tm.model.ndyn
@@ -77,14 +78,10 @@ def object_jacobian(tm, sim, x0, controls, steps):
     G = np.zeros((6, 2 * len(controls)))
     for j in range(len(controls)):
         G[:, 2 * j:2 * j + 2] = per_step[segment == j].sum(axis=0)
-    # the frame's origin is the COM less R(angle) com_local: its position's rate adds the offset's along the angle
-    th = r.q[-1, d, 2]
-    cx, cy = tm.com_local[0], tm.com_local[1]
-    c, s = np.cos(th), np.sin(th)
-    G[0] += (s * cx + c * cy) * G[2]
-    G[1] += -(c * cx - s * cy) * G[2]
-    final = np.concatenate([tm.object_frame_pose(np.concatenate([r.q[-1, d], r.v[-1, d]]))[:3], r.v[-1, d]])
-    return final, G, r.exact
+    # the frame's origin is the COM less R(angle) com_local: a column's pose rates turn into the frame's as a velocity
+    # does (planar_lcp.frames)
+    G[:3] = frame_state(r.q[-1, d][None], G[:3].T[:, None, :], tm.com_local1)[1][:, 0, :].T
+    return _coords(tm, np.concatenate([r.q[-1, d], r.v[-1, d]])), G, r.exact
 
 
 def _coords(tm, x):

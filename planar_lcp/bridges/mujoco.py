@@ -234,15 +234,8 @@ def mujoco_scene(scene: Scene, h=None, margin=0.0) -> MujocoScene:
         ctrl_adr[name] = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{name}_v{c}") for c in "xy"]
     out = MujocoScene(scene=scene, xml=xml, model=model, data=data, qpos_adr=qpos_adr, qvel_adr=qvel_adr,
                       ctrl_adr=ctrl_adr)
-    for name in dyn + kin:
-        b = scene.body(name)
-        values = (b.position[0], b.position[1], b.angle)
-        rates = (b.velocity[0], b.velocity[1], b.angular_velocity)
-        for c, a in enumerate(qpos_adr[name]):
-            data.qpos[a] = values[c]
-        for c, a in enumerate(qvel_adr[name]):
-            data.qvel[a] = rates[c]
-    if kin:
-        out.set_controls([scene.body(n).velocity + (0.0,) for n in kin])
-    mujoco.mj_forward(model, data)
+    # the scene's start: its bodies' poses and velocities (their frames' origins are their centres of mass here)
+    poses = {n: (*scene.body(n).position, scene.body(n).angle) for n in dyn + kin}
+    rates = {n: (*scene.body(n).velocity, scene.body(n).angular_velocity) for n in dyn + kin}
+    out.set_state([poses[n] for n in dyn], [rates[n] for n in dyn], [poses[n] for n in kin], [rates[n] for n in kin])
     return out

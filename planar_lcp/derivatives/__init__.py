@@ -399,26 +399,32 @@ def _input_names(nd, nk, params):
             + list(params))
 
 
+def flat_step(sim, state):
+    """The cold step as a function of the flattened inputs: x (q, v, qk, vk of `state`'s shapes, row-major, in the
+    Jacobian's column order) -> ((q+, v+, qk+) flattened in its row order, the step's status)."""
+    shapes = [np.shape(a) for a in state]
+    cuts = np.cumsum([int(np.prod(shp)) for shp in shapes])[:-1]
+
+    def step(x):
+        sim.reset_warm_start()
+        q1, v1, qk1, status = sim.step(*(c.reshape(shp) for c, shp in zip(np.split(x, cuts), shapes)))
+        return np.concatenate([q1.ravel(), v1.ravel(), qk1.ravel()]), status
+    return step
+
+
 def _switches_nearby(sim, state, f0, right, left):
     """Inputs along which the compiled step's one-sided differences over NEARBY_STEPS disagree with the one-sided
     derivatives: a switch of one of the engine's discrete choices that the analysis of the LCP and of the contact
     geometry does not see (which of two equally deep vertices is a contact's first row, the active-set check's
     penetration threshold), at the state or within NEARBY_STEPS[0] of it. f0: the step's (q+, v+, qk+) at the state,
     flattened."""
-    shapes = [a.shape for a in state]
     x = np.concatenate([a.ravel() for a in state])
+    step = flat_step(sim, state)
 
     def f(xx):
-        parts, o = [], 0
-        for shp in shapes:
-            n = int(np.prod(shp))
-            parts.append(xx[o:o + n].reshape(shp))
-            o += n
-        sim.reset_warm_start()
-        q1, v1, qk1, _ = sim.step(*parts)
-        return np.concatenate([q1.ravel(), v1.ravel(), qk1.ravel()])
+        return step(xx)[0]
 
-    names = _input_names(shapes[0][0], shapes[2][0], ())
+    names = _input_names(len(state[0]), len(state[2]), ())
     bad = []
     for k in range(len(x)):
         agree = False

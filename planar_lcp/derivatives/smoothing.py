@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planar_lcp.derivatives import StepDerivatives, _check_state
+from planar_lcp.derivatives import StepDerivatives, _check_state, flat_step
 
 SMOOTHING_METHODS = ("zeroth", "first")
 
@@ -73,14 +73,10 @@ def smoothed_derivatives(sim, q, v, qk, vk, sigma, samples=64, seed=0, method="z
         raise ValueError(f"smoothed_derivatives: samples must be >= 2, got {samples}")
     samples = int(samples)
     sizes = np.cumsum([a.size for a in parts])[:-1]
+    step = flat_step(sim, parts)
 
     def unflat(x):
         return [c.reshape(a.shape) for c, a in zip(np.split(x, sizes), parts)]
-
-    def step(x):
-        sim.reset_warm_start()
-        q1, v1, qk1, st = sim.step(*unflat(x))
-        return np.concatenate([q1.ravel(), v1.ravel(), qk1.ravel()]), st
 
     rng = np.random.default_rng(seed)
     eps = rng.standard_normal((samples, K))

@@ -10,26 +10,13 @@ import pytest
 from planar_lcp import SimOptions, Simulator
 from planar_lcp.derivatives import scene_with_param, step_derivatives
 from planar_lcp.model import compile_scene
-from planar_lcp.spec.scene import load_scene, parse_scene
+from planar_lcp.spec.scene import load_scene
+
+from derivative_scenes import disk_at_wall
 
 
 def _phi(t):
     return 0.5 * (1.0 + math.erf(t / math.sqrt(2.0)))
-
-
-def _disk_at_wall():
-    """A frictionless disk on the floor touching a wall on its right (x = 0.1), pressing nothing. In the position
-    form one step gives v+_x = min(vx, -dx / h) for a shift dx of the disk towards the wall: it keeps its velocity
-    away from the wall and stops at it."""
-    doc = {"name": "wall", "world": {"plane": "vertical", "friction": 0.0}, "sim": {"h": 0.01, "t_end": 0.1},
-           "bodies": [
-               {"name": "floor", "type": "static",
-                "shapes": [{"type": "halfplane", "point": [0.0, 0.0], "normal": [0.0, 1.0]}]},
-               {"name": "wall", "type": "static",
-                "shapes": [{"type": "halfplane", "point": [0.1, 0.0], "normal": [-1.0, 0.0]}]},
-               {"name": "disk", "type": "dynamic", "mass": 1.0, "position": [0.05, 0.05],
-                "shapes": [{"type": "disk", "radius": 0.05}]}]}
-    return Simulator(compile_scene(parse_scene(doc)), SimOptions())
 
 
 @pytest.mark.parametrize("method, samples", [("zeroth", 400), ("first", 100)])
@@ -37,7 +24,7 @@ def test_at_a_wall_the_modes_blend_by_their_probability(method, samples):
     """E[min(vx + w_v, -w_x / h)]: its derivative along vx is P(vx + w_v < -w_x / h) = Phi(-vx / s) with
     s^2 = sigma_v^2 + (sigma_x / h)^2, and along x -(1 - that) / h. The step's own derivative at vx = 0.01 > 0 is 0
     (the disk stops at the wall): the smoothed one sees the other mode within a few sigma."""
-    sim = _disk_at_wall()
+    sim = disk_at_wall()
     q, v, qk, vk = sim.initial_state()
     v = v.copy()
     v[0, 0] = 0.01
@@ -78,7 +65,7 @@ def test_far_from_any_switch_it_is_the_steps_jacobian():
 
 
 def test_the_same_seed_gives_the_same_answer_and_bad_input_is_named():
-    sim = _disk_at_wall()
+    sim = disk_at_wall()
     q, v, qk, vk = sim.initial_state()
     a = sim.smoothed_derivatives(q, v, qk, vk, 1e-3, samples=4, seed=7)
     b = sim.smoothed_derivatives(q, v, qk, vk, 1e-3, samples=4, seed=7)

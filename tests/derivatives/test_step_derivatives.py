@@ -21,6 +21,8 @@ from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
 from planar_lcp.spec.scene import load_scene, parse_scene
 
+from derivative_scenes import disk_at_wall
+
 pytestmark = pytest.mark.filterwarnings("ignore::RuntimeWarning")
 
 STEPS = (1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3)
@@ -288,15 +290,7 @@ def test_stick_slip_boundary_is_degenerate_with_its_one_sided_derivatives():
 def test_touching_without_force_is_degenerate():
     """A disk resting on the floor against a wall, pressing nothing: moving into the wall it stops (right side of
     dv/dv_x: 0), moving away it keeps its velocity (left: 1)."""
-    doc = {"name": "wall", "world": {"plane": "vertical", "friction": 0.0}, "sim": {"h": 0.01, "t_end": 0.1},
-           "bodies": [
-               {"name": "floor", "type": "static",
-                "shapes": [{"type": "halfplane", "point": [0.0, 0.0], "normal": [0.0, 1.0]}]},
-               {"name": "wall", "type": "static",
-                "shapes": [{"type": "halfplane", "point": [0.1, 0.0], "normal": [-1.0, 0.0]}]},
-               {"name": "disk", "type": "dynamic", "mass": 1.0, "position": [0.05, 0.05],
-                "shapes": [{"type": "disk", "radius": 0.05}]}]}
-    sim = Simulator(compile_scene(parse_scene(doc)), SimOptions())
+    sim = disk_at_wall()
     q, v, qk, vk = sim.initial_state()
     d = step_derivatives(sim, q, v, qk, vk)
     assert not d.exact
