@@ -128,7 +128,8 @@ def _kept(a, recording, every, length_scale):
 def _residuals_by_derivatives(doc, recording, every, length_scale, sim_options, params):
     """The residual vector of one recording (as `_residuals`, bit for bit) and its Jacobian with respect to the
     scene parameters `params` (rows the residuals, one column per name), by `rollout_derivatives` over the run
-    `predict_run` simulates: each predicted pose's derivative interpolated as the pose is."""
+    `predict_run` simulates (each step's by its checked differences, the dual numbers where their checks fail): each
+    predicted pose's derivative interpolated as the pose is."""
     from planar_lcp.derivatives import rollout_derivatives
     from planar_lcp.frames import frame_state
     from planar_lcp.sim import Simulator, run_setup
@@ -138,7 +139,7 @@ def _residuals_by_derivatives(doc, recording, every, length_scale, sim_options, 
     sim = Simulator(model, opts)
     vk_seq = kinematic_velocities(model.scene, model.kin_names, opts.h, n)
     try:
-        r = rollout_derivatives(sim, model.q0, model.v0, model.qk0, vk_seq, n, params)
+        r = rollout_derivatives(sim, model.q0, model.v0, model.qk0, vk_seq, n, params, method="differences")
     except RuntimeError as e:
         raise RuntimeError(f"recording {getattr(recording, 'source', '?')}: {e}") from None
     nd, p = model.ndyn, len(params)
@@ -226,9 +227,10 @@ def fit(scene, recordings, params, *, x0=None, bounds=None, setters=None, every=
     progress : callable(evaluations_done) or None
     jacobian : "differences" or "derivatives"
         How the residuals' Jacobian is found: forward differences (steps `diff_step` times max(|x|, 0.01); one run
-        of every recording per parameter), or the step's derivatives (`Simulator.rollout_derivatives`: exact where
-        the steps are, one derivative run of every recording; parameters named as `planar_lcp.derivatives.
-        scene_param` names them, the scene given as documents and no `setters`).
+        of every recording per parameter), or the step's derivatives (`Simulator.rollout_derivatives`, each step's
+        by its checked differences, the dual numbers where their checks fail: one derivative run of every
+        recording; parameters named as `planar_lcp.derivatives.scene_param` names them, the scene given as
+        documents and no `setters`).
     sim_options : keywords for `planar_lcp.simulate` (h, solver, support_model, ...).
 
     Notes

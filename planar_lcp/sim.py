@@ -255,13 +255,16 @@ class Simulator:
         self._last_step_out = (q_out.copy(), v_out.copy(), qk_out.copy())
         return q_out, v_out, qk_out, st
 
-    def step_derivatives(self, q, v, qk, vk, params=()):
+    def step_derivatives(self, q, v, qk, vk, params=(), method="dual"):
         """The Jacobians of one (cold) step with respect to q, v, qk, vk and the named scene parameters:
         `planar_lcp.derivatives.StepDerivatives` (dq_dq, dq_dv, dq_dvk, dv_dq, dv_dv, dv_dvk, dv_dp, ..., `exact`,
-        `degenerate`). docs/method.md, "Derivatives of the step". The step differentiated is the cold one (no warm
-        start), and the simulator's warm-start memory is reset as by `reset_warm_start()`."""
+        `degenerate`). docs/method.md, "Derivatives of the step". method: "dual" (the step on dual numbers, exact to
+        round-off) or "differences" (checked central differences of the compiled step, about 1e-6 of the Jacobian's
+        scale and tens of times faster; the dual numbers where their checks fail, the reason in `fallback`). The
+        step differentiated is the cold one (no warm start), and the simulator's warm-start memory is reset as by
+        `reset_warm_start()`."""
         from planar_lcp.derivatives import step_derivatives
-        return step_derivatives(self, q, v, qk, vk, params)
+        return step_derivatives(self, q, v, qk, vk, params, method)
 
     def smoothed_derivatives(self, q, v, qk, vk, sigma, samples=64, seed=0, method="zeroth"):
         """The Jacobian of the step smoothed by Gaussian noise of standard deviation `sigma` on its inputs (randomized
@@ -270,12 +273,12 @@ class Simulator:
         from planar_lcp.derivatives.smoothing import smoothed_derivatives
         return smoothed_derivatives(self, q, v, qk, vk, sigma, samples, seed, method)
 
-    def rollout_derivatives(self, q, v, qk, vk_seq, nsteps, params=()):
+    def rollout_derivatives(self, q, v, qk, vk_seq, nsteps, params=(), method="dual"):
         """A rollout's final state and its Jacobians with respect to the initial state, every step's kinematic
-        velocities and the named scene parameters (the chain over `step_derivatives`):
+        velocities and the named scene parameters (the chain over `step_derivatives`, each by `method`):
         `planar_lcp.derivatives.RolloutDerivatives`."""
         from planar_lcp.derivatives import rollout_derivatives
-        return rollout_derivatives(self, q, v, qk, vk_seq, nsteps, params)
+        return rollout_derivatives(self, q, v, qk, vk_seq, nsteps, params, method)
 
     def rollout(self, q, v, qk, vk_seq, nsteps, stop_on_failure=True, record_contacts=False, trajectory_rows=False):
         """nsteps steps by the jitted kernels (one call for a short rollout, chunks for a long one).

@@ -2,7 +2,8 @@
 
 A plan's controls are its segments' pusher velocities u_j, each held for its steps (the durations stay). Its cost
 here is the pusher's path length L = sum_j |u_j| t_j (t_j the segment's duration). `refine` lowers L by projected
-gradient steps with the step's exact derivatives (`Simulator.rollout_derivatives` over the plan's whole run):
+gradient steps with the step's derivatives (`Simulator.rollout_derivatives` over the plan's whole run, by the checked
+differences of the compiled step, the dual numbers where their checks fail: docs/method.md):
 
 - G = d(object's final state)/d(u): the rows of the coordinates the goal names (the object frame's x, y, its angle,
   its velocities when the goal asks it at rest) with respect to every segment's pusher velocity, summed over the
@@ -69,7 +70,7 @@ def object_jacobian(tm, sim, x0, controls, steps):
     from planar_lcp.derivatives import rollout_derivatives
     from planar_lcp.frames import frame_state
     q, v, qk, vk, segment = _run_inputs(tm, x0, controls, steps)
-    r = rollout_derivatives(sim, q, v, qk, vk, len(vk))
+    r = rollout_derivatives(sim, q, v, qk, vk, len(vk), method="differences")
     nd = tm.model.ndyn
     d = int(tm.dyn_order[0])
     rows = [3 * d, 3 * d + 1, 3 * d + 2, 3 * nd + 3 * d, 3 * nd + 3 * d + 1, 3 * nd + 3 * d + 2]

@@ -76,6 +76,10 @@ class StepDerivatives:
     #: differences converge to; equal where `exact`
     jacobian_right: np.ndarray | None = None
     jacobian_left: np.ndarray | None = None
+    #: how they were computed: "dual" (the step on dual numbers) or "differences" (checked central differences of
+    #: the compiled step); `fallback`: why a "differences" request took the dual numbers ("" otherwise)
+    method: str = "dual"
+    fallback: str = ""
 
     def _block(self, out, inp):
         n, k = 3 * self.ndyn, 3 * self.nkin
@@ -171,8 +175,57 @@ def _compile_like(model, scene):
                          limit_surface_twists=None if points else a.ls_wrench.shape[1])
 
 
-#: the last model's arrays with parameter derivatives (`_model_with_param_derivatives`): a rollout's steps share them
+#: the last model's parameter compiles (`param_compiles`) and arrays with parameter derivatives
+#: (`_model_with_param_derivatives`): a rollout's steps share them
 _param_models = {}
+
+
+def _remember(key, model, *value):
+    """Keep value under key, with the entries of this model only (a fit makes a model per guess)."""
+    if any(entry[0] is not model for entry in _param_models.values()):
+        _param_models.clear()
+    _param_models[key] = (model, *value)
+
+
+def param_compiles(model, params):
+    """For each parameter: (name, lo, hi, {field: (array at hi, array at lo, array as compiled)} for the model's
+    float arrays it changes), the model compiled with the parameter at hi and lo (central differences: p0 +- 1e-5 max(|p0|, 1e-3),
+    one-sided into the physical range at a coefficient of 0); and the Degenerate notes of one-sided ones. Made once
+    per model and parameters."""
+    key = ("compiles", id(model), tuple(params))
+    known = _param_models.get(key)
+    if known is not None and known[0] is model:
+        return known[1]
+    arrays = model.arrays
+    notes = []
+    out = []
+    for name in params:
+        p0 = scene_param(model.scene, name)
+        dp = 1e-5 * max(abs(p0), 1e-3)
+        lo = p0 - dp
+        if p0 >= 0.0 and lo < 0.0:
+            # a coefficient at 0 (no friction, no restitution): the one-sided derivative into the physical range
+            lo = p0
+            notes.append(Degenerate("parameter", name, f"{name} = 0: the derivative is one-sided (towards > 0) and "
+                                    "the step at 0 has no friction or restitution rows to differentiate"))
+        hi = p0 + dp
+        mp = _compile_like(model, scene_with_param(model.scene, name, hi)).arrays
+        mm = _compile_like(model, scene_with_param(model.scene, name, lo)).arrays
+        changed = {}
+        for fname in arrays._fields:
+            a0 = getattr(arrays, fname)
+            if not (isinstance(a0, np.ndarray) and a0.dtype == np.float64):
+                continue
+            ap, am = getattr(mp, fname), getattr(mm, fname)
+            if ap.shape != a0.shape or am.shape != a0.shape:
+                raise ValueError(f"parameter {name!r} changes the model's {fname} shape {a0.shape}: its derivative "
+                                 "is not defined (a parameter must not change the scene's structure)")
+            if np.any(ap != a0) or np.any(am != a0):
+                changed[fname] = (ap, am, a0.copy())
+        out.append((name, lo, hi, changed))
+    got = (out, notes)
+    _remember(key, model, got)
+    return got
 
 
 def _model_with_param_derivatives(model, params, first, k):
@@ -186,57 +239,34 @@ def _model_with_param_derivatives(model, params, first, k):
     known = _param_models.get(key)
     if known is not None and known[0] is model:
         return known[1], list(known[2])
-    out = _param_arrays(model, params, first, k)
-    _param_models.clear()
-    _param_models[key] = (model, *out)
-    return out[0], list(out[1])
-
-
-def _param_arrays(model, params, first, k):
-    arrays = model.arrays
-    notes = []
+    compiles, notes = param_compiles(model, params)
     derivs = {}
-    for i, name in enumerate(params):
-        p0 = scene_param(model.scene, name)
-        dp = 1e-5 * max(abs(p0), 1e-3)
-        lo = p0 - dp
-        if p0 >= 0.0 and lo < 0.0:
-            # a coefficient at 0 (no friction, no restitution): the one-sided derivative into the physical range
-            lo = p0
-            notes.append(Degenerate("parameter", name, f"{name} = 0: the derivative is one-sided (towards > 0) and "
-                                    "the step at 0 has no friction or restitution rows to differentiate"))
-        hi = p0 + dp
-        mp = _compile_like(model, scene_with_param(model.scene, name, hi)).arrays
-        mm = _compile_like(model, scene_with_param(model.scene, name, lo)).arrays
-        for fname in arrays._fields:
-            a0 = getattr(arrays, fname)
-            if not (isinstance(a0, np.ndarray) and a0.dtype == np.float64):
-                continue
-            ap, am = getattr(mp, fname), getattr(mm, fname)
-            if ap.shape != a0.shape or am.shape != a0.shape:
-                raise ValueError(f"parameter {name!r} changes the model's {fname} shape {a0.shape}: its derivative "
-                                 "is not defined (a parameter must not change the scene's structure)")
+    for i, (name, lo, hi, changed) in enumerate(compiles):
+        for fname, (ap, am, _) in changed.items():
             diff = (ap - am) / (hi - lo)
             if np.any(diff):
-                d = derivs.setdefault(fname, np.zeros(a0.shape + (2 * k,)))
+                d = derivs.setdefault(fname, np.zeros(ap.shape + (2 * k,)))
                 d[..., first + i] = diff                 # the direction +e (module docstring: both signs)
                 d[..., k + first + i] = -diff
     replaced = {f: with_derivatives(getattr(arrays, f), d) for f, d in derivs.items()}
-    return arrays._replace(**replaced), notes
+    out = arrays._replace(**replaced)
+    _remember(key, model, out, notes)
+    return out, list(notes)
 
 
 # --- the step ----------------------------------------------------------------------------------------------------
 
 def _check_state(sim, q, v, qk, vk):
     m = sim.model
+    nd, nk = m.ndyn, m.nkin
     out = []
-    for name, a, rows in (("q", q, m.ndyn), ("v", v, m.ndyn), ("qk", qk, m.nkin), ("vk", vk, m.nkin)):
-        a = np.asarray(a, dtype=np.float64)
+    for name, a, rows in (("q", q, nd), ("v", v, nd), ("qk", qk, nk), ("vk", vk, nk)):
+        a = np.ascontiguousarray(a, dtype=np.float64)
         if a.shape != (rows, 3):
             raise ValueError(f"step_derivatives: {name} must have shape ({rows}, 3), got {a.shape}")
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"step_derivatives: {name} must be finite")
-        out.append(np.ascontiguousarray(a))
+        out.append(a)
     return out
 
 
@@ -349,12 +379,11 @@ _twins = {}
 def _dense_twin(sim):
     """The simulator whose step is differentiated: `sim` itself, or for options that send large islands to the sparse
     solver (SimOptions.sparse_min_unknowns > 0: it writes no dense LCP to differentiate) a simulator of the same model
-    and options with every island on the dense path (made once per simulator)."""
-    if sim.options.sparse_min_unknowns == 0 or sim.model.max_unknowns() < sim.options.sparse_min_unknowns:
-        return sim
+    and options with every island on the dense path (decided and made once per simulator)."""
     twin = _twins.get(id(sim))
     if twin is None or twin[0] is not sim:
-        twin = (sim, type(sim)(sim.model, dataclasses.replace(sim.options, sparse_min_unknowns=0)))
+        dense = sim.options.sparse_min_unknowns == 0 or sim.model.max_unknowns() < sim.options.sparse_min_unknowns
+        twin = (sim, sim if dense else type(sim)(sim.model, dataclasses.replace(sim.options, sparse_min_unknowns=0)))
         _twins.clear()
         _twins[id(sim)] = twin
     return twin[1]
@@ -450,18 +479,42 @@ def _switches_nearby(sim, state, f0, right, left):
                        f"within {NEARBY_STEPS[0]:g} of it")]
 
 
-def step_derivatives(sim, q, v, qk, vk, params=()):
+#: step_derivatives' methods (module docstring)
+METHODS = ("dual", "differences")
+
+
+def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
     """The Jacobians of `sim.step(q, v, qk, vk)` (a `StepDerivatives`); `params`, scene parameter names (module
-    docstring). The step is the cold one (no warm start: a function of its inputs alone)."""
+    docstring). The step is the cold one (no warm start: a function of its inputs alone). method "dual": the step on
+    dual numbers (exact to round-off); "differences": checked central differences of the compiled step
+    (differences.py: about 1e-6 of the Jacobian's scale, tens of times faster) where their checks hold, else (and
+    with `params`) the dual numbers', the reason in `fallback`."""
     from planar_lcp.engine.layout import Stat
     from planar_lcp.engine.step import FORM_VELOCITY, STEP_OK
     if sim.options.solver == "osqp":
         raise ValueError("step_derivatives: solver 'osqp' is not differentiable here (its QP solver is a C library); "
                          "use solver 'lemke'")
+    if method not in METHODS:
+        raise ValueError(f"step_derivatives: method must be one of {', '.join(METHODS)}, got {method!r}")
     params = tuple(params)
     q, v, qk, vk = _check_state(sim, q, v, qk, vk)
     model = sim.model
     sim = _dense_twin(sim)
+    fallback = ""
+    if method == "differences":
+        if sim.options.solver == "pgs":
+            fallback = "PGS keeps no LCP basis"
+        else:
+            from planar_lcp.derivatives.differences import checked_differences, param_differences
+            got, fallback = checked_differences(sim, q, v, qk, vk)
+            if got is not None and params:
+                Jp, fallback = param_differences(sim, q, v, qk, vk, params, got[0])
+                got = None if Jp is None else (got[0], got[1], np.hstack([got[2], Jp]))
+            if got is not None:
+                (q1, v1, qk1), status, J = got
+                return StepDerivatives(q=q1, v=v1, qk=qk1, status=status, jacobian=J, ndyn=model.ndyn,
+                                       nkin=model.nkin, params=params, jacobian_right=J, jacobian_left=J,
+                                       method="differences")
     nd, nk = model.ndyn, model.nkin
     K = 6 * nd + 6 * nk + len(params)
     m, notes = _model_with_param_derivatives(model, params, 6 * nd + 6 * nk, K)
@@ -531,7 +584,7 @@ def step_derivatives(sim, q, v, qk, vk, params=()):
                                      sim.options.contact_margin, sim.options.impulse_tol)
     return StepDerivatives(q=q1, v=v1, qk=qk1, status=int(status), jacobian=0.5 * (right + left), ndyn=nd, nkin=nk,
                            params=params, exact=not degenerate, degenerate=tuple(degenerate),
-                           jacobian_right=right, jacobian_left=left)
+                           jacobian_right=right, jacobian_left=left, fallback=fallback)
 
 
 # --- a rollout -----------------------------------------------------------------------------------------------------
@@ -554,12 +607,14 @@ class RolloutDerivatives:
     exact: bool = True
     degenerate: tuple = field(default_factory=tuple)
     dx_dp_steps: np.ndarray | None = None
+    #: with method "differences": the steps whose derivatives the dual numbers gave, and why ((step, reason) pairs)
+    fallbacks: tuple = ()
 
 
-def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=()):
+def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=(), method="dual"):
     """`nsteps` steps from (q, v, qk), step i with vk_seq[min(i, len - 1)] ((nvk, nkin, 3)), and the chain rule over
-    their `step_derivatives`: the final state's Jacobians (a `RolloutDerivatives`). Stops with a RuntimeError at a
-    step that fails."""
+    their `step_derivatives` (by `method`): the final state's Jacobians (a `RolloutDerivatives`). Stops with a
+    RuntimeError at a step that fails."""
     vk_seq = np.asarray(vk_seq, dtype=np.float64)
     m = sim.model
     if vk_seq.ndim != 3 or vk_seq.shape[1:] != (m.nkin, 3) or len(vk_seq) < 1:
@@ -576,8 +631,11 @@ def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=()):
     dp_steps = np.zeros((nsteps + 1, nx, len(params)))
     qs, vs, qks = [np.asarray(q, float)], [np.asarray(v, float)], [np.asarray(qk, float)]
     degenerate = []
+    fallbacks = []
     for i in range(nsteps):
-        d = step_derivatives(sim, qs[-1], vs[-1], qks[-1], vk_seq[min(i, len(vk_seq) - 1)], params)
+        d = step_derivatives(sim, qs[-1], vs[-1], qks[-1], vk_seq[min(i, len(vk_seq) - 1)], params, method)
+        if d.fallback:
+            fallbacks.append((i, d.fallback))
         if d.status != 0:
             raise RuntimeError(f"rollout_derivatives: step {i} failed (status {d.status})")
         J = d.state_jacobian
@@ -593,4 +651,4 @@ def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=()):
         qks.append(d.qk)
     return RolloutDerivatives(q=np.array(qs), v=np.array(vs), qk=np.array(qks), dx_dx0=dx, dx_dvk=dvk, dx_dp=dp,
                               params=params, exact=not degenerate, degenerate=tuple(degenerate),
-                              dx_dp_steps=dp_steps)
+                              dx_dp_steps=dp_steps, fallbacks=tuple(fallbacks))

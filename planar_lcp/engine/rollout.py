@@ -6,6 +6,7 @@ run in pieces equals one call, warm-start memory included), which is how `Simula
 between chunks and runs a step again after growing the dense buffers (STEP_NEEDS_SPACE).
 """
 
+import math
 from collections import namedtuple
 
 import numpy as np
@@ -226,3 +227,201 @@ def rollout_lemke(m, run, h, opt, w, rec):
 @njit(cache=True, _nrt=False)
 def rollout_pgs(m, run, h, opt, w, rec):
     return rollout_loop(pgs_step, m, run, h, opt, w, rec)
+
+
+# The step's checked central differences (planar_lcp/derivatives/differences.py): the cold step at x, then the
+# step at x +- eps_k e_k for each input, warm-started on the cold step's final bases, in one compiled call.
+
+#: step_differences' answers: the differences are the step's derivatives (DIFF_OK), or why not
+DIFF_OK = 0
+DIFF_FAILED = 1          # the cold step did not succeed
+DIFF_SPACE = 2           # a step asked for larger dense buffers (w.dense_needed)
+DIFF_STRUCTURE = 3       # a step nearby has other contacts, islands, iterations or re-solves (DIFF_SAME, DIFF_ZERO)
+DIFF_KINK = 4            # the one-sided differences differ
+DIFF_MOVES = 5           # the cold steps along the mixed direction move otherwise than the Jacobian predicts
+DIFF_REASONS = ("", "the step failed", "",
+                "a step nearby has other contacts, islands, fixed-point iterations or re-solves",
+                "the one-sided differences differ (a kink at the state)",
+                "a cold step nearby moves otherwise than the differences predict")
+
+#: the stats a perturbed step shares with the cold one: the same contacts, islands and active-set re-solves (a change
+#: is a switch of the step's discrete structure), the same fixed-point iterations (a jump of its stopping rule) and,
+#: summed over them, the same LCP sizes, restitution's choice and force-limited pushers'; and those that are zero in
+#: it (answers not certified)
+DIFF_SAME = np.array([Stat.N_CONTACTS, Stat.N_ISLANDS, Stat.RESOLVES], dtype=np.int64)
+DIFF_PER_SOLVE = np.array([Stat.LCP_SIZE, Stat.SOLVED_INELASTIC, Stat.SERVO_LIMITED], dtype=np.int64)
+DIFF_ZERO = np.array([Stat.PGS_UNCERTIFIED], dtype=np.int64)
+
+
+@njit(cache=True, inline='always')
+def _same_structure(stats, other, fp_free):
+    """Whether a step's stats `other` show the cold step's structure `stats` (DIFF_SAME, DIFF_PER_SOLVE, DIFF_ZERO);
+    fp_free: its fixed-point iteration count may differ (a tolerance far below the differences' step), and with it
+    the sums over the iterations."""
+    for a in DIFF_SAME:
+        if other[a] != stats[a]:
+            return False
+    for a in DIFF_ZERO:
+        if other[a] != 0.0:
+            return False
+    if fp_free:
+        return True
+    if other[Stat.FP_ITERATIONS] != stats[Stat.FP_ITERATIONS]:
+        return False
+    for a in DIFF_PER_SOLVE:
+        if other[a] != stats[a]:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _flat_step(m, x, nd, nk, h, opt, w, rec, cold, f):
+    """One step from the flattened inputs x (q, v, qk, vk row-major), cold (the warm-start memory forgotten) or on
+    the memory as it is; its (q+, v+, qk+) flattened into f. Returns its status."""
+    for i in range(nd):
+        for c in range(3):
+            rec.q[0, i, c] = x[3 * i + c]
+            rec.v[0, i, c] = x[3 * nd + 3 * i + c]
+    vk = np.empty((1, nk, 3))
+    for j in range(nk):
+        for c in range(3):
+            rec.qk[0, j, c] = x[6 * nd + 3 * j + c]
+            vk[0, j, c] = x[6 * nd + 3 * nk + 3 * j + c]
+    rollout_lemke(m, RolloutRun(rec.q[0], rec.v[0], rec.qk[0], vk, 0, 1, False, cold), h, opt, w, rec)
+    o = 0
+    for i in range(nd):
+        for c in range(3):
+            f[o] = rec.q[1, i, c]
+            o += 1
+    for i in range(nd):
+        for c in range(3):
+            f[o] = rec.v[1, i, c]
+            o += 1
+    for j in range(nk):
+        for c in range(3):
+            f[o] = rec.qk[1, j, c]
+            o += 1
+    return rec.status[0]
+
+
+@njit(cache=True)
+def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, qk1, stats):
+    """The central differences of the step at the state (q, v, qk, vk) along +- eps_k e_k for each of its K inputs
+    (x: q, v, qk, vk flattened row-major; eps_k = tols[0] max(1, |x_k|)), each step warm-started (warm_opt) on the
+    cold step's final bases, into jac (6 nd + 3 nk, K); the cold step's state into q1, v1, qk1 and its stats into
+    stats. Returns DIFF_OK where the checks of planar_lcp/derivatives/differences.py hold, else the DIFF_* reason.
+    tols: (step, kink, mixed, floor, whether the fixed-point iteration count may differ) of differences.py. The warm-start memory is left as the cold step left it."""
+    nd, nk = q.shape[0], qk.shape[0]
+    K = 6 * nd + 6 * nk
+    x = np.empty(K)
+    for i in range(nd):
+        for c in range(3):
+            x[3 * i + c] = q[i, c]
+            x[3 * nd + 3 * i + c] = v[i, c]
+    for j in range(nk):
+        for c in range(3):
+            x[6 * nd + 3 * j + c] = qk[j, c]
+            x[6 * nd + 3 * nk + 3 * j + c] = vk[j, c]
+    # the steps along each input, and the mixed direction's: +-1 by the signs of sin(k + 1), scaled alike
+    steps = np.empty((2, K))
+    for k in range(K):
+        steps[0, k] = tols[0] * max(1.0, abs(x[k]))
+        steps[1, k] = steps[0, k] if math.sin(k + 1.0) >= 0.0 else -steps[0, k]
+    base = np.empty(6 * nd + 3 * nk)
+    tols = tols[1:]
+    nout = base.shape[0]
+    rec = _compiled_recording(1, nd, nk)
+    st = _flat_step(m, x, nd, nk, h, cold_opt, w, rec, True, base)
+    for s in range(stats.shape[0]):
+        stats[s] = rec.stats[0, s]
+    if st == STEP_NEEDS_SPACE:
+        return DIFF_SPACE
+    if st != STEP_OK:
+        return DIFF_FAILED
+    msize, mbasic, mmodes = w.warm_size.copy(), w.warm_basic_z.copy(), w.sparse_pair_mode.copy()
+    xx = x.copy()
+    fp, fm = np.empty(nout), np.empty(nout)
+    rtol_kink, rtol_mixed, floor = tols[0], tols[1], tols[2]
+    code = DIFF_OK
+    for k in range(K):
+        e = steps[0, k]
+        for sgn in range(2):
+            xx[k] = x[k] + e if sgn == 0 else x[k] - e
+            _copy_memory(msize, mbasic, mmodes, w.warm_size, w.warm_basic_z, w.sparse_pair_mode)
+            st = _flat_step(m, xx, nd, nk, h, warm_opt, w, rec, False, fp if sgn == 0 else fm)
+            if st == STEP_NEEDS_SPACE:
+                code = DIFF_SPACE
+            elif st != STEP_OK:
+                code = DIFF_STRUCTURE
+            elif not _same_structure(stats, rec.stats[0], tols[3] > 0.0):
+                code = DIFF_STRUCTURE
+            if code != DIFF_OK:
+                break
+        xx[k] = x[k]
+        if code != DIFF_OK:
+            break
+        big = 0.0
+        gap = 0.0
+        for r in range(nout):
+            jac[r, k] = (fp[r] - fm[r]) / (2.0 * e)
+            # one-sided differences from the cold answer: a kink, or warm-started answers that differ from the
+            # cold one at x (an offset), make them differ
+            right, left = (fp[r] - base[r]) / e, (base[r] - fm[r]) / e
+            big = max(big, abs(right), abs(left))
+            gap = max(gap, abs(right - left))
+        if gap > rtol_kink * max(big, floor):
+            code = DIFF_KINK
+            break
+    # the memory as the cold step at x left it (what `Simulator.step` leaves)
+    _copy_memory(msize, mbasic, mmodes, w.warm_size, w.warm_basic_z, w.sparse_pair_mode)
+    if code != DIFF_OK:
+        return code
+    # the cold steps at x +- d (d = steps[1]) against the Jacobian's prediction J d
+    for sgn in range(2):
+        for k in range(K):
+            xx[k] = x[k] + steps[1, k] if sgn == 0 else x[k] - steps[1, k]
+        st = _flat_step(m, xx, nd, nk, h, cold_opt, w, rec, True, fp if sgn == 0 else fm)
+        if st != STEP_OK:
+            code = DIFF_MOVES
+    _copy_memory(msize, mbasic, mmodes, w.warm_size, w.warm_basic_z, w.sparse_pair_mode)
+    if code != DIFF_OK:
+        return code
+    worst = 0.0
+    size = floor * np.max(np.abs(steps[1]))
+    for r in range(nout):
+        pred = 0.0
+        for k in range(K):
+            pred += jac[r, k] * steps[1, k]
+        size = max(size, abs(pred))
+        worst = max(worst, abs(0.5 * (fp[r] - fm[r]) - pred))
+    if worst > rtol_mixed * size:
+        return DIFF_MOVES
+    for i in range(nd):
+        for c in range(3):
+            q1[i, c] = base[3 * i + c]
+            v1[i, c] = base[3 * nd + 3 * i + c]
+    for j in range(nk):
+        for c in range(3):
+            qk1[j, c] = base[6 * nd + 3 * j + c]
+    return DIFF_OK
+
+
+@njit(cache=True)
+def _compiled_recording(nsteps, ndyn, nkin):
+    """`make_recording`'s Recording without contacts or rows, made in compiled code."""
+    return Recording(np.zeros((nsteps + 1, ndyn, 3)), np.zeros((nsteps + 1, ndyn, 3)), np.zeros((nsteps + 1, nkin, 3)),
+                     np.zeros((nsteps, NSTAT)), np.zeros(nsteps, np.int64), np.zeros(0, np.int64),
+                     np.zeros((nsteps, 0), np.int64), np.zeros((nsteps, 0)), np.zeros((nsteps, 0, 2)),
+                     np.zeros((nsteps, 0, 2)), np.zeros((nsteps, 0)), np.zeros((nsteps, 0)), np.zeros((nsteps, 0)),
+                     np.zeros((nsteps, 0), np.int64), np.empty((0, 0)), np.empty((0, 0), np.int64), np.empty(0))
+
+
+@njit(cache=True, inline='always')
+def _copy_memory(size_from, basic_from, modes_from, size_to, basic_to, modes_to):
+    for i in range(size_from.shape[0]):
+        size_to[i] = size_from[i]
+        for c in range(basic_from.shape[1]):
+            basic_to[i, c] = basic_from[i, c]
+    for p in range(modes_from.shape[0]):
+        modes_to[p, 0] = modes_from[p, 0]
+        modes_to[p, 1] = modes_from[p, 1]

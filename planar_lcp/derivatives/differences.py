@@ -1,0 +1,120 @@
+"""The step's derivatives by checked central differences of the compiled step: the fast method of `step_derivatives`.
+
+`step_differences` (engine/rollout.py) runs, in one compiled call, the cold step at the state x, then the step at
+x +- eps_k e_k for each of the K inputs, each warm-started on the cold step's final LCP bases: where the contact
+modes are strictly complementary those bases stay certified nearby (`lemke_from_basis`, accepted only as accurate
+as a cold solve), so both sides lie on the smooth piece the bases define and no pivot runs; where a basis does not
+hold (a contact at rest with no tangential load, which any push makes stick) the perturbed step pivots from it as
+any step does. Their central differences approximate the derivatives to about 1e-6 of the Jacobian's scale
+(truncation eps^2 f''', and round-off of the gaps over the step size, eps = DIFF_STEP), measured against the dual
+numbers in tests/derivatives/test_differences.py and docs/method.md, "Derivatives of the step".
+
+They stand for the step's derivatives only where all of these hold, else `checked_differences` returns the reason
+and `step_derivatives` runs the dual numbers of forward.py instead (which also say what makes a state degenerate):
+
+- the cold step succeeded, and every perturbed step has its contacts, islands, active-set re-solves and LCP sizes,
+  with certified answers (a change is a switch of the step's discrete structure), and its fixed-point iteration
+  count, which changes the answer by up to the iteration's tolerance, unless that is below DIFF_FP_RATIO of the
+  differences' step;
+- the one-sided differences from the cold answer agree: a kink of the step's rows, of the contact geometry or of
+  the contact modes at x shows as an O(1) difference, and a warm-started answer that differs from the cold one at x
+  as an offset of both;
+- the cold steps at x +- d, d a fixed direction moving every input at once (steps free to pick any basis), move as
+  the differences predict: a mode the cold solves leave at once shows there.
+"""
+
+import numpy as np
+
+from planar_lcp.engine.layout import NSTAT
+
+#: the differences' step along input k: DIFF_STEP * max(1, |x_k|) (m, rad, m/s, rad/s). Truncation (eps^2 times the
+#: third derivative) and the round-off of gaps of metre-sized poses over it balance near 1e-6; a friction impulse
+#: the step needs for such a change is far above the certified solves' tolerance of zero
+DIFF_STEP = 2.0 ** -20
+#: the one-sided differences may differ by this much, relative to their column's largest entry (at least
+#: DIFF_FLOOR): eps times the second derivative on a smooth piece, O(1) across a kink
+DIFF_KINK_RTOL = 1e-3
+DIFF_FLOOR = 1e-3
+#: the cold steps along the mixed direction agree with the differences' prediction to this, relative to the
+#: prediction's size (at least DIFF_FLOOR times the direction's largest step)
+DIFF_MIXED_RTOL = 1e-4
+#: the fixed-point form's iteration count may differ between the perturbed steps when its tolerance (the largest
+#: pose change it stops at, by which two counts' answers differ) is below this fraction of the differences' step:
+#: an error of at most 1e-7 in the differences of the poses (1e-7 / h in the velocities')
+DIFF_FP_RATIO = 1e-7
+
+_settings = {}
+
+
+def checked_differences(sim, q, v, qk, vk):
+    """((q+, v+, qk+), status, jacobian (6 ndyn + 3 nkin, 6 ndyn + 6 nkin)) of the cold step by its checked
+    differences and "", where they stand for its derivatives (module docstring); else (None, why). The state's
+    arrays: float64, C-contiguous, of the model's shapes."""
+    from planar_lcp.engine.rollout import DIFF_OK, DIFF_REASONS, DIFF_SPACE, step_differences
+    nd, nk = len(q), len(qk)
+    # the perturbed steps' options (the warm start on) and the checks' tolerances, made once per simulator's options
+    got = _settings.get(id(sim.kopt))
+    if got is None or got[0] is not sim.kopt:
+        fp_free = sim.options.fixed_point_tol <= DIFF_FP_RATIO * DIFF_STEP
+        got = (sim.kopt, sim.kopt._replace(warm_start=True),
+               np.array([DIFF_STEP, DIFF_KINK_RTOL, DIFF_MIXED_RTOL, DIFF_FLOOR, float(fp_free)]))
+        _settings.clear()
+        _settings[id(sim.kopt)] = got
+    _, warm_opt, tols = got
+    jac = np.empty((6 * nd + 3 * nk, 6 * nd + 6 * nk))
+    q1, v1, qk1 = np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3))
+    stats = np.empty(NSTAT)
+    sim._last_step_out = None           # the next `step` starts cold
+    while True:
+        code = step_differences(sim.kmodel, sim.h, sim.kopt, warm_opt, sim.kwork, q, v, qk, vk, tols, jac, q1, v1,
+                                qk1, stats)
+        if code != DIFF_SPACE:
+            break
+        sim._grow_dense()
+    sim.stats[:] = stats
+    if code != DIFF_OK:
+        return None, DIFF_REASONS[code]
+    return ((q1, v1, qk1), 0, jac), ""
+
+
+def param_differences(sim, q, v, qk, vk, params, base):
+    """The Jacobian's columns of the scene parameters `params` ((6 ndyn + 3 nkin, len(params)), "") by central
+    differences of the cold step with the model's arrays compiled at each parameter's lo and hi (`param_compiles`,
+    written into the simulator's model in place and put back), after `checked_differences` gave the state's columns
+    and the cold step's (q+, v+, qk+), base (its stats in sim.stats); or (None, why) where its checks fail (the same as the state's: the
+    step's structure on both sides, the one-sided differences)."""
+    from planar_lcp.derivatives import param_compiles
+    from planar_lcp.engine.rollout import DIFF_PER_SOLVE, DIFF_SAME, DIFF_ZERO
+    from planar_lcp.engine.layout import Stat
+    compiles, notes = param_compiles(sim.model, params)
+    if notes:
+        return None, "a parameter at 0 has a one-sided derivative only"
+    arrays = sim.model.arrays
+    base_stats = sim.stats.copy()
+    same = np.concatenate([DIFF_SAME, DIFF_PER_SOLVE, [Stat.FP_ITERATIONS]])
+    x1 = np.concatenate([a.ravel() for a in base])
+    cols = np.empty((len(x1), len(params)))
+    for i, (name, lo, hi, changed) in enumerate(compiles):
+        p0 = 0.5 * (lo + hi)
+        outs = []
+        try:
+            for side in (0, 1):
+                for fname, pair in changed.items():
+                    getattr(arrays, fname)[...] = pair[side]
+                sim.reset_warm_start()
+                q1, v1, qk1, st = sim.step(q, v, qk, vk)
+                if st != 0 or np.any(sim.stats[same] != base_stats[same]) or np.any(sim.stats[DIFF_ZERO] != 0.0):
+                    return None, f"the step's structure changes with {name}"
+                outs.append(np.concatenate((q1.ravel(), v1.ravel(), qk1.ravel())))
+        finally:
+            for fname, pair in changed.items():
+                getattr(arrays, fname)[...] = pair[2]
+            sim.reset_warm_start()
+        fp, fm = outs
+        cols[:, i] = (fp - fm) / (hi - lo)
+        right, left = (fp - x1) / (hi - p0), (x1 - fm) / (p0 - lo)
+        big = max(np.max(np.abs(right)), np.max(np.abs(left)), DIFF_FLOOR)
+        if np.max(np.abs(right - left)) > DIFF_KINK_RTOL * big:
+            return None, f"the one-sided differences along {name} differ (a kink at the state)"
+    sim.stats[:] = base_stats
+    return cols, ""

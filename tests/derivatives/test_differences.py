@@ -1,0 +1,145 @@
+"""The step's checked differences (step_derivatives(method="differences"), planar_lcp/derivatives/differences.py)
+against the dual numbers, the exact oracle: on the states of the shipped scenes in every formulation and of seeded
+random scenes, the differences either stand for the derivatives (and then agree with the dual numbers' to
+AGREE_RTOL of the Jacobian's scale) or give way to them with a reason; degenerate states give way; parameters,
+rollouts and the simulator's state after them."""
+
+import numpy as np
+import pytest
+
+from planar_lcp.derivatives import step_derivatives
+from planar_lcp.model import compile_scene
+from planar_lcp.sim import SimOptions, Simulator
+from planar_lcp.spec.scene import load_scene
+
+from derivative_scenes import (SHIPPED, disk_at_wall, options, random_pushing_scene, random_vertical_scene,
+                               states_along)
+
+pytestmark = pytest.mark.filterwarnings("ignore::RuntimeWarning")
+
+#: the differences' largest difference from the dual numbers' derivatives, relative to the largest entry of its row
+#: or column (at least FLOOR): the differences' truncation and round-off (differences.py) with a margin of 5
+AGREE_RTOL = 1e-5
+FLOOR = 1e-4
+
+
+def relative_error(d, ref):
+    A = np.abs(ref.jacobian)
+    scale = np.maximum(np.maximum(A.max(axis=0)[None, :], A.max(axis=1)[:, None]), FLOOR)
+    return float(np.max(np.abs(d.jacobian - ref.jacobian) / scale))
+
+
+def check(sim, states, params=()):
+    """(states whose differences stood, states the dual numbers call exact); asserts the agreement."""
+    used = exact = 0
+    for q, v, qk, vk in states:
+        ref = step_derivatives(sim, q, v, qk, vk, params)
+        d = step_derivatives(sim, q, v, qk, vk, params, method="differences")
+        # the same cold step, bit for bit
+        assert np.array_equal(d.q, ref.q) and np.array_equal(d.v, ref.v) and np.array_equal(d.qk, ref.qk)
+        assert d.status == ref.status
+        exact += ref.exact
+        if d.method == "dual":
+            assert d.fallback, "a differences request that took the dual numbers says why"
+            assert np.array_equal(d.jacobian, ref.jacobian) and d.exact == ref.exact
+            continue
+        assert d.method == "differences" and d.fallback == "" and d.exact
+        used += 1
+        if ref.exact:
+            assert relative_error(d, ref) <= AGREE_RTOL
+    return used, exact
+
+
+@pytest.mark.parametrize("formulation", ["position", "fixed_point", "velocity"])
+def test_shipped_scenes_agree_with_the_dual_numbers(formulation):
+    used = exact = 0
+    for name in SHIPPED:
+        sim = Simulator(compile_scene(load_scene(name)), options(formulation))
+        u, e = check(sim, states_along(sim, *sim.initial_state(), 40, 8))
+        used, exact = used + u, exact + e
+    # the differences serve most states (the rest: contact switches nearby, which the dual numbers analyse)
+    assert used >= 0.6 * exact, f"differences used on {used} states of {exact} exact ones"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("formulation", ["position", "fixed_point"])
+def test_random_scenes_agree_with_the_dual_numbers(formulation):
+    used = exact = 0
+    for seed in range(14):
+        for scene in (random_vertical_scene(seed), random_pushing_scene(seed)):
+            sim = Simulator(compile_scene(scene), options(formulation))
+            u, e = check(sim, states_along(sim, *sim.initial_state(), 60, 15))
+            used, exact = used + u, exact + e
+    assert used >= 0.6 * exact, f"differences used on {used} states of {exact} exact ones"
+
+
+@pytest.mark.parametrize("name, params", [("block_on_incline", ["world.friction"]),
+                                          ("box_push", ["world.friction", "bodies.box.mass"]),
+                                          ("bouncing_disk", ["world.restitution"])])
+def test_parameter_columns_agree_with_the_dual_numbers(name, params):
+    sim = Simulator(compile_scene(load_scene(name)), SimOptions())
+    used, _ = check(sim, states_along(sim, *sim.initial_state(), 40, 8), params)
+    assert used >= 3
+
+
+def test_the_incline_block_slides_with_dv_dmu_minus_g_cos_a_h():
+    """A block sliding down a 30 degree incline: d(v+ along the slope)/d(mu) = g cos(a) h, against the slide."""
+    sim = Simulator(compile_scene(load_scene("block_on_incline")), SimOptions())
+    q, v, qk, vk = sim.initial_state()
+    down = np.array([-np.cos(np.radians(30)), -np.sin(np.radians(30))])
+    v = v.copy()
+    v[0, :2] = 0.3 * down
+    d = step_derivatives(sim, q, v, qk, vk, ["world.friction"], method="differences")
+    assert d.method == "differences"
+    g = 9.81
+    assert d.dv_dp[:2, 0] @ down == pytest.approx(-g * np.cos(np.radians(30)) * sim.h, rel=1e-6)
+
+
+def test_a_switch_of_modes_gives_way_to_the_dual_numbers():
+    """A disk touching a wall without pressing it (z = 0 and w = 0): v+_x = min(vx, -dx/h) has a kink there; the
+    differences see it and give way, and the dual numbers name the degenerate contact."""
+    sim = disk_at_wall()
+    q, v, qk, vk = sim.initial_state()
+    d = step_derivatives(sim, q, v, qk, vk, method="differences")
+    assert d.method == "dual" and d.fallback
+    assert not d.exact and d.degenerate
+
+
+def test_pgs_gives_way_to_the_dual_numbers():
+    sim = Simulator(compile_scene(load_scene("falling_rod")), SimOptions(solver="pgs"))
+    d = step_derivatives(sim, *sim.initial_state(), method="differences")
+    assert d.method == "dual" and "PGS" in d.fallback
+
+
+def test_rollout_derivatives_by_differences_agree_with_the_dual_numbers():
+    sim = Simulator(compile_scene(load_scene("box_push")), SimOptions())
+    q, v, qk, vk = sim.initial_state()
+    ref = sim.rollout_derivatives(q, v, qk, vk[None], 30, ["world.friction"])
+    d = sim.rollout_derivatives(q, v, qk, vk[None], 30, ["world.friction"], method="differences")
+    assert np.array_equal(d.q, ref.q) and np.array_equal(d.v, ref.v)
+    assert len(d.fallbacks) < 30, "the differences served some of the steps"
+    for got, want in ((d.dx_dx0, ref.dx_dx0), (d.dx_dp, ref.dx_dp), (d.dx_dvk, ref.dx_dvk)):
+        scale = max(np.max(np.abs(want)), 1.0)
+        assert np.max(np.abs(got - want)) <= 1e-5 * scale
+
+
+def test_the_simulator_steps_on_as_after_a_cold_step():
+    """After the differences (their perturbed steps warm-started on the simulator's memory) a `step` from anywhere
+    is the cold step, the model's parameter arrays are as compiled, and the stats are the cold step's."""
+    sim = Simulator(compile_scene(load_scene("box_push")), SimOptions())
+    fresh = Simulator(compile_scene(load_scene("box_push")), SimOptions())
+    q, v, qk, vk = states_along(sim, *sim.initial_state(), 40, 20)[1]
+    arrays = [a.copy() for a in sim.model.arrays if isinstance(a, np.ndarray)]
+    d = sim.step_derivatives(q, v, qk, vk, ["world.friction", "bodies.box.mass"], method="differences")
+    assert d.method == "differences"
+    assert all(np.array_equal(a, b) for a, b in zip(arrays, (a for a in sim.model.arrays
+                                                               if isinstance(a, np.ndarray))))
+    got, want = sim.step(q, v, qk, vk), fresh.step(q, v, qk, vk)
+    assert all(np.array_equal(a, b) for a, b in zip(got, want))
+    assert np.array_equal(sim.stats, fresh.stats)
+
+
+def test_an_unknown_method_is_refused():
+    sim = Simulator(compile_scene(load_scene("falling_rod")), SimOptions())
+    with pytest.raises(ValueError, match="method must be one of dual, differences, got 'fd'"):
+        step_derivatives(sim, *sim.initial_state(), method="fd")
