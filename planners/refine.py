@@ -66,7 +66,8 @@ def _run_inputs(tm, x0, controls, steps):
 def object_jacobian(tm, sim, x0, controls, steps):
     """The object's final state and its Jacobian G with respect to every segment's pusher vx, vy, by
     `rollout_derivatives` over the plan's run: rows the body frame's x, y (the goal's position is the frame's), the
-    angle, and the velocities vx, vy, omega of the centre of mass; and whether every step's derivatives were exact."""
+    angle, and the velocities vx, vy, omega of the centre of mass; whether every step's derivatives were exact; and
+    the run's steps and those whose derivatives the dual numbers gave (the checked differences gave way)."""
     from planar_lcp.derivatives import rollout_derivatives
     from planar_lcp.frames import frame_state
     q, v, qk, vk, segment = _run_inputs(tm, x0, controls, steps)
@@ -82,7 +83,7 @@ def object_jacobian(tm, sim, x0, controls, steps):
     # the frame's origin is the COM less R(angle) com_local: a column's pose rates turn into the frame's as a velocity
     # does (planar_lcp.frames)
     G[:3] = frame_state(r.q[-1, d][None], G[:3].T[:, None, :], tm.com_local1)[1][:, 0, :].T
-    return _coords(tm, np.concatenate([r.q[-1, d], r.v[-1, d]])), G, r.exact
+    return _coords(tm, np.concatenate([r.q[-1, d], r.v[-1, d]])), G, r.exact, (len(vk), len(r.fallbacks))
 
 
 def _coords(tm, x):
@@ -149,10 +150,13 @@ def refine(plan, iterations=10, max_change=MAX_CHANGE, halvings=HALVINGS):
     accepted = tried = replays = 0
     last_miss = None
     all_exact = True
+    derivative_steps = dual_steps = 0
     stopped_by = "iterations"
     while accepted < iterations:
-        final, G, exact = object_jacobian(tm, sim, x0, U, steps)
+        final, G, exact, (n_steps, n_dual) = object_jacobian(tm, sim, x0, U, steps)
         all_exact &= bool(exact)
+        derivative_steps += n_steps
+        dual_steps += n_dual
         if not np.all(np.isfinite(G)):
             stopped_by = "derivatives not finite"
             break
@@ -203,6 +207,7 @@ def refine(plan, iterations=10, max_change=MAX_CHANGE, halvings=HALVINGS):
     data.update(controls=U.tolist(), states=bound.tolist(), goal=tm.goal_report(bound[-1]))
     data.update(costs(tm, steps, dense))
     data["refine"] = dict(objective="pusher_path_length", before=L0, after=L, accepted=accepted, tried=tried,
-                          replays=replays, stopped_by=stopped_by, exact_derivatives=all_exact, last_miss=last_miss,
+                          replays=replays, stopped_by=stopped_by, exact_derivatives=all_exact,
+                          derivative_steps=derivative_steps, dual_steps=dual_steps, last_miss=last_miss,
                           time=time.perf_counter() - t0, cpu_time=time.process_time() - c0)
     return Plan(data, plan.task, tm=tm, task_file=plan.task_file)

@@ -22,20 +22,20 @@ TASKS = {"push_box": (5, 15000), "tip_box": (7, 5000), "push_clutter": (1, 9000)
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--tasks", nargs="+", choices=list(TASKS), default=["push_box", "tip_box"],
-                   help="default push_box tip_box: the refinement of push_clutter's and push_table's plans (5 and 13 "
-                        "dynamic bodies, hundreds of steps) runs the reference derivatives for tens of minutes")
+                   help="default push_box tip_box: push_clutter's and push_table's (5 and 13 dynamic bodies, "
+                        "hundreds of steps) are planned first, for minutes")
     p.add_argument("--iterations", type=int, default=10, help="refinement steps at most (default 10)")
     a = p.parse_args(argv)
     print("| task | controls | steps | pusher path after shortening (m) | after refining (m) | change | steps "
-          "accepted / tried | stopped by | derivatives exact | refine CPU s |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "accepted / tried | stopped by | derivatives exact | steps by dual numbers | refine CPU s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     failed = False
     misses = []
     for name in a.tasks:
         seed, budget = TASKS[name]
         plan = planners.plan(name, iterations=budget, seed=seed)
         if not plan.exact:
-            print(f"| {name} | no exact plan within {budget} iterations (seed {seed}) | | | | | | | | |")
+            print(f"| {name} | no exact plan within {budget} iterations (seed {seed}) | | | | | | | | | |")
             failed = True
             continue
         r = planners.refine(plan, iterations=a.iterations)
@@ -45,7 +45,7 @@ def main(argv=None):
         print(f"| {name} | {len(plan.controls)} | {int(plan.steps.sum())} | {info['before']:.4f} | "
               f"{info['after']:.4f} | {100 * (info['after'] / info['before'] - 1):+.1f} % | {info['accepted']} / "
               f"{info['tried']} | {info['stopped_by']} | {'yes' if info['exact_derivatives'] else 'no'} | "
-              f"{info['cpu_time']:.1f} |")
+              f"{info['dual_steps']} of {info['derivative_steps']} | {info['cpu_time']:.1f} |")
         if info["last_miss"] is not None:
             miss = info["last_miss"]
             misses.append(f"{name}: a change of {miss['control_change']:.1e} m/s in the controls moved the goal's "

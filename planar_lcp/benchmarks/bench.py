@@ -1029,12 +1029,14 @@ def central_differences(sim, q, v, qk, vk, step=DIFFERENCE_STEP):
 
 def bench_derivatives(scenes=DERIVATIVE_SCENES, rounds=ROUNDS, min_round_s=MIN_ROUND_S, mujoco=True, progress=None):
     """The cost of all the Jacobians of one step, in the same process and alternating rounds of thread CPU time
-    (`alternate_rounds`): `Simulator.step_derivatives` and central differences of `Simulator.step` (2 n + 1 steps for
-    n inputs) against one `Simulator.step`, all cold (no warm start), at `derivative_state`; and where MuJoCo
-    installs (`mujoco`), its `mjd_transitionFD` (centred, eps 1e-6) against its `mj_step` on the scene's MuJoCo model
-    (planar_lcp.bridges.mujoco) at the same poses and velocities. Each ratio is the median over rounds of the two
-    times measured back to back, with its spread; `derivatives_steps` is the derivatives' cost in steps.
-    progress: called with a line as each scene starts."""
+    (`alternate_rounds`), at `derivative_state`, all cold (no warm start): `Simulator.step_derivatives` by its checked
+    differences ("derivatives": method "differences"; `method` says whether they stood at the state) and by the dual
+    numbers ("dual"), and central differences of `Simulator.step` in Python ("central": 2 n + 1 steps for n
+    inputs), each against one `Simulator.step`; and where MuJoCo installs (`mujoco`), its `mjd_transitionFD`
+    (centred, eps 1e-6) against its `mj_step` on the scene's MuJoCo model (planar_lcp.bridges.mujoco) at the same
+    poses and velocities. Each ratio is the median over rounds of the two times measured back to back, with its
+    spread; `derivatives_steps` is the derivatives' cost in steps. progress: called with a line as each scene
+    starts."""
     from planar_lcp.model import compile_scene
     from planar_lcp.sim import SimOptions, Simulator
     from planar_lcp.spec.scene import load_scene
@@ -1051,29 +1053,35 @@ def bench_derivatives(scenes=DERIVATIVE_SCENES, rounds=ROUNDS, min_round_s=MIN_R
             continue
         q, v, qk, vk, t = at
         d = sim.step_derivatives(q, v, qk, vk)
+        checked = sim.step_derivatives(q, v, qk, vk, method="differences")
 
         def one_step(sim=sim, q=q, v=v, qk=qk, vk=vk):
             sim.reset_warm_start()
             sim.step(q, v, qk, vk)
 
         runners = dict(step=one_step,
-                       derivatives=lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.step_derivatives(q, v, qk, vk),
-                       differences=lambda sim=sim, q=q, v=v, qk=qk, vk=vk: central_differences(sim, q, v, qk, vk))
+                       derivatives=lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.step_derivatives(
+                           q, v, qk, vk, method="differences"),
+                       dual=lambda sim=sim, q=q, v=v, qk=qk, vk=vk: sim.step_derivatives(q, v, qk, vk),
+                       central=lambda sim=sim, q=q, v=v, qk=qk, vk=vk: central_differences(sim, q, v, qk, vk))
         peer = _mujoco_runners(sc, options.contact_margin, q, v, qk, vk) if mujoco else None
         if peer is not None and "runners" in peer:
             runners.update(peer["runners"])
         m = alternate_rounds(runners, rounds=rounds, min_round_s=min_round_s)
         per = m["per_unit"]
         row = dict(scene=name, t=float(t), inputs=int(d.jacobian.shape[1]), exact=bool(d.exact),
+                   method=checked.method, fallback=checked.fallback,
                    contacts=_contacts_at(sim, q, v, qk, vk),
                    step_us=float(np.median(per["step"])) * 1e6,
                    derivatives_us=float(np.median(per["derivatives"])) * 1e6,
-                   differences_us=float(np.median(per["differences"])) * 1e6,
+                   dual_us=float(np.median(per["dual"])) * 1e6,
+                   central_us=float(np.median(per["central"])) * 1e6,
                    rounds=rounds, runs_per_round={k: int(x) for k, x in m["reps"].items()},
                    other_threads_cpu_share=m["other_threads_cpu_share"])
         row.update(_ratio_fields("derivatives_steps", ratio_stats(per["derivatives"], per["step"])))
-        row.update(_ratio_fields("differences_steps", ratio_stats(per["differences"], per["step"])))
-        row.update(_ratio_fields("derivatives_vs_differences", ratio_stats(per["derivatives"], per["differences"])))
+        row.update(_ratio_fields("dual_steps", ratio_stats(per["dual"], per["step"])))
+        row.update(_ratio_fields("central_steps", ratio_stats(per["central"], per["step"])))
+        row.update(_ratio_fields("derivatives_vs_central", ratio_stats(per["derivatives"], per["central"])))
         if peer is not None and "unmapped" in peer:
             row["mujoco_unmapped"] = peer["unmapped"]
         elif peer is not None:
@@ -1134,11 +1142,12 @@ def _count(n, noun):
 def format_derivatives_table(rows):
     """The markdown table of `bench_derivatives`' rows."""
     lines = ["| scene | state | inputs | exact | step µs | derivatives µs | in steps median [min-max] | "
-             "central differences in steps | MuJoCo mjd_transitionFD in its steps | derivatives / mjd_transitionFD |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "dual numbers in steps | central differences in steps | MuJoCo mjd_transitionFD in its steps | "
+             "derivatives / mjd_transitionFD |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if "skipped" in r:
-            lines.append(f"| {r['scene']} | {r['skipped']} | | | | | | | | |")
+            lines.append(f"| {r['scene']} | {r['skipped']} | | | | | | | | | |")
             continue
         mj = "MuJoCo not installed", "-"
         if "mujoco_unmapped" in r:
@@ -1146,10 +1155,11 @@ def format_derivatives_table(rows):
         elif "mujoco_fd_us" in r:
             mj = (f"{_fmt_ratio(r, 'mujoco_fd_steps')} ({r['mujoco_inputs']} inputs, {_count(r['mujoco_contacts'], 'contact')})",
                   _fmt_ratio(r, "derivatives_vs_mujoco_fd"))
+        how = "" if r["method"] == "differences" else f" (dual numbers: {r['fallback']})"
         lines.append(f"| {r['scene']} | t = {r['t']:.3g} s, {_count(r['contacts'], 'contact')} | {r['inputs']} | "
-                     f"{'yes' if r['exact'] else 'no'} | {_fmt_us(r['step_us'])} | {_fmt_us(r['derivatives_us'])} | "
-                     f"{_fmt_ratio(r, 'derivatives_steps')} | {_fmt_ratio(r, 'differences_steps')} | {mj[0]} | "
-                     f"{mj[1]} |")
+                     f"{'yes' if r['exact'] else 'no'} | {_fmt_us(r['step_us'])} | {_fmt_us(r['derivatives_us'])}{how} | "
+                     f"{_fmt_ratio(r, 'derivatives_steps')} | {_fmt_ratio(r, 'dual_steps')} | "
+                     f"{_fmt_ratio(r, 'central_steps')} | {mj[0]} | {mj[1]} |")
     return "\n".join(lines)
 
 

@@ -508,7 +508,9 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
             from planar_lcp.derivatives.differences import checked_differences, param_differences
             got, fallback = checked_differences(sim, q, v, qk, vk)
             if got is not None and params:
-                Jp, fallback = param_differences(sim, q, v, qk, vk, params, got[0])
+                compiles, notes = param_compiles(model, params)
+                Jp, fallback = ((None, "a parameter at 0 has a one-sided derivative only") if notes else
+                                param_differences(sim, q, v, qk, vk, compiles, got[0]))
                 got = None if Jp is None else (got[0], got[1], np.hstack([got[2], Jp]))
             if got is not None:
                 (q1, v1, qk1), status, J = got

@@ -64,36 +64,37 @@ def checked_differences(sim, q, v, qk, vk):
     jac = np.empty((6 * nd + 3 * nk, 6 * nd + 6 * nk))
     q1, v1, qk1 = np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3))
     stats = np.empty(NSTAT)
-    sim._last_step_out = None           # the next `step` starts cold
-    while True:
+    sim.reset_warm_start()              # the next `step` starts cold, as after any cold step
+    code = step_differences(sim.kmodel, sim.h, sim.kopt, warm_opt, sim.kwork, q, v, qk, vk, tols, jac, q1, v1, qk1,
+                            stats)
+    if code == DIFF_SPACE:
+        # an island larger than the dense buffers: a step grows them (as often as it needs), then again
+        sim.step(q, v, qk, vk)
+        sim.reset_warm_start()
         code = step_differences(sim.kmodel, sim.h, sim.kopt, warm_opt, sim.kwork, q, v, qk, vk, tols, jac, q1, v1,
                                 qk1, stats)
-        if code != DIFF_SPACE:
-            break
-        sim._grow_dense()
+        if code == DIFF_SPACE:
+            return None, "a step nearby needs larger dense buffers than the state's"
     sim.stats[:] = stats
     if code != DIFF_OK:
         return None, DIFF_REASONS[code]
     return ((q1, v1, qk1), 0, jac), ""
 
 
-def param_differences(sim, q, v, qk, vk, params, base):
-    """The Jacobian's columns of the scene parameters `params` ((6 ndyn + 3 nkin, len(params)), "") by central
-    differences of the cold step with the model's arrays compiled at each parameter's lo and hi (`param_compiles`,
-    written into the simulator's model in place and put back), after `checked_differences` gave the state's columns
-    and the cold step's (q+, v+, qk+), base (its stats in sim.stats); or (None, why) where its checks fail (the same as the state's: the
-    step's structure on both sides, the one-sided differences)."""
-    from planar_lcp.derivatives import param_compiles
-    from planar_lcp.engine.rollout import DIFF_PER_SOLVE, DIFF_SAME, DIFF_ZERO
+def param_differences(sim, q, v, qk, vk, compiles, base):
+    """The Jacobian's columns of scene parameters ((6 ndyn + 3 nkin, len(compiles)), "") by central differences of
+    the cold step with the model's arrays compiled at each parameter's lo and hi (compiles: `param_compiles`' list
+    of (name, lo, hi, {field: (array at hi, array at lo, array as compiled)}), written into the simulator's model in
+    place and put back), after `checked_differences` gave the state's columns and the cold step's (q+, v+, qk+),
+    base (its stats in sim.stats); or (None, why) where its checks fail (the same as the state's: the step's
+    structure on both sides, the one-sided differences)."""
     from planar_lcp.engine.layout import Stat
-    compiles, notes = param_compiles(sim.model, params)
-    if notes:
-        return None, "a parameter at 0 has a one-sided derivative only"
+    from planar_lcp.engine.rollout import DIFF_PER_SOLVE, DIFF_SAME, DIFF_ZERO
     arrays = sim.model.arrays
     base_stats = sim.stats.copy()
     same = np.concatenate([DIFF_SAME, DIFF_PER_SOLVE, [Stat.FP_ITERATIONS]])
     x1 = np.concatenate([a.ravel() for a in base])
-    cols = np.empty((len(x1), len(params)))
+    cols = np.empty((len(x1), len(compiles)))
     for i, (name, lo, hi, changed) in enumerate(compiles):
         p0 = 0.5 * (lo + hi)
         outs = []

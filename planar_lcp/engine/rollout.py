@@ -236,11 +236,11 @@ def rollout_pgs(m, run, h, opt, w, rec):
 DIFF_OK = 0
 DIFF_FAILED = 1          # the cold step did not succeed
 DIFF_SPACE = 2           # a step asked for larger dense buffers (w.dense_needed)
-DIFF_STRUCTURE = 3       # a step nearby has other contacts, islands, iterations or re-solves (DIFF_SAME, DIFF_ZERO)
+DIFF_STRUCTURE = 3       # a step nearby failed or has another structure (`_same_structure`)
 DIFF_KINK = 4            # the one-sided differences differ
 DIFF_MOVES = 5           # the cold steps along the mixed direction move otherwise than the Jacobian predicts
 DIFF_REASONS = ("", "the step failed", "",
-                "a step nearby has other contacts, islands, fixed-point iterations or re-solves",
+                "a step nearby failed or has other contacts, islands, fixed-point iterations, re-solves or LCP sizes",
                 "the one-sided differences differ (a kink at the state)",
                 "a cold step nearby moves otherwise than the differences predict")
 
@@ -275,7 +275,7 @@ def _same_structure(stats, other, fp_free):
 
 
 @njit(cache=True)
-def _flat_step(m, x, nd, nk, h, opt, w, rec, cold, f):
+def _step_from_flat(m, x, nd, nk, h, opt, w, rec, cold, f):
     """One step from the flattened inputs x (q, v, qk, vk row-major), cold (the warm-start memory forgotten) or on
     the memory as it is; its (q+, v+, qk+) flattened into f. Returns its status."""
     for i in range(nd):
@@ -310,7 +310,8 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
     (x: q, v, qk, vk flattened row-major; eps_k = tols[0] max(1, |x_k|)), each step warm-started (warm_opt) on the
     cold step's final bases, into jac (6 nd + 3 nk, K); the cold step's state into q1, v1, qk1 and its stats into
     stats. Returns DIFF_OK where the checks of planar_lcp/derivatives/differences.py hold, else the DIFF_* reason.
-    tols: (step, kink, mixed, floor, whether the fixed-point iteration count may differ) of differences.py. The warm-start memory is left as the cold step left it."""
+    tols: (step, kink, mixed, floor, whether the fixed-point iteration count may differ) of differences.py. The
+    warm-start memory is left as the cold step left it."""
     nd, nk = q.shape[0], qk.shape[0]
     K = 6 * nd + 6 * nk
     x = np.empty(K)
@@ -331,7 +332,7 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
     tols = tols[1:]
     nout = base.shape[0]
     rec = _compiled_recording(1, nd, nk)
-    st = _flat_step(m, x, nd, nk, h, cold_opt, w, rec, True, base)
+    st = _step_from_flat(m, x, nd, nk, h, cold_opt, w, rec, True, base)
     for s in range(stats.shape[0]):
         stats[s] = rec.stats[0, s]
     if st == STEP_NEEDS_SPACE:
@@ -348,7 +349,7 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
         for sgn in range(2):
             xx[k] = x[k] + e if sgn == 0 else x[k] - e
             _copy_memory(msize, mbasic, mmodes, w.warm_size, w.warm_basic_z, w.sparse_pair_mode)
-            st = _flat_step(m, xx, nd, nk, h, warm_opt, w, rec, False, fp if sgn == 0 else fm)
+            st = _step_from_flat(m, xx, nd, nk, h, warm_opt, w, rec, False, fp if sgn == 0 else fm)
             if st == STEP_NEEDS_SPACE:
                 code = DIFF_SPACE
             elif st != STEP_OK:
@@ -380,7 +381,7 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
     for sgn in range(2):
         for k in range(K):
             xx[k] = x[k] + steps[1, k] if sgn == 0 else x[k] - steps[1, k]
-        st = _flat_step(m, xx, nd, nk, h, cold_opt, w, rec, True, fp if sgn == 0 else fm)
+        st = _step_from_flat(m, xx, nd, nk, h, cold_opt, w, rec, True, fp if sgn == 0 else fm)
         if st != STEP_OK:
             code = DIFF_MOVES
     _copy_memory(msize, mbasic, mmodes, w.warm_size, w.warm_basic_z, w.sparse_pair_mode)

@@ -402,9 +402,10 @@ def test_bench_lcp_table(corpus_dir):
 
 
 @needs_jit
-def test_the_differences_peer_computes_the_jacobian_step_derivatives_gives():
+def test_the_central_differences_peer_computes_the_jacobian_step_derivatives_gives():
     """The peer `bench derivatives` times is what it says: central differences of the step (2 n + 1 steps) whose
-    Jacobian agrees with `Simulator.step_derivatives` at the bench's state of each default scene (an exact state)."""
+    Jacobian agrees with `Simulator.step_derivatives` at the bench's state of each default scene (an exact state),
+    where the checked differences stand (the method the bench times as "derivatives")."""
     from planar_lcp.model import compile_scene
     from planar_lcp.sim import SimOptions, Simulator
     from planar_lcp.spec.scene import load_scene
@@ -422,6 +423,9 @@ def test_the_differences_peer_computes_the_jacobian_step_derivatives_gives():
         assert len(calls) == 2 * J.shape[1] + 1
         scale = np.maximum(np.max(np.abs(d.jacobian), axis=0), 1.0)
         assert np.max(np.abs(J - d.jacobian) / scale) < 1e-5, name
+        checked = sim.step_derivatives(q, v, qk, vk, method="differences")
+        assert checked.method == "differences", checked.fallback
+        assert np.max(np.abs(checked.jacobian - d.jacobian) / scale) < 1e-5, name
 
 
 @needs_jit
@@ -438,15 +442,16 @@ def test_bench_derivatives_rows_and_table(monkeypatch):
     monkeypatch.setattr(bench, "alternate_rounds", lambda runners, **kw: timed.append(sorted(runners)) or
                         real(runners, **kw))
     rows = bench.bench_derivatives(scenes=("falling_rod", "box_tip"), rounds=2, min_round_s=1e-4)
-    ours = ["derivatives", "differences", "step"]
+    ours = ["central", "derivatives", "dual", "step"]
     assert timed == [sorted(ours + (["mujoco_fd", "mujoco_step"] if has_mujoco else [])), ours]
     rod, tip = rows
     assert rod["scene"] == "falling_rod" and rod["inputs"] == 6 and rod["exact"] and rod["contacts"] >= 1
+    assert rod["method"] == "differences" and rod["fallback"] == ""     # the checked differences stood there
     assert tip["inputs"] == 12                                 # the box's q, v and the finger's qk, vk
     for r in rows:
-        for key in ("derivatives_steps", "differences_steps", "derivatives_vs_differences"):
+        for key in ("derivatives_steps", "dual_steps", "central_steps", "derivatives_vs_central"):
             assert r[key + "_min"] <= r[key] <= r[key + "_max"]
-        assert r["derivatives_us"] > 0 and r["step_us"] > 0 and r["differences_us"] > 0
+        assert r["derivatives_us"] > 0 and r["step_us"] > 0 and r["central_us"] > 0 and r["dual_us"] > 0
     if has_mujoco:
         assert rod["mujoco_inputs"] == 6 and rod["mujoco_contacts"] >= 1          # 2 nv, no actuators
         assert rod["mujoco_fd_steps_min"] <= rod["mujoco_fd_steps"] <= rod["mujoco_fd_steps_max"]
@@ -474,4 +479,4 @@ def test_bench_derivatives_command_writes_its_json(tmp_path):
     assert "| falling_rod |" in r.stdout and f"wrote {out}" in r.stdout
     d = json.loads(out.read_text())["derivatives"]
     assert d["clock"] == "thread_time" and [row["scene"] for row in d["rows"]] == ["falling_rod"]
-    assert {"derivatives_steps", "differences_steps", "derivatives_vs_differences"} <= set(d["rows"][0])
+    assert {"derivatives_steps", "dual_steps", "central_steps", "derivatives_vs_central", "method"} <= set(d["rows"][0])
