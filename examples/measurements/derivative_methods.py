@@ -2,9 +2,9 @@
 the derivative oracles use (docs/method.md, "Derivatives of the step"): 5 states along each shipped scene's run in
 the three formulations and 4 along each of 28 seeded random scenes in the position and fixed-point forms. Printed:
 how many states the differences stood on, by whether the dual numbers call the state exact, the reasons they gave
-way, the kinds of degeneracy the dual numbers name where the differences stood on a state they do not call exact,
+way or call the state not exact (the mixed direction's check), the kinds of degeneracy the dual numbers name where the differences stood on a state they do not call exact,
 and the differences' largest difference from the dual numbers' derivatives, relative to the largest entry of its
-row or column (at least 1e-4), over the exact states they stood on.
+row or column (at least 1e-4), over the states both call exact.
 
     python examples/measurements/derivative_methods.py
 """
@@ -44,8 +44,9 @@ def main():
         for s in states:
             ref = sim.step_derivatives(*s)
             d = sim.step_derivatives(*s, method="differences")
-            counts[(ref.exact, d.method, d.fallback)] += 1
-            if d.method != "differences":
+            why = d.fallback or "; ".join(g.kind for g in d.degenerate)
+            counts[(ref.exact, d.method + ("" if d.exact else ", not exact"), why)] += 1
+            if d.method != "differences" or not d.exact:
                 continue
             if not ref.exact:
                 kinds[", ".join(sorted({g.kind for g in ref.degenerate}))] += 1
@@ -57,13 +58,13 @@ def main():
                 worst, where = err, label
     exact = sum(n for (e, _, _), n in counts.items() if e)
     print(f"{sum(counts.values())} states, {exact} exact by the dual numbers")
-    print("| dual numbers: exact | answered by | why the differences gave way | states |")
+    print("| dual numbers: exact | answered by | why the differences gave way, or are not exact | states |")
     print("|---|---|---|---:|")
     for (e, method, why), n in sorted(counts.items(), key=lambda kv: (not kv[0][0], kv[0][1], kv[0][2])):
         print(f"| {'yes' if e else 'no'} | {method} | {why or '-'} | {n} |")
     for kind, n in kinds.most_common():
-        print(f"differences stood on {n} state(s) the dual numbers call degenerate: {kind}")
-    print(f"largest difference from the dual numbers on the exact states: {worst:.2g} of the row's or column's "
+        print(f"differences exact on {n} state(s) the dual numbers call degenerate: {kind}")
+    print(f"largest difference from the dual numbers where both are exact: {worst:.2g} of the row's or column's "
           f"largest entry ({where})")
 
 

@@ -10,8 +10,9 @@ What compiles, by set:
 - "default": what a run with the default solver reaches: the model's and the work buffers' structs, the contacts of
   one configuration (a scene's start-overlap check, the pymunk bridge), the limit surface's fixed twists, the rollout
   kernel, the checks of a failed step (planar_lcp/infeasibility.py) and `planar_lcp.lemke`.
-- "all" (`planar-lcp warmup`): "default", and the solver "pgs"'s rollout kernel and the kernels the solver "osqp"'s
-  Python pipeline calls (where osqp is installed).
+- "all" (`planar-lcp warmup`): "default", and the solver "pgs"'s rollout kernel, the step's checked differences
+  (`step_derivatives(method="differences")`) and the kernels the solver "osqp"'s Python pipeline calls (where osqp
+  is installed).
 
 A cold run (`Simulator`, `compile_scene`) calls `start_background()`: the process `python -m
 planar_lcp.compilation.kernel_sets`

@@ -76,8 +76,15 @@ def compilation_stages(kernel_set="default"):
         lemke(A, b)
 
     stages = [("structs", structs), ("contacts", contacts), ("step (lemke)", run("lemke")), ("checks", checks)]
+    def differences():
+        # the step's checked differences (step_derivatives(method="differences"): refine, fit by derivatives)
+        model = state["model"]
+        sim = Simulator(model, SimOptions(h=0.01))
+        sim.step_derivatives(model.q0, model.v0, model.qk0, model.vk0, method="differences")
+
     if kernel_set == "all":
         stages.append(("step (pgs)", run("pgs")))
+        stages.append(("derivatives (differences)", differences))
         try:
             import osqp  # noqa: F401
         except ImportError:

@@ -42,7 +42,7 @@ SWITCH_RTOL = 1e-3
 class Degenerate:
     """Why a step is not differentiable at the point (docs/method.md, "Derivatives of the step"): `kind`
     ("complementarity", "tie", "non-unique", "geometry", "switch", "unbounded", "failed", "uncertified", "solver",
-    "parameter"), `where` (the contact, LCP unknown or input, by body names) and `detail`."""
+    "parameter", "mixed"), `where` (the contact, LCP unknown or input, by body names) and `detail`."""
 
     kind: str
     where: str
@@ -509,14 +509,19 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
             got, fallback = checked_differences(sim, q, v, qk, vk)
             if got is not None and params:
                 compiles, notes = param_compiles(model, params)
-                Jp, fallback = ((None, "a parameter at 0 has a one-sided derivative only") if notes else
-                                param_differences(sim, q, v, qk, vk, compiles, got[0]))
+                Jp, why = ((None, "a parameter at 0 has a one-sided derivative only") if notes else
+                           param_differences(sim, q, v, qk, vk, compiles, got[0]))
                 got = None if Jp is None else (got[0], got[1], np.hstack([got[2], Jp]))
+                fallback = why or fallback
             if got is not None:
                 (q1, v1, qk1), status, J = got
+                # a reason with an answer: the mixed direction's check (differences.py), the step not linear here
+                degenerate = (Degenerate("mixed", "the step", fallback + ": each input's differences hold, their "
+                                         "sum does not (the step is not linear in its inputs together)"),
+                              ) if fallback else ()
                 return StepDerivatives(q=q1, v=v1, qk=qk1, status=status, jacobian=J, ndyn=model.ndyn,
-                                       nkin=model.nkin, params=params, jacobian_right=J, jacobian_left=J,
-                                       method="differences")
+                                       nkin=model.nkin, params=params, exact=not degenerate, degenerate=degenerate,
+                                       jacobian_right=J, jacobian_left=J, method="differences")
     nd, nk = model.ndyn, model.nkin
     K = 6 * nd + 6 * nk + len(params)
     m, notes = _model_with_param_derivatives(model, params, 6 * nd + 6 * nk, K)

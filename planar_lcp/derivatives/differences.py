@@ -9,8 +9,11 @@ any step does. Their central differences approximate the derivatives to about 1e
 (truncation eps^2 f''', and round-off of the gaps over the step size, eps = DIFF_STEP), measured against the dual
 numbers in tests/derivatives/test_differences.py and docs/method.md, "Derivatives of the step".
 
-They stand for the step's derivatives only where all of these hold, else `checked_differences` returns the reason
-and `step_derivatives` runs the dual numbers of forward.py instead (which also say what makes a state degenerate):
+They stand for the step's derivatives only where all of these hold; where the first two fail `checked_differences`
+returns the reason and `step_derivatives` runs the dual numbers of forward.py instead (which also say what makes a
+state degenerate); where only the last fails, each input's differences hold but the step is not linear in the
+inputs together (a body at rest on its limit surface: pushed along one input it sticks, along a mixture it creeps),
+and the differences are returned as not exact:
 
 - the cold step succeeded, and every perturbed step has its contacts, islands, active-set re-solves and LCP sizes,
   with certified answers (a change is a switch of the step's discrete structure), and its fixed-point iteration
@@ -48,9 +51,10 @@ _settings = {}
 
 def checked_differences(sim, q, v, qk, vk):
     """((q+, v+, qk+), status, jacobian (6 ndyn + 3 nkin, 6 ndyn + 6 nkin)) of the cold step by its checked
-    differences and "", where they stand for its derivatives (module docstring); else (None, why). The state's
-    arrays: float64, C-contiguous, of the model's shapes."""
-    from planar_lcp.engine.rollout import DIFF_OK, DIFF_REASONS, DIFF_SPACE, step_differences
+    differences and "", where they stand for its derivatives (module docstring); the same and the reason where only
+    the mixed direction's check failed (each input's differences hold, the step is not linear in them together:
+    not differentiable); else (None, why). The state's arrays: float64, C-contiguous, of the model's shapes."""
+    from planar_lcp.engine.rollout import DIFF_MOVES, DIFF_OK, DIFF_REASONS, DIFF_SPACE, step_differences
     nd, nk = len(q), len(qk)
     # the perturbed steps' options (the warm start on) and the checks' tolerances, made once per simulator's options
     got = _settings.get(id(sim.kopt))
@@ -76,6 +80,8 @@ def checked_differences(sim, q, v, qk, vk):
         if code == DIFF_SPACE:
             return None, "a step nearby needs larger dense buffers than the state's"
     sim.stats[:] = stats
+    if code == DIFF_MOVES:
+        return ((q1, v1, qk1), 0, jac), DIFF_REASONS[code]
     if code != DIFF_OK:
         return None, DIFF_REASONS[code]
     return ((q1, v1, qk1), 0, jac), ""

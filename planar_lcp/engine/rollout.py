@@ -238,7 +238,8 @@ DIFF_FAILED = 1          # the cold step did not succeed
 DIFF_SPACE = 2           # a step asked for larger dense buffers (w.dense_needed)
 DIFF_STRUCTURE = 3       # a step nearby failed or has another structure (`_same_structure`)
 DIFF_KINK = 4            # the one-sided differences differ
-DIFF_MOVES = 5           # the cold steps along the mixed direction move otherwise than the Jacobian predicts
+DIFF_MOVES = 5           # the cold steps along the mixed direction move otherwise than the Jacobian predicts (the
+                         # differences are written: each input's holds, their sum does not)
 DIFF_REASONS = ("", "the step failed", "",
                 "a step nearby failed or has other contacts, islands, fixed-point iterations, re-solves or LCP sizes",
                 "the one-sided differences differ (a kink at the state)",
@@ -377,7 +378,8 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
     _copy_memory(msize, mbasic, mmodes, w.warm_size, w.warm_basic_z, w.sparse_pair_mode)
     if code != DIFF_OK:
         return code
-    # the cold steps at x +- d (d = steps[1]) against the Jacobian's prediction J d
+    # the cold steps at x +- d (d = steps[1]) against the Jacobian's prediction J d (DIFF_MOVES: jac and the state
+    # are written, the step is not linear in its inputs there)
     for sgn in range(2):
         for k in range(K):
             xx[k] = x[k] + steps[1, k] if sgn == 0 else x[k] - steps[1, k]
@@ -395,8 +397,7 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
             pred += jac[r, k] * steps[1, k]
         size = max(size, abs(pred))
         worst = max(worst, abs(0.5 * (fp[r] - fm[r]) - pred))
-    if worst > rtol_mixed * size:
-        return DIFF_MOVES
+    code = DIFF_MOVES if worst > rtol_mixed * size else DIFF_OK
     for i in range(nd):
         for c in range(3):
             q1[i, c] = base[3 * i + c]
@@ -404,7 +405,7 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
     for j in range(nk):
         for c in range(3):
             qk1[j, c] = base[6 * nd + 3 * j + c]
-    return DIFF_OK
+    return code
 
 
 @njit(cache=True)

@@ -569,8 +569,8 @@ def test_bench_pile_json(tmp_path):
 @pytest.mark.xdist_group("cold_demo")
 def test_warmup(tmp_path, cold_demo):
     """`planar-lcp warmup` on what the demo left (a copy of conftest.cold_demo's cache), one line per stage; then runs
-    of every solver (lemke, pgs, osqp) and formulation and `planar_lcp.lemke` compile nothing, and neither does a
-    second warmup."""
+    of every solver (lemke, pgs, osqp) and formulation, `planar_lcp.lemke` and the step's checked differences
+    compile nothing, and neither does a second warmup."""
     import shutil
     cache = tmp_path / "cache"
     shutil.copytree(cold_demo[2], cache)
@@ -588,6 +588,11 @@ def test_warmup(tmp_path, cold_demo):
                 for name in ("falling_rod", "box_push", "four_disks"):
                     simulate(name, t_end=0.05, solver=solver, formulation=formulation, on_failure="record")
         lemke(np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([-5.0, -6.0]))
+        from planar_lcp import SimOptions, Simulator
+        from planar_lcp.model import compile_scene
+        from planar_lcp.spec.scene import load_scene
+        sim = Simulator(compile_scene(load_scene("box_push")), SimOptions())
+        sim.step_derivatives(*sim.initial_state(), method="differences")
         print(json.dumps(compiled))
     """), cache)
     assert compiled == [], sorted(set(compiled))
