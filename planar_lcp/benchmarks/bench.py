@@ -1030,7 +1030,8 @@ def central_differences(sim, q, v, qk, vk, step=DIFFERENCE_STEP):
 def bench_derivatives(scenes=DERIVATIVE_SCENES, rounds=ROUNDS, min_round_s=MIN_ROUND_S, mujoco=True, progress=None):
     """The cost of all the Jacobians of one step, in the same process and alternating rounds of thread CPU time
     (`alternate_rounds`), at `derivative_state`, all cold (no warm start): `Simulator.step_derivatives` by its checked
-    differences ("derivatives": method "differences"; `method` says whether they stood at the state) and by the dual
+    differences ("derivatives": method "differences"; `method` says whether they answered at the state,
+    `differences_exact` whether they are exact there) and by the dual
     numbers ("dual"), and central differences of `Simulator.step` in Python ("central": 2 n + 1 steps for n
     inputs), each against one `Simulator.step`; and where MuJoCo installs (`mujoco`), its `mjd_transitionFD`
     (centred, eps 1e-6) against its `mj_step` on the scene's MuJoCo model (planar_lcp.bridges.mujoco) at the same
@@ -1070,7 +1071,7 @@ def bench_derivatives(scenes=DERIVATIVE_SCENES, rounds=ROUNDS, min_round_s=MIN_R
         m = alternate_rounds(runners, rounds=rounds, min_round_s=min_round_s)
         per = m["per_unit"]
         row = dict(scene=name, t=float(t), inputs=int(d.jacobian.shape[1]), exact=bool(d.exact),
-                   method=checked.method, fallback=checked.fallback,
+                   method=checked.method, fallback=checked.fallback, differences_exact=bool(checked.exact),
                    contacts=_contacts_at(sim, q, v, qk, vk),
                    step_us=float(np.median(per["step"])) * 1e6,
                    derivatives_us=float(np.median(per["derivatives"])) * 1e6,

@@ -446,7 +446,7 @@ def test_bench_derivatives_rows_and_table(monkeypatch):
     assert timed == [sorted(ours + (["mujoco_fd", "mujoco_step"] if has_mujoco else [])), ours]
     rod, tip = rows
     assert rod["scene"] == "falling_rod" and rod["inputs"] == 6 and rod["exact"] and rod["contacts"] >= 1
-    assert rod["method"] == "differences" and rod["fallback"] == ""     # the checked differences stood there
+    assert rod["method"] == "differences" and rod["fallback"] == "" and rod["differences_exact"]
     assert tip["inputs"] == 12                                 # the box's q, v and the finger's qk, vk
     for r in rows:
         for key in ("derivatives_steps", "dual_steps", "central_steps", "derivatives_vs_central"):
