@@ -3,8 +3,10 @@ CPU time, the least of 5 repetitions. The stages overlap: "contacts + islands" i
 re-centring, "island solves" the assembly.
 
 Used for docs/performance.md:   python examples/measurements/profile_step_stages.py
+(--scenes NAME ... and --n N, the steps of each timed loop, for a shorter run)
 """
 
+import argparse
 import time
 
 import numpy as np
@@ -99,12 +101,26 @@ def profile(name, at_step, n=20000, warm=False):
     return res, int(st[Stat.LCP_SIZE])
 
 
-print("| scene (state) | warm start | LCP size | whole step (µs) | contacts + islands | limit-surface re-centring | "
-      "assembly | island solves (assembly + Lemke) | end-of-step check |")
-print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
-for name, at in (("falling_rod", 300), ("box_push", 100), ("push_t", 100)):
-    for warm in (False, True):
-        r, n = profile(name, at, warm=warm)
-        print(f"| {name} (step {at}) | {'yes' if warm else 'no'} | {n} | {r['whole step']:.2f} | "
-              f"{r['contacts + islands']:.2f} | {r['limit-surface re-centring']:.2f} | {r['assembly']:.2f} | "
-              f"{r['island solves (assembly + Lemke)']:.2f} | {r['end-of-step check']:.2f} |")
+#: the scenes profiled and the step of their run at which
+STATES = {"falling_rod": 300, "box_push": 100, "push_t": 100}
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--scenes", nargs="+", choices=list(STATES), default=list(STATES))
+    p.add_argument("--n", type=int, default=20000, help="steps of each timed loop (default 20000)")
+    a = p.parse_args(argv)
+    print("| scene (state) | warm start | LCP size | whole step (µs) | contacts + islands | limit-surface re-centring | "
+          "assembly | island solves (assembly + Lemke) | end-of-step check |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    for name in a.scenes:
+        at = STATES[name]
+        for warm in (False, True):
+            r, n = profile(name, at, n=a.n, warm=warm)
+            print(f"| {name} (step {at}) | {'yes' if warm else 'no'} | {n} | {r['whole step']:.2f} | "
+                  f"{r['contacts + islands']:.2f} | {r['limit-surface re-centring']:.2f} | {r['assembly']:.2f} | "
+                  f"{r['island solves (assembly + Lemke)']:.2f} | {r['end-of-step check']:.2f} |")
+
+
+if __name__ == "__main__":
+    main()

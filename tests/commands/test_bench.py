@@ -480,3 +480,23 @@ def test_bench_derivatives_command_writes_its_json(tmp_path):
     d = json.loads(out.read_text())["derivatives"]
     assert d["clock"] == "thread_time" and [row["scene"] for row in d["rows"]] == ["falling_rod"]
     assert {"derivatives_steps", "dual_steps", "central_steps", "derivatives_vs_central", "method"} <= set(d["rows"][0])
+
+
+@pytest.mark.slow    # compiles its six stage loops: about 75 s
+def test_the_step_stage_profile_runs_as_documented():
+    """examples/measurements/profile_step_stages.py (docs/performance.md) end to end on one scene with short loops:
+    a row per warm start, every stage's time positive and within the whole step's (the stages overlap, the end-of-step
+    check is within it)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[2] / "examples" / "measurements" / "profile_step_stages.py"
+    r = subprocess.run([sys.executable, str(script), "--scenes", "box_push", "--n", "200"], capture_output=True,
+                       text=True, timeout=1200)
+    assert r.returncode == 0, r.stderr
+    rows = [line.split("|")[1:-1] for line in r.stdout.splitlines() if line.startswith("| box_push")]
+    assert [row[1].strip() for row in rows] == ["no", "yes"]
+    for row in rows:
+        assert int(row[2]) == 12                              # the pushed box's LCP: 4 contact + 8 table unknowns
+        whole, *stages = (float(x) for x in row[3:])
+        assert whole > 0 and all(0 < t for t in stages) and stages[-1] < whole
