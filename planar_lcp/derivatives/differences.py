@@ -12,8 +12,8 @@ numbers in tests/derivatives/test_differences.py and docs/method.md, "Derivative
 They stand for the step's derivatives only where all of these hold; where the first two fail `checked_differences`
 returns the reason and `step_derivatives` runs the dual numbers of forward.py instead (which also say what makes a
 state degenerate); where only the last fails, each input's differences hold but the step is not linear in the
-inputs together (a body at rest on its limit surface: pushed along one input it sticks, along a mixture it creeps),
-and the differences are returned as not exact:
+inputs together (a body at rest on its limit surface: moved along one input it stays at rest, along a mixture it
+turns), and the differences are returned as not exact:
 
 - the cold step succeeded, and every perturbed step has its contacts, islands, active-set re-solves and LCP sizes,
   with certified answers (a change is a switch of the step's discrete structure), and its fixed-point iteration
