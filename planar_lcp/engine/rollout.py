@@ -13,7 +13,8 @@ import numpy as np
 from numba import njit
 
 from planar_lcp.engine.layout import INT_STATS, NSTAT, Stat
-from planar_lcp.engine.step import STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE, STEP_OK, lemke_step, pgs_step
+from planar_lcp.engine.step import (STEP_NEEDS_FALLBACK, STEP_NEEDS_SPACE, STEP_OK, copy_pair_modes, copy_warm_start,
+                                   lemke_step, pgs_step)
 
 #: A rollout's output buffers. States q, v (nsteps + 1, ndyn, 3) and qk (nsteps + 1, nkin, 3), row 0 the initial
 #: state; per step: stats (nsteps, NSTAT), status (nsteps,) STEP_* codes, and the contacts of the step's active set
@@ -275,6 +276,14 @@ def _same_structure(stats, other, fp_free):
     return True
 
 
+@njit(cache=True, inline='always')
+def _restore_memory(size, basic_z, modes, w):
+    """Put the kept warm-start memory back into the work (engine/step.py's copies, unconditionally: the perturbed
+    steps warm-start on it whatever the simulator's options)."""
+    copy_warm_start(size, basic_z, w.warm_size, w.warm_basic_z)
+    copy_pair_modes(modes, w.sparse_pair_mode)
+
+
 @njit(cache=True)
 def _step_from_flat(m, x, nd, nk, h, opt, w, rec, cold, f):
     """One step from the flattened inputs x (q, v, qk, vk row-major), cold (the warm-start memory forgotten) or on
@@ -340,6 +349,7 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
         return DIFF_SPACE
     if st != STEP_OK:
         return DIFF_FAILED
+    # the cold step's final bases (and the sparse solver's modes), which every perturbed step starts from
     msize, mbasic, mmodes = w.warm_size.copy(), w.warm_basic_z.copy(), w.sparse_pair_mode.copy()
     xx = x.copy()
     fp, fm = np.empty(nout), np.empty(nout)
@@ -349,7 +359,7 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
         e = steps[0, k]
         for sgn in range(2):
             xx[k] = x[k] + e if sgn == 0 else x[k] - e
-            _copy_memory(msize, mbasic, mmodes, w.warm_size, w.warm_basic_z, w.sparse_pair_mode)
+            _restore_memory(msize, mbasic, mmodes, w)
             st = _step_from_flat(m, xx, nd, nk, h, warm_opt, w, rec, False, fp if sgn == 0 else fm)
             if st == STEP_NEEDS_SPACE:
                 code = DIFF_SPACE
@@ -375,7 +385,7 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
             code = DIFF_KINK
             break
     # the memory as the cold step at x left it (what `Simulator.step` leaves)
-    _copy_memory(msize, mbasic, mmodes, w.warm_size, w.warm_basic_z, w.sparse_pair_mode)
+    _restore_memory(msize, mbasic, mmodes, w)
     if code != DIFF_OK:
         return code
     # the cold steps at x +- d (d = steps[1]) against the Jacobian's prediction J d (DIFF_MOVES: jac and the state
@@ -386,7 +396,7 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
         st = _step_from_flat(m, xx, nd, nk, h, cold_opt, w, rec, True, fp if sgn == 0 else fm)
         if st != STEP_OK:
             code = DIFF_MOVES
-    _copy_memory(msize, mbasic, mmodes, w.warm_size, w.warm_basic_z, w.sparse_pair_mode)
+    _restore_memory(msize, mbasic, mmodes, w)
     if code != DIFF_OK:
         return code
     worst = 0.0
@@ -416,14 +426,3 @@ def _compiled_recording(nsteps, ndyn, nkin):
                      np.zeros((nsteps, 0), np.int64), np.zeros((nsteps, 0)), np.zeros((nsteps, 0, 2)),
                      np.zeros((nsteps, 0, 2)), np.zeros((nsteps, 0)), np.zeros((nsteps, 0)), np.zeros((nsteps, 0)),
                      np.zeros((nsteps, 0), np.int64), np.empty((0, 0)), np.empty((0, 0), np.int64), np.empty(0))
-
-
-@njit(cache=True, inline='always')
-def _copy_memory(size_from, basic_from, modes_from, size_to, basic_to, modes_to):
-    for i in range(size_from.shape[0]):
-        size_to[i] = size_from[i]
-        for c in range(basic_from.shape[1]):
-            basic_to[i, c] = basic_from[i, c]
-    for p in range(modes_from.shape[0]):
-        modes_to[p, 0] = modes_from[p, 0]
-        modes_to[p, 1] = modes_from[p, 1]

@@ -181,3 +181,15 @@ def test_the_methods_measurement_runs_as_documented():
     assert len(stood) == 1 and int(stood[0].split("|")[4]) > 0
     worst = float(lines[-1].split(": ")[1].split(" ")[0])
     assert worst <= AGREE_RTOL
+
+
+def test_the_compiled_recording_is_the_rollouts_recording():
+    """step_differences makes its one-step Recording in compiled code (`_compiled_recording`: no namedtuple of 17
+    arrays to type at each call): the same fields, dtypes and dimensions as `make_recording`'s, so the rollout kernel
+    it calls is the one every run compiles."""
+    from numba import typeof
+    from planar_lcp.engine.rollout import _compiled_recording, make_recording
+    for nd, nk in ((1, 0), (3, 2)):
+        ours, theirs = _compiled_recording(1, nd, nk), make_recording(1, nd, nk)
+        assert typeof(ours) == typeof(theirs)
+        assert [a.shape for a in ours] == [a.shape for a in theirs]
