@@ -247,8 +247,8 @@ def _simulate(args):
 
     import numpy as np
 
-    from planar_lcp.spec.scene import SceneError, load_scene, restitution_setting, sim_settings, support_model_setting
-    from planar_lcp.sim import SimulationError, simulate
+    from planar_lcp.spec.scene import SceneError, load_scene
+    from planar_lcp.sim import SimulationError, run_setup, simulate
 
     for path, option in ((args.csv, "--csv"), (args.contacts_csv, "--contacts-csv"), (args.plot, "--plot"),
                          (args.animate, "--animate")):
@@ -264,14 +264,16 @@ def _simulate(args):
                     fixed_point_iterations=args.fixed_point_iterations, friction_directions=args.friction_directions,
                     limit_surface_twists=args.limit_surface_twists,
                     limit_surface_resolution=args.limit_surface_resolution)
-    try:
-        sim_settings(scene, settings, SIMULATE_FLAGS)             # checked again by simulate(); here so that
-        support_model_setting(scene, args.support_model, "--support-model")   # nothing is printed before a bad
-        restitution_setting(scene, args.restitution, "--restitution")         # setting
-    except SceneError as e:
-        raise InputError(str(e)) from None
     settings["support_model"] = args.support_model
     settings["restitution"] = args.restitution
+    try:
+        # the settings and the run's size checked (and the model compiled) as simulate() does, which keeps the setup:
+        # here so that nothing is printed or started before bad input is refused
+        run_setup(scene, **settings, option_names=SIMULATE_FLAGS)
+    except SceneError as e:
+        raise InputError(str(e)) from None
+    except (ValueError, NotImplementedError) as e:
+        raise InputError(f"{scene.source}: {e}") from None
     print(f"scene          {scene.name} ({scene.source})", flush=True)
     t0 = time.perf_counter()
     bar = ProgressBar(f"simulate {scene.name}")

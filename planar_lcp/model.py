@@ -447,7 +447,7 @@ def _model_arrays(scene, bt: _BodyTables, kin: _KinematicData, sh: _ShapeArrays,
 
 
 def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=False, support_model=None,
-                  limit_surface_twists=None, limit_surface_resolution=None) -> Model:
+                  limit_surface_twists=None, limit_surface_resolution=None, *, background=True) -> Model:
     """Flatten a validated Scene into a Model. `friction_directions`, `limit_surface_twists` and
     `limit_surface_resolution` override the scene's [sim] keys, `support_model` its world.support_model (the
     horizontal plane's table friction: docs/method.md, "Table friction").
@@ -455,6 +455,10 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
     seed_friction_arm: apply contact friction at each shape's core point (a capsule's end-cap centre) instead of the
     contact point, reproducing Stewart & Trinkle's friction vectors d = [+-1, 0, +-(l/2) sin theta] (for comparison
     only; the moment arm to the contact point is the physically right one).
+
+    background: on a cold numba cache, start compiling the kernels in a background process once the scene is
+    checked (planar_lcp/compilation/background.py); False leaves that to the `Simulator` made from the model (a
+    caller that checks more before it runs, as `simulate` checks the run's size: bad input starts nothing).
 
     Raises SceneError if bodies interpenetrate at the start by more than START_OVERLAP_TOL."""
     bt = _body_tables(scene.bodies)
@@ -471,7 +475,8 @@ def compile_scene(scene: Scene, friction_directions=None, seed_friction_arm=Fals
     if support.ls_bodies:
         # the fixed twists' load wrenches are computed by the kernels themselves, so they need the model
         _fill_fixed_columns(model, support.ls_bodies, settings.twists)
-    # on a cold numba cache, the kernels compile in a background process from now on (planar_lcp/compilation/background.py)
-    start_background()
     _check_start_overlaps(scene, model)
+    if background:
+        # on a cold numba cache, the kernels compile in a background process from now on
+        start_background()
     return model

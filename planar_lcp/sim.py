@@ -462,8 +462,10 @@ _KEYWORD_NAMES = {"on_failure": "on_failure='record'"}
 
 @functools.lru_cache(maxsize=32)
 def _compiled_scene(scene, friction_directions, seed_friction_arm, support_model, twists, resolution):
+    # no background compilation yet: `run_setup` checks the run's size first, and the Simulator starts it
     return compile_scene(scene, friction_directions=friction_directions, seed_friction_arm=seed_friction_arm,
-                         support_model=support_model, limit_surface_twists=twists, limit_surface_resolution=resolution)
+                         support_model=support_model, limit_surface_twists=twists, limit_surface_resolution=resolution,
+                         background=False)
 
 
 def compiled_scene(scene, friction_directions=None, seed_friction_arm=False, support_model=None, twists=None,

@@ -232,14 +232,15 @@ def param_compiles(model, params):
     return got
 
 
-def _model_with_param_derivatives(model, params, first, k):
+def _model_with_param_derivatives(model, params, first, k, ncols):
     """model.arrays with the float arrays the parameters change as object arrays of duals (their derivatives by
     central differences of the compile, columns first, first + 1, ... of the k inputs along +e, and k + first, ...
-    along -e). Made once per model and parameters (the step reads them, never writes)."""
+    along -e, of ncols >= 2 k: the columns past 2 k, the mixed direction's, move no parameter). Made once per model
+    and parameters (the step reads them, never writes)."""
     arrays = model.arrays
     if not params:
         return arrays, []
-    key = (id(model), tuple(params), first, k)
+    key = (id(model), tuple(params), first, k, ncols)
     known = _param_models.get(key)
     if known is not None and known[0] is model:
         return known[1], list(known[2])
@@ -249,7 +250,7 @@ def _model_with_param_derivatives(model, params, first, k):
         for fname, (ap, am, _) in changed.items():
             diff = (ap - am) / (hi - lo)
             if np.any(diff):
-                d = derivs.setdefault(fname, np.zeros(ap.shape + (2 * k,)))
+                d = derivs.setdefault(fname, np.zeros(ap.shape + (ncols,)))
                 d[..., first + i] = diff                 # the direction +e (module docstring: both signs)
                 d[..., k + first + i] = -diff
     replaced = {f: with_derivatives(getattr(arrays, f), d) for f, d in derivs.items()}
@@ -393,11 +394,33 @@ def _dense_twin(sim):
     return twin[1]
 
 
+def mixed_direction(x):
+    """The direction that moves every input at once (the state's flattened inputs x): +-max(1, |x_k|) by the sign of
+    sin(k + 1), the mixed direction of the differences' check (engine/rollout.py, `step_differences`)."""
+    d = np.maximum(1.0, np.abs(x))
+    return np.where(np.sin(np.arange(1.0, len(x) + 1.0)) >= 0.0, d, -d)
+
+
+def mixed_agrees(J, d, right, left):
+    """Whether the one-sided derivatives along the mixed direction d (right: along +d; left: minus that along -d)
+    are J d, J the derivatives along each input (equal sides), to SIDES_RTOL of each row's |J| |d| (at least
+    SIDES_FLOOR of the largest): a step differentiable along each input alone need not be along a mixture (a mode
+    that switches only when two inputs move together, as max(0, min(x, y)) at 0 does)."""
+    predicted = J @ d
+    along = np.stack([right, left], axis=1)
+    if not (np.all(np.isfinite(along)) and np.all(np.isfinite(predicted))):
+        return False
+    row_scale = np.maximum(np.abs(J) @ np.abs(d), np.max(np.abs(along), axis=1))
+    tol = SIDES_RTOL * row_scale + SIDES_FLOOR * np.max(row_scale, initial=0.0)
+    return bool(np.all(np.abs(along - predicted[:, None]) <= tol[:, None]))
+
+
 def _run_on_duals(sim, m, q, v, qk, vk, K):
-    """The step on duals along 2 K directions: +e_k (columns 0 ... K - 1) and -e_k (K ... 2 K - 1) of the K inputs
-    (q, v, qk, vk, then the parameters': the model arrays m carry those). Every direction is propagated on its own
-    (the dual `max` and `min` and the derivative LCP act column by column), so one run gives both one-sided
-    derivatives. Returns (outputs (q+, v+, qk+) as object arrays, status, stats, work, the Recorder)."""
+    """The step on duals along 2 K + 2 directions: +e_k (columns 0 ... K - 1) and -e_k (K ... 2 K - 1) of the K
+    inputs (q, v, qk, vk, then the parameters': the model arrays m carry those), then +d and -d (columns 2 K and
+    2 K + 1), d = `mixed_direction` of the state's inputs. Every direction is propagated on its own (the dual `max`
+    and `min` and the derivative LCP act column by column), so one run gives both one-sided derivatives along each
+    input and along d. Returns (outputs (q+, v+, qk+) as object arrays, status, stats, work, the Recorder)."""
     from planar_lcp.engine.layout import StepWork
     from planar_lcp.engine.rollout import lemke_step, pgs_step
     nd, nk = len(q), len(qk)
@@ -405,8 +428,16 @@ def _run_on_duals(sim, m, q, v, qk, vk, K):
     w.warm_size[:] = -1
     w.sparse_pair_mode[:] = -1
     opt = sim.kopt._replace(warm_start=False)
-    state = tuple(seeded(a, first, K, both_signs=True)
-                  for a, first in ((q, 0), (v, 3 * nd), (qk, 6 * nd), (vk, 6 * nd + 3 * nk)))
+    x = np.concatenate([q.ravel(), v.ravel(), qk.ravel(), vk.ravel()])
+    n = len(x)
+    seeds = np.zeros((n, 2 * K + 2))
+    seeds[np.arange(n), np.arange(n)] = 1.0
+    seeds[np.arange(n), K + np.arange(n)] = -1.0
+    seeds[:, 2 * K] = mixed_direction(x)
+    seeds[:, 2 * K + 1] = -seeds[:, 2 * K]
+    cuts = np.cumsum([0, q.size, v.size, qk.size, vk.size])
+    state = tuple(with_derivatives(a, seeds[cuts[i]:cuts[i + 1]].reshape(a.shape + (2 * K + 2,)))
+                  for i, a in enumerate((q, v, qk, vk)))
     out = (np.zeros((nd, 3), dtype=object), np.zeros((nd, 3), dtype=object), np.zeros((nk, 3), dtype=object))
     stats = np.zeros(len(sim.stats), dtype=object)
     kernel = pgs_step if sim.options.solver == "pgs" else lemke_step
@@ -528,7 +559,7 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
                                        jacobian_right=J, jacobian_left=J, method="differences")
     nd, nk = model.ndyn, model.nkin
     K = 6 * nd + 6 * nk + len(params)
-    m, notes = _model_with_param_derivatives(model, params, 6 * nd + 6 * nk, K)
+    m, notes = _model_with_param_derivatives(model, params, 6 * nd + 6 * nk, K, 2 * K + 2)
     # the compiled step first: its answer is the reference, and it grows the dense buffers the LCPs need
     sim.reset_warm_start()
     q1, v1, qk1, status = sim.step(q, v, qk, vk)
@@ -544,8 +575,11 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
         raise RuntimeError("step_derivatives: the step run on dual numbers does not reproduce the compiled step "
                            f"(status {st} vs {status}; largest difference "
                            f"{max(np.max(np.abs(qd - q1), initial=0), np.max(np.abs(vd - v1), initial=0)):.3g})")
-    both = np.concatenate([grads(a, 2 * K).reshape(-1, 2 * K) for a in out], axis=0)
-    right, left = both[:, :K], -both[:, K:]
+    both = np.concatenate([grads(a, 2 * K + 2).reshape(-1, 2 * K + 2) for a in out], axis=0)
+    right, left = both[:, :K], -both[:, K:2 * K]
+    ns = 6 * nd + 6 * nk
+    d = mixed_direction(np.concatenate([q.ravel(), v.ravel(), qk.ravel(), vk.ravel()]))
+    mixed_agree = mixed_agrees(0.5 * (right[:, :ns] + left[:, :ns]), d, both[:, 2 * K], -both[:, 2 * K + 1])
     unbounded = ~np.all(np.isfinite(right) & np.isfinite(left), axis=0)
     big = np.maximum(np.abs(right), np.abs(left))
     scale = np.maximum(np.max(big, axis=0)[None, :], np.max(big, axis=1)[:, None])
@@ -586,6 +620,10 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
                                          "derivatives (a kink of the step's rows)"))
         if len(degenerate) == len(notes):
             degenerate.append(Degenerate("sides", "the step", "the one-sided derivatives differ"))
+    elif not mixed_agree and not unbounded.any():
+        degenerate.append(Degenerate("mixed", "the step", "each input's one-sided derivatives agree, the derivative "
+                                     "along a mixture of the inputs is not their sum (the step is not linear in its "
+                                     "inputs together: e.g. a body at rest on its limit surface)"))
     ncon = int(values(stats)[Stat.N_CONTACTS])
     velocity_form = sim.kopt.formulation == FORM_VELOCITY
     degenerate += _switches_nearby(sim, (q, v, qk, vk), np.concatenate([q1.ravel(), v1.ravel(), qk1.ravel()]), right,

@@ -1,19 +1,18 @@
 """The step's derivatives by checked central differences of the compiled step: the fast method of `step_derivatives`.
 
 `step_differences` (engine/rollout.py) runs, in one compiled call, the cold step at the state x, then the step at
-x +- eps_k e_k for each of the K inputs, each warm-started on the cold step's final LCP bases: where the contact
-modes are strictly complementary those bases stay certified nearby (`lemke_from_basis`, accepted only as accurate
-as a cold solve), so both sides lie on the smooth piece the bases define and no pivot runs; where a basis does not
-hold (a contact at rest with no tangential load, which any push makes stick) the perturbed step pivots from it as
-any step does. Their central differences approximate the derivatives to about 1e-6 of the Jacobian's scale
+x +- eps_k e_k for each of the K inputs, each warm-started on the cold step's final LCP bases and certified to
+DIFF_RES_TOL: where the contact modes are strictly complementary those bases stay certified nearby
+(`lemke_from_basis`, accepted only as accurate as a cold solve), so both sides lie on the smooth piece the bases
+define and no pivot runs; where a basis does not hold (a contact at rest with no tangential load, which any push
+makes stick) the perturbed step pivots from it as any step does. Their central differences approximate the derivatives to about 1e-6 of the Jacobian's scale
 (truncation eps^2 f''', and round-off of the gaps over the step size, eps = DIFF_STEP), measured against the dual
 numbers in tests/derivatives/test_differences.py and docs/method.md, "Derivatives of the step".
 
 They stand for the step's derivatives only where all of these hold; where the first two fail `checked_differences`
 returns the reason and `step_derivatives` runs the dual numbers of forward.py instead (which also say what makes a
 state degenerate); where only the last fails, each input's differences hold but the step is not linear in the
-inputs together (a body at rest on its limit surface: moved along one input it stays at rest, along a mixture it
-turns), and the differences are returned as not exact:
+inputs together, and the differences are returned as not exact:
 
 - the cold step succeeded, and every perturbed step has its contacts, islands, active-set re-solves and LCP sizes,
   with certified answers (a change is a switch of the step's discrete structure), and its fixed-point iteration
@@ -31,8 +30,8 @@ import numpy as np
 from planar_lcp.engine.layout import NSTAT
 
 #: the differences' step along input k: DIFF_STEP * max(1, |x_k|) (m, rad, m/s, rad/s). Truncation (eps^2 times the
-#: third derivative) and the round-off of gaps of metre-sized poses over it balance near 1e-6; a friction impulse
-#: the step needs for such a change is far above the certified solves' tolerance of zero
+#: third derivative) and the round-off of gaps of metre-sized poses over it balance near 1e-6; the change it makes
+#: to the LCP's data is far above the perturbed steps' certificate tolerance, DIFF_RES_TOL
 DIFF_STEP = 2.0 ** -20
 #: the one-sided differences may differ by this much, relative to their column's largest entry (at least
 #: DIFF_FLOOR): eps times the second derivative on a smooth piece, O(1) across a kink
@@ -41,6 +40,13 @@ DIFF_FLOOR = 1e-3
 #: the cold steps along the mixed direction agree with the differences' prediction to this, relative to the
 #: prediction's size (at least DIFF_FLOOR times the direction's largest step)
 DIFF_MIXED_RTOL = 1e-4
+#: the certification tolerance of the perturbed and mixed-direction steps (relative, as SimOptions.res_tol), far
+#: below the simulator's: Lemke stops where its artificial variable is within res_tol of zero and certifies the basic
+#: z it has (engine/solvers/lemke.py), which is the answer at x for a change of the LCP's data within res_tol of its
+#: scale; with the simulator's 1e-9 a differences' step that moves the data by less (a pusher's turn of 1e-6 rad/s
+#: against a body at rest) falls in that dead zone and sees no change. At 1e-13 the certified answers are those of
+#: the exact LCP to 1e-13 of its scale, still far above round-off (about 1e-16 times the LCP's condition)
+DIFF_RES_TOL = 1e-13
 #: the fixed-point form's iteration count may differ between the perturbed steps when its tolerance (the largest
 #: pose change it stops at, by which two counts' answers differ) is below this fraction of the differences' step:
 #: an error of at most 1e-7 in the differences of the poses (1e-7 / h in the velocities')
@@ -56,11 +62,12 @@ def checked_differences(sim, q, v, qk, vk):
     not differentiable); else (None, why). The state's arrays: float64, C-contiguous, of the model's shapes."""
     from planar_lcp.engine.rollout import DIFF_MOVES, DIFF_OK, DIFF_REASONS, DIFF_SPACE, step_differences
     nd, nk = len(q), len(qk)
-    # the perturbed steps' options (the warm start on) and the checks' tolerances, made once per simulator's options
+    # the perturbed steps' options (the warm start on, DIFF_RES_TOL) and the checks' tolerances, made once per
+    # simulator's options
     got = _settings.get(id(sim.kopt))
     if got is None or got[0] is not sim.kopt:
         fp_free = sim.options.fixed_point_tol <= DIFF_FP_RATIO * DIFF_STEP
-        got = (sim.kopt, sim.kopt._replace(warm_start=True),
+        got = (sim.kopt, sim.kopt._replace(warm_start=True, res_tol=min(sim.kopt.res_tol, DIFF_RES_TOL)),
                np.array([DIFF_STEP, DIFF_KINK_RTOL, DIFF_MIXED_RTOL, DIFF_FLOOR, float(fp_free)]))
         _settings.clear()
         _settings[id(sim.kopt)] = got
@@ -87,15 +94,33 @@ def checked_differences(sim, q, v, qk, vk):
     return ((q1, v1, qk1), 0, jac), ""
 
 
+_twins = {}
+
+
+def _tight_twin(sim):
+    """A simulator of `sim`'s model (its arrays shared) and options but res_tol at most DIFF_RES_TOL: the parameters'
+    perturbed steps (made once per simulator)."""
+    import dataclasses
+    twin = _twins.get(id(sim))
+    if twin is None or twin[0] is not sim:
+        res_tol = min(sim.options.res_tol, DIFF_RES_TOL)
+        twin = (sim, sim if res_tol == sim.options.res_tol else
+                type(sim)(sim.model, dataclasses.replace(sim.options, res_tol=res_tol)))
+        _twins.clear()
+        _twins[id(sim)] = twin
+    return twin[1]
+
+
 def param_differences(sim, q, v, qk, vk, compiles, base):
     """The Jacobian's columns of scene parameters ((6 ndyn + 3 nkin, len(compiles)), "") by central differences of
-    the cold step with the model's arrays compiled at each parameter's lo and hi (compiles: `param_compiles`' list
+    the cold step (certified to DIFF_RES_TOL) with the model's arrays compiled at each parameter's lo and hi (compiles: `param_compiles`' list
     of (name, lo, hi, {field: (array at hi, array at lo, array as compiled)}), written into the simulator's model in
     place and put back), after `checked_differences` gave the state's columns and the cold step's (q+, v+, qk+),
     base (its stats in sim.stats); or (None, why) where its checks fail (the same as the state's: the step's
     structure on both sides, the one-sided differences)."""
     from planar_lcp.engine.rollout import _same_structure
     arrays = sim.model.arrays
+    tight = _tight_twin(sim)
     base_stats = sim.stats.copy()
     x1 = np.concatenate([a.ravel() for a in base])
     cols = np.empty((len(x1), len(compiles)))
@@ -106,10 +131,10 @@ def param_differences(sim, q, v, qk, vk, compiles, base):
             for side in (0, 1):
                 for fname, pair in changed.items():
                     getattr(arrays, fname)[...] = pair[side]
-                sim.reset_warm_start()
-                q1, v1, qk1, st = sim.step(q, v, qk, vk)
+                tight.reset_warm_start()
+                q1, v1, qk1, st = tight.step(q, v, qk, vk)
                 # the kernel's structure check, the fixed-point iteration count included
-                if st != 0 or not _same_structure(base_stats, sim.stats, False):
+                if st != 0 or not _same_structure(base_stats, tight.stats, False):
                     return None, f"the step's structure changes with {name}"
                 outs.append(np.concatenate((q1.ravel(), v1.ravel(), qk1.ravel())))
         finally:

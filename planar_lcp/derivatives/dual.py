@@ -215,7 +215,7 @@ def with_derivatives(a, da):
     derivatives are all zero stay floats."""
     a = np.asarray(a, dtype=np.float64)
     out = np.empty(a.shape, dtype=object)
-    flat, dflat = out.reshape(-1), da.reshape(a.size, -1)
+    flat, dflat = out.reshape(-1), da.reshape(a.size, da.shape[-1])
     for i, x in enumerate(a.ravel()):
         flat[i] = Dual(float(x), dflat[i].copy()) if np.any(dflat[i]) else float(x)
     return out

@@ -318,9 +318,9 @@ def _step_from_flat(m, x, nd, nk, h, opt, w, rec, cold, f):
 def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, qk1, stats):
     """The central differences of the step at the state (q, v, qk, vk) along +- eps_k e_k for each of its K inputs
     (x: q, v, qk, vk flattened row-major; eps_k = tols[0] max(1, |x_k|)), each step warm-started (warm_opt) on the
-    cold step's final bases, into jac (6 nd + 3 nk, K); the cold step's state into q1, v1, qk1 and its stats into
-    stats. Returns DIFF_OK where the checks of planar_lcp/derivatives/differences.py hold, else the DIFF_* reason.
-    tols: (step, kink, mixed, floor, whether the fixed-point iteration count may differ) of differences.py. The
+    cold step's (cold_opt) final bases, into jac (6 nd + 3 nk, K); the cold step's state into q1, v1, qk1 and its
+    stats into stats; the mixed direction's steps run on warm_opt from no memory (cold, at its tolerances). Returns
+    DIFF_OK where the checks of planar_lcp/derivatives/differences.py hold, else the DIFF_* reason. tols: (step, kink, mixed, floor, whether the fixed-point iteration count may differ) of differences.py. The
     warm-start memory is left as the cold step left it."""
     nd, nk = q.shape[0], qk.shape[0]
     K = 6 * nd + 6 * nk
@@ -393,7 +393,7 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
     for sgn in range(2):
         for k in range(K):
             xx[k] = x[k] + steps[1, k] if sgn == 0 else x[k] - steps[1, k]
-        st = _step_from_flat(m, xx, nd, nk, h, cold_opt, w, rec, True, fp if sgn == 0 else fm)
+        st = _step_from_flat(m, xx, nd, nk, h, warm_opt, w, rec, True, fp if sgn == 0 else fm)
         if st != STEP_OK:
             code = DIFF_MOVES
     _restore_memory(msize, mbasic, mmodes, w)

@@ -3,6 +3,7 @@ expected and the actual value; exit status 2 from the CLI without a traceback; a
 
 The CLI cases run `planar-lcp` in a subprocess (cli_helpers.run_cli), as a user would."""
 
+import os
 import re
 from pathlib import Path
 
@@ -172,7 +173,10 @@ def test_memory_limit_message_and_nothing_allocated(monkeypatch):
     assert made == []
 
 
-def test_cli_memory_limit(tmp_path):
+@pytest.mark.parametrize("cache", ["warm", "cold"])
+def test_cli_memory_limit(tmp_path, cache):
+    """A run too large is refused with one line and nothing else: on stdout nothing, and on a cold numba cache no
+    background compilation started (its notice would be a second line on stderr, its process work for nothing)."""
     path = tmp_path / "many.toml"
     lines = ['name = "many"', "[sim]", "h = 1e-4", "t_end = 999.0"]
     for b in _many_disks(40)["bodies"][:-1]:
@@ -181,10 +185,16 @@ def test_cli_memory_limit(tmp_path):
     lines += ["[[bodies]]", 'name = "table"', 'type = "static"',
               'shapes = [ { type = "halfplane", point = [0.0, 0.0], normal = [0.0, 1.0] } ]']
     path.write_text("\n".join(lines) + "\n")
-    r = run_cli("simulate", path)
+    numba_cache = tmp_path / "numba"
+    env = {} if cache == "warm" else dict(NUMBA_CACHE_DIR=str(numba_cache), PLANAR_LCP_PRECOMPILE="1")
+    r = run_cli("simulate", path, env=env)
     line = error_line(r)
     assert line.startswith(f"{path}: the run must fit in ") and "(9990000 steps x 40 dynamic bodies" in line
     assert line.endswith("; reduce --t-end or increase --h")
+    assert r.stdout == ""
+    if cache == "cold":
+        from planar_lcp.compilation.background import lock_file
+        assert not os.path.exists(lock_file(str(numba_cache))), "a background compilation started"
 
 
 # --- 3. output paths, before any simulation -----------------------------------------------------------------------

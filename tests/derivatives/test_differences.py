@@ -30,8 +30,7 @@ def relative_error(d, ref):
 
 
 def check(sim, states, params=()):
-    """(states the differences answered, states the dual numbers call exact); asserts the agreement where both call
-    the state exact."""
+    """(states both methods call exact, states the dual numbers call exact); asserts the agreement there."""
     used = exact = 0
     for q, v, qk, vk in states:
         ref = step_derivatives(sim, q, v, qk, vk, params)
@@ -45,10 +44,12 @@ def check(sim, states, params=()):
             assert np.array_equal(d.jacobian, ref.jacobian) and d.exact == ref.exact
             continue
         assert d.method == "differences" and d.fallback == ""
-        used += 1
+        used += d.exact and ref.exact
         if not d.exact:
-            # each input's differences hold and their sum does not: the step is not linear in its inputs here
+            # each input's differences hold and their sum does not: the step is not linear in its inputs here, and
+            # the dual numbers find it degenerate too
             assert [g.kind for g in d.degenerate] == ["mixed"]
+            assert not ref.exact, "differences not exact where the dual numbers are"
         elif ref.exact:
             assert relative_error(d, ref) <= AGREE_RTOL
     return used, exact
@@ -61,8 +62,9 @@ def test_shipped_scenes_agree_with_the_dual_numbers(formulation):
         sim = Simulator(compile_scene(load_scene(name)), options(formulation))
         u, e = check(sim, states_along(sim, *sim.initial_state(), 40, 8))
         used, exact = used + u, exact + e
-    # the differences serve most states (the rest: contact switches nearby, which the dual numbers analyse)
-    assert used >= 0.6 * exact, f"differences used on {used} states of {exact} exact ones"
+    # the differences serve nearly every exact state (the rest: a kink within their step, which the one-sided
+    # check finds; 45, 46 and 19 of 45, 46 and 19 when written)
+    assert used >= 0.95 * exact, f"differences exact on {used} states of {exact} exact ones"
 
 
 @pytest.mark.slow
@@ -74,7 +76,8 @@ def test_random_scenes_agree_with_the_dual_numbers(formulation):
             sim = Simulator(compile_scene(scene), options(formulation))
             u, e = check(sim, states_along(sim, *sim.initial_state(), 60, 15))
             used, exact = used + u, exact + e
-    assert used >= 0.6 * exact, f"differences used on {used} states of {exact} exact ones"
+    # 108 of 109 and 108 of 110 when written
+    assert used >= 0.95 * exact, f"differences exact on {used} states of {exact} exact ones"
 
 
 @pytest.mark.parametrize("name, params", [("block_on_incline", ["world.friction"]),
@@ -84,6 +87,34 @@ def test_parameter_columns_agree_with_the_dual_numbers(name, params):
     sim = Simulator(compile_scene(load_scene(name)), SimOptions())
     used, _ = check(sim, states_along(sim, *sim.initial_state(), 40, 8), params)
     assert used >= 3
+
+
+def test_a_change_within_the_simulators_tolerance_is_differentiated():
+    """push_t's T at rest with the pusher touching it: the simulator's step (res_tol 1e-9) does not move for a
+    pusher's turn of 1e-6 rad/s (Lemke accepts the answer at the state: its artificial variable is within res_tol of
+    zero), while the exact step turns the T at d(omega+)/d(omega_pusher) = -0.1425 (the dual numbers, and the step at
+    1e-5 rad/s). The differences certify their steps to DIFF_RES_TOL and see the turn."""
+    from planar_lcp.derivatives.differences import DIFF_RES_TOL, DIFF_STEP
+    sim = Simulator(compile_scene(load_scene("push_t")), options("position"))
+    assert sim.options.res_tol > 1e3 * DIFF_RES_TOL
+    q, v, qk, vk = states_along(sim, *sim.initial_state(), 40, 8)[0]
+    assert np.all(v == 0.0)
+
+    def turned(eps):
+        sim.reset_warm_start()
+        v0 = sim.step(q, v, qk, vk)[1]
+        turn = vk.copy()
+        turn[0, 2] += eps
+        sim.reset_warm_start()
+        return (sim.step(q, v, qk, turn)[1][0, 2] - v0[0, 2]) / eps
+
+    ref = step_derivatives(sim, q, v, qk, vk)
+    assert ref.exact and abs(ref.dv_dvk[2, 2] - (-0.1425)) < 1e-3
+    assert abs(turned(1e-5) - ref.dv_dvk[2, 2]) < 1e-6
+    assert abs(turned(DIFF_STEP)) < 1e-12             # the simulator's dead zone at the differences' step
+    d = step_derivatives(sim, q, v, qk, vk, method="differences")
+    assert d.method == "differences" and d.exact
+    assert relative_error(d, ref) <= AGREE_RTOL
 
 
 def test_the_incline_block_slides_with_dv_dmu_minus_g_cos_a_h():

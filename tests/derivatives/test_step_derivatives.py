@@ -360,3 +360,15 @@ def test_a_body_at_rest_up_to_round_off_on_a_limit_surface_is_as_at_rest():
     tiny = step_derivatives(sim, q, np.array([[1e-260, -3e-261, 2e-259]]), qk, vk)
     assert np.all(np.isfinite(tiny.jacobian))
     np.testing.assert_allclose(tiny.jacobian, at_rest.jacobian, rtol=0, atol=1e-12)
+
+
+def test_the_mixed_direction_finds_a_mode_that_two_inputs_switch_together():
+    """max(0, min(x, y)) at 0: along x and along y zero on both sides, along d = (1, 1) 1 on one side; the dual
+    numbers' check of the mixed direction (`mixed_agrees`) calls that not differentiable, and a linear step so."""
+    from planar_lcp.derivatives import mixed_agrees
+    d = np.array([1.0, 1.0])
+    assert not mixed_agrees(np.zeros((1, 2)), d, np.array([1.0]), np.array([0.0]))
+    J = np.array([[2.0, -1.0], [0.5, 0.25]])
+    assert mixed_agrees(J, d, J @ d, J @ d)
+    assert not mixed_agrees(J, d, J @ d + [1e-6, 0.0], J @ d)
+    assert not mixed_agrees(J, d, np.array([np.inf, 0.75]), J @ d)
