@@ -28,6 +28,8 @@ inputs together, and the differences are returned as not exact:
 import numpy as np
 
 from planar_lcp.engine.layout import NSTAT
+from planar_lcp.engine.rollout import (DIFF_MOVES, DIFF_NONFINITE, DIFF_OK, DIFF_REASONS, DIFF_SPACE, _same_structure,
+                                       step_differences)
 
 #: the differences' step along input k: DIFF_STEP * max(1, |x_k|) (m, rad, m/s, rad/s). Truncation (eps^2 times the
 #: third derivative) and the round-off of gaps of metre-sized poses over it balance near 1e-6; the change it makes
@@ -59,8 +61,8 @@ def checked_differences(sim, q, v, qk, vk):
     """((q+, v+, qk+), status, jacobian (6 ndyn + 3 nkin, 6 ndyn + 6 nkin)) of the cold step by its checked
     differences and "", where they stand for its derivatives (module docstring); the same and the reason where only
     the mixed direction's check failed (each input's differences hold, the step is not linear in them together:
-    not differentiable); else (None, why). The state's arrays: float64, C-contiguous, of the model's shapes."""
-    from planar_lcp.engine.rollout import DIFF_MOVES, DIFF_OK, DIFF_REASONS, DIFF_SPACE, step_differences
+    not differentiable); else (None, why), the reason DIFF_REASONS[DIFF_NONFINITE] where an input is not finite.
+    The state's arrays: float64, C-contiguous, of the model's shapes."""
     nd, nk = len(q), len(qk)
     # the perturbed steps' options (the warm start on, DIFF_RES_TOL) and the checks' tolerances, made once per
     # simulator's options
@@ -86,6 +88,8 @@ def checked_differences(sim, q, v, qk, vk):
                                 qk1, stats)
         if code == DIFF_SPACE:
             return None, "a step nearby needs larger dense buffers than the state's"
+    if code == DIFF_NONFINITE:
+        return None, DIFF_REASONS[code]             # nothing ran
     sim.stats[:] = stats
     if code == DIFF_MOVES:
         return ((q1, v1, qk1), 0, jac), DIFF_REASONS[code]
@@ -118,7 +122,6 @@ def param_differences(sim, q, v, qk, vk, compiles, base):
     place and put back), after `checked_differences` gave the state's columns and the cold step's (q+, v+, qk+),
     base (its stats in sim.stats); or (None, why) where its checks fail (the same as the state's: the step's
     structure on both sides, the one-sided differences)."""
-    from planar_lcp.engine.rollout import _same_structure
     arrays = sim.model.arrays
     tight = _tight_twin(sim)
     base_stats = sim.stats.copy()

@@ -251,8 +251,10 @@ def _d(x, y):
 
 
 def _isfinite(x):
+    # the value's test, as the compiled step branches on it: derivatives that overflow are the caller's to report
+    # ("unbounded"), not a step that failed
     if isinstance(x, Dual):
-        return bool(np.isfinite(x.v)) and bool(np.all(np.isfinite(x.d)))
+        return bool(np.isfinite(x.v))
     return np.isfinite(x)
 
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planar_lcp.derivatives import StepDerivatives, _check_state, flat_step
+from planar_lcp.derivatives import StepDerivatives, _check_finite, _check_state, flat_step
 
 SMOOTHING_METHODS = ("zeroth", "first")
 
@@ -58,6 +58,7 @@ def smoothed_derivatives(sim, q, v, qk, vk, sigma, samples=64, seed=0, method="z
         raise ValueError(f"smoothed_derivatives: method must be one of {', '.join(SMOOTHING_METHODS)}, got "
                          f"{method!r}")
     q, v, qk, vk = _check_state(sim, q, v, qk, vk)
+    _check_finite(q, v, qk, vk)
     parts = (q, v, qk, vk)
     x0 = np.concatenate([a.ravel() for a in parts])
     K = len(x0)

@@ -241,10 +241,12 @@ DIFF_STRUCTURE = 3       # a step nearby failed or has another structure (`_same
 DIFF_KINK = 4            # the one-sided differences differ
 DIFF_MOVES = 5           # the cold steps along the mixed direction move otherwise than the Jacobian predicts (the
                          # differences are written: each input's holds, their sum does not)
+DIFF_NONFINITE = 6       # an input is not finite (nothing ran: the caller names it)
 DIFF_REASONS = ("", "the step failed", "",
                 "a step nearby failed or has other contacts, islands, fixed-point iterations, re-solves or LCP sizes",
                 "the one-sided differences differ (a kink at the state)",
-                "a cold step nearby moves otherwise than the differences predict")
+                "a cold step nearby moves otherwise than the differences predict",
+                "an input is not finite")
 
 #: the stats a perturbed step shares with the cold one: the same contacts, islands and active-set re-solves (a change
 #: is a switch of the step's discrete structure), the same fixed-point iterations (a jump of its stopping rule) and,
@@ -320,8 +322,9 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
     (x: q, v, qk, vk flattened row-major; eps_k = tols[0] max(1, |x_k|)), each step warm-started (warm_opt) on the
     cold step's (cold_opt) final bases, into jac (6 nd + 3 nk, K); the cold step's state into q1, v1, qk1 and its
     stats into stats; the mixed direction's steps run on warm_opt from no memory (cold, at its tolerances). Returns
-    DIFF_OK where the checks of planar_lcp/derivatives/differences.py hold, else the DIFF_* reason. tols: (step, kink, mixed, floor, whether the fixed-point iteration count may differ) of differences.py. The
-    warm-start memory is left as the cold step left it."""
+    DIFF_OK where the checks of planar_lcp/derivatives/differences.py hold, else the DIFF_* reason. tols: (step,
+    kink, mixed, floor, whether the fixed-point iteration count may differ) of differences.py. The warm-start memory
+    is left as the cold step left it."""
     nd, nk = q.shape[0], qk.shape[0]
     K = 6 * nd + 6 * nk
     x = np.empty(K)
@@ -333,6 +336,9 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
         for c in range(3):
             x[6 * nd + 3 * j + c] = qk[j, c]
             x[6 * nd + 3 * nk + 3 * j + c] = vk[j, c]
+    for k in range(K):
+        if not np.isfinite(x[k]):
+            return DIFF_NONFINITE
     # the steps along each input, and the mixed direction's: +-1 by the signs of sin(k + 1), scaled alike
     steps = np.empty((2, K))
     for k in range(K):

@@ -334,11 +334,24 @@ def test_rollout_derivatives_are_the_chain_of_the_steps(name, nsteps, start):
 
 # --- bad input ----------------------------------------------------------------------------------------------------
 
-def test_bad_input_is_refused_with_the_field_named():
-    sim = Simulator(compile_scene(load_scene("falling_rod")), SimOptions())
+@pytest.mark.parametrize("method", ["dual", "differences"])
+def test_bad_input_is_refused_with_the_field_named(method):
+    sim = Simulator(compile_scene(load_scene("box_push")), SimOptions())
     q, v, qk, vk = sim.initial_state()
     with pytest.raises(ValueError, match=r"q must have shape \(1, 3\), got \(3,\)"):
-        step_derivatives(sim, q.ravel(), v, qk, vk)
+        step_derivatives(sim, q.ravel(), v, qk, vk, method=method)
+    for name in ("q", "v", "qk", "vk"):
+        for bad in (np.nan, np.inf, -np.inf):
+            state = dict(q=q.copy(), v=v.copy(), qk=qk.copy(), vk=vk.copy())
+            state[name][0, 1] = bad
+            with pytest.raises(ValueError, match=f"^step_derivatives: {name} must be finite$"):
+                step_derivatives(sim, **state, method=method)
+    # a huge but finite state is no error of the input, and a step the compiled kernel takes (its derivatives on
+    # duals overflow on the way: the duals branch on the values, as the kernel does)
+    d = step_derivatives(sim, q, v + 1e300, qk, vk, method=method)
+    assert d.status == 0 and d.jacobian.shape == (9, 12)
+    sim = Simulator(compile_scene(load_scene("falling_rod")), SimOptions())
+    q, v, qk, vk = sim.initial_state()
     with pytest.raises(KeyError, match="no body 'nope'"):
         step_derivatives(sim, q, v, qk, vk, params=["bodies.nope.mass"])
     with pytest.raises(KeyError, match="expected world.friction"):
