@@ -635,7 +635,7 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
     elif not mixed_agree and not unbounded.any():
         degenerate.append(Degenerate("mixed", "the step", "each input's one-sided derivatives agree, the derivative "
                                      "along a mixture of the inputs is not their sum (the step is not linear in its "
-                                     "inputs together: e.g. a body at rest on its limit surface)"))
+                                     "inputs together: a mode that two inputs switch together)"))
     ncon = int(values(stats)[Stat.N_CONTACTS])
     velocity_form = sim.kopt.formulation == FORM_VELOCITY
     degenerate += _switches_nearby(sim, (q, v, qk, vk), np.concatenate([q1.ravel(), v1.ravel(), qk1.ravel()]), right,

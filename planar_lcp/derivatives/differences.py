@@ -5,9 +5,10 @@ x +- eps_k e_k for each of the K inputs, each warm-started on the cold step's fi
 DIFF_RES_TOL: where the contact modes are strictly complementary those bases stay certified nearby
 (`lemke_from_basis`, accepted only as accurate as a cold solve), so both sides lie on the smooth piece the bases
 define and no pivot runs; where a basis does not hold (a contact at rest with no tangential load, which any push
-makes stick) the perturbed step pivots from it as any step does. Their central differences approximate the derivatives to about 1e-6 of the Jacobian's scale
-(truncation eps^2 f''', and round-off of the gaps over the step size, eps = DIFF_STEP), measured against the dual
-numbers in tests/derivatives/test_differences.py and docs/method.md, "Derivatives of the step".
+makes stick) the perturbed step pivots from it as any step does. Their central differences approximate the
+derivatives to about 1e-6 of the Jacobian's scale (truncation eps^2 f''', and round-off of the gaps over the step
+size, eps = DIFF_STEP), measured against the dual numbers in tests/derivatives/test_differences.py and
+docs/method.md, "Derivatives of the step".
 
 They stand for the step's derivatives only where all of these hold; where the first two fail `checked_differences`
 returns the reason and `step_derivatives` runs the dual numbers of forward.py instead (which also say what makes a
@@ -117,11 +118,11 @@ def _tight_twin(sim):
 
 def param_differences(sim, q, v, qk, vk, compiles, base):
     """The Jacobian's columns of scene parameters ((6 ndyn + 3 nkin, len(compiles)), "") by central differences of
-    the cold step (certified to DIFF_RES_TOL) with the model's arrays compiled at each parameter's lo and hi (compiles: `param_compiles`' list
-    of (name, lo, hi, {field: (array at hi, array at lo, array as compiled)}), written into the simulator's model in
-    place and put back), after `checked_differences` gave the state's columns and the cold step's (q+, v+, qk+),
-    base (its stats in sim.stats); or (None, why) where its checks fail (the same as the state's: the step's
-    structure on both sides, the one-sided differences)."""
+    the cold step (certified to DIFF_RES_TOL) with the model's arrays compiled at each parameter's lo and hi
+    (compiles: `param_compiles`' list of (name, lo, hi, {field: (array at hi, array at lo, array as compiled)}),
+    written into the simulator's model in place and put back), after `checked_differences` gave the state's columns
+    and the cold step's (q+, v+, qk+), base (its stats in sim.stats); or (None, why) where its checks fail (the same
+    as the state's: the step's structure on both sides, the one-sided differences)."""
     arrays = sim.model.arrays
     tight = _tight_twin(sim)
     base_stats = sim.stats.copy()

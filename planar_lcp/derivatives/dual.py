@@ -194,22 +194,6 @@ def grads(a, k):
     return out.reshape(a.shape + (k,))
 
 
-def seeded(a, first, k, both_signs=False):
-    """An object array of duals with the values of the float array `a`, entry i (row-major) seeded with unit
-    derivative along direction first + i of k; with both_signs, 2 k directions, and entry i also with derivative -1
-    along direction k + first + i."""
-    a = np.asarray(a, dtype=np.float64)
-    out = np.empty(a.shape, dtype=object)
-    flat = out.reshape(-1)
-    for i, x in enumerate(a.ravel()):
-        d = np.zeros(2 * k if both_signs else k)
-        d[first + i] = 1.0
-        if both_signs:
-            d[k + first + i] = -1.0
-        flat[i] = Dual(float(x), d)
-    return out
-
-
 def with_derivatives(a, da):
     """An object array of duals with values a (float array) and derivatives da (a.shape + (k,)); entries whose
     derivatives are all zero stay floats."""
