@@ -64,6 +64,19 @@ def group_size(pgid):
     return n
 
 
+def ignores_sigint(pid):
+    """Whether the process `pid` ignores SIGINT now (bit 2 of SigIgn in Linux's /proc/PID/status): a command does
+    while it starts a local cluster's workers (planar_lcp.parallel.cluster), and a Ctrl-C then is lost."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            for line in f:
+                if line.startswith("SigIgn:"):
+                    return bool(int(line.split()[1], 16) & (1 << (2 - 1)))
+    except OSError:
+        pass
+    return False
+
+
 def ctrl_c_cli(args, ready, cwd, timeout=300, env=None):
     """Run `planar-lcp ARGS` in a process group of its own, wait until `ready()` is true, then press Ctrl-C as a
     terminal does: SIGINT to the whole foreground group, the command and every process it started (a local Dask
