@@ -10,8 +10,9 @@ derivatives to about 1e-6 of the Jacobian's scale (truncation eps^2 f''', and ro
 size, eps = DIFF_STEP), measured against the dual numbers in tests/derivatives/test_differences.py and
 docs/method.md, "Derivatives of the step".
 
-They stand for the step's derivatives only where all of these hold; where the first two fail `checked_differences`
-returns the reason and `step_derivatives` runs the dual numbers of forward.py instead (which also say what makes a
+They stand for the step's derivatives only where all of these hold; where one of the first two fails they are
+taken again over a smaller step (DIFF_RETRY_SHRINK); where it fails again `checked_differences` returns the reason
+and `step_derivatives` runs the dual numbers of forward.py instead (which also say what makes a
 state degenerate); where only the last fails, each input's differences hold but the step is not linear in the
 inputs together, and the differences are returned as not exact:
 
@@ -29,8 +30,8 @@ inputs together, and the differences are returned as not exact:
 import numpy as np
 
 from planar_lcp.engine.layout import NSTAT
-from planar_lcp.engine.rollout import (DIFF_MOVES, DIFF_NONFINITE, DIFF_OK, DIFF_REASONS, DIFF_SPACE, _same_structure,
-                                       step_differences)
+from planar_lcp.engine.rollout import (DIFF_KINK, DIFF_MOVES, DIFF_NONFINITE, DIFF_OK, DIFF_REASONS, DIFF_SPACE,
+                                       DIFF_STRUCTURE, _same_structure, step_differences)
 
 #: the differences' step along input k: DIFF_STEP * max(1, |x_k|) (m, rad, m/s, rad/s). Truncation (eps^2 times the
 #: third derivative) and the round-off of gaps of metre-sized poses over it balance near 1e-6; the change it makes
@@ -50,6 +51,12 @@ DIFF_MIXED_RTOL = 1e-4
 #: against a body at rest) falls in that dead zone and sees no change. At 1e-13 the certified answers are those of
 #: the exact LCP to 1e-13 of its scale, still far above round-off (about 1e-16 times the LCP's condition)
 DIFF_RES_TOL = 1e-13
+#: where the one-sided differences over DIFF_STEP differ or a step DIFF_STEP away changes the step's structure, the
+#: differences are taken again over DIFF_STEP / DIFF_RETRY_SHRINK: a switch of the contact modes or geometry within
+#: DIFF_STEP of x but not at it (a contact that touches a micrometre away) leaves the smaller step on x's smooth piece,
+#: a switch at x still shows there. Truncation and round-off grow by at most that factor (about 1e-7 of the
+#: Jacobian's scale at 2^-24); the change of the LCP's data stays far above DIFF_RES_TOL
+DIFF_RETRY_SHRINK = 16.0
 #: the fixed-point form's iteration count may differ between the perturbed steps when its tolerance (the largest
 #: pose change it stops at, by which two counts' answers differ) is below this fraction of the differences' step:
 #: an error of at most 1e-7 in the differences of the poses (1e-7 / h in the velocities')
@@ -69,26 +76,32 @@ def checked_differences(sim, q, v, qk, vk):
     # simulator's options
     got = _settings.get(id(sim.kopt))
     if got is None or got[0] is not sim.kopt:
-        fp_free = sim.options.fixed_point_tol <= DIFF_FP_RATIO * DIFF_STEP
+        step2 = DIFF_STEP / DIFF_RETRY_SHRINK
         got = (sim.kopt, sim.kopt._replace(warm_start=True, res_tol=min(sim.kopt.res_tol, DIFF_RES_TOL)),
-               np.array([DIFF_STEP, DIFF_KINK_RTOL, DIFF_MIXED_RTOL, DIFF_FLOOR, float(fp_free)]))
+               [np.array([step, DIFF_KINK_RTOL, DIFF_MIXED_RTOL, DIFF_FLOOR,
+                          float(sim.options.fixed_point_tol <= DIFF_FP_RATIO * step)]) for step in (DIFF_STEP, step2)])
         _settings.clear()
         _settings[id(sim.kopt)] = got
-    _, warm_opt, tols = got
+    _, warm_opt, (tols, retry_tols) = got
     jac = np.empty((6 * nd + 3 * nk, 6 * nd + 6 * nk))
     q1, v1, qk1 = np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3))
     stats = np.empty(NSTAT)
-    sim.reset_warm_start()              # the next `step` starts cold, as after any cold step
-    code = step_differences(sim.kmodel, sim.h, sim.kopt, warm_opt, sim.kwork, q, v, qk, vk, tols, jac, q1, v1, qk1,
-                            stats)
+
+    def run(tols):
+        sim.reset_warm_start()              # the next `step` starts cold, as after any cold step
+        return step_differences(sim.kmodel, sim.h, sim.kopt, warm_opt, sim.kwork, q, v, qk, vk, tols, jac, q1, v1,
+                                qk1, stats)
+
+    code = run(tols)
     if code == DIFF_SPACE:
         # an island larger than the dense buffers: a step grows them (as often as it needs), then again
         sim.step(q, v, qk, vk)
-        sim.reset_warm_start()
-        code = step_differences(sim.kmodel, sim.h, sim.kopt, warm_opt, sim.kwork, q, v, qk, vk, tols, jac, q1, v1,
-                                qk1, stats)
-        if code == DIFF_SPACE:
-            return None, "a step nearby needs larger dense buffers than the state's"
+        code = run(tols)
+    if code in (DIFF_KINK, DIFF_STRUCTURE):
+        # a switch within DIFF_STEP of x, or at x: the smaller step tells them apart (DIFF_RETRY_SHRINK)
+        code = run(retry_tols)
+    if code == DIFF_SPACE:
+        return None, "a step nearby needs larger dense buffers than the state's"
     if code == DIFF_NONFINITE:
         return None, DIFF_REASONS[code]             # nothing ran
     sim.stats[:] = stats

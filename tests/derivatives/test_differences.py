@@ -117,6 +117,30 @@ def test_a_change_within_the_simulators_tolerance_is_differentiated():
     assert relative_error(d, ref) <= AGREE_RTOL
 
 
+def test_a_switch_near_the_state_but_not_at_it_is_differentiated_over_a_smaller_step(monkeypatch):
+    """box_push in the velocity form: states where the dual numbers find a switch of the engine's discrete choices
+    within 1e-6 of the state (their one-sided derivatives equal) and the differences over DIFF_STEP see it (they
+    give way); taken again over DIFF_STEP / DIFF_RETRY_SHRINK they stand on the state's smooth piece and agree with
+    the dual numbers' derivatives."""
+    import planar_lcp.derivatives.differences as differences
+    sim = Simulator(compile_scene(load_scene("box_push")), options("velocity"))
+    near = []
+    for q, v, qk, vk in states_along(sim, *sim.initial_state(), 40, 8):
+        ref = step_derivatives(sim, q, v, qk, vk)
+        sides = np.max(np.abs(ref.jacobian_right - ref.jacobian_left))
+        if [g.kind for g in ref.degenerate] == ["switch"] and sides <= 1e-12 * max(1.0, np.max(np.abs(ref.jacobian))):
+            near.append(((q, v, qk, vk), ref))
+    assert near, "no state with a switch nearby: the scene or the states changed"
+    for state, ref in near:
+        d = step_derivatives(sim, *state, method="differences")
+        assert d.method == "differences" and d.exact
+        assert relative_error(d, ref) <= AGREE_RTOL
+    monkeypatch.setattr(differences, "DIFF_RETRY_SHRINK", 1.0)
+    monkeypatch.setattr(differences, "_settings", {})
+    gave_way = [step_derivatives(sim, *state, method="differences").method == "dual" for state, _ in near]
+    assert any(gave_way), "the switches nearby are not within DIFF_STEP: the retry is not what answers here"
+
+
 def test_the_incline_block_slides_with_dv_dmu_minus_g_cos_a_h():
     """A block sliding down a 30 degree incline: d(v+ along the slope)/d(mu) = g cos(a) h, against the slide."""
     sim = Simulator(compile_scene(load_scene("block_on_incline")), SimOptions())
