@@ -54,8 +54,9 @@ DIFF_RES_TOL = 1e-13
 #: where the one-sided differences over DIFF_STEP differ or a step DIFF_STEP away changes the step's structure, the
 #: differences are taken again over DIFF_STEP / DIFF_RETRY_SHRINK: a switch of the contact modes or geometry within
 #: DIFF_STEP of x but not at it (a contact that touches a micrometre away) leaves the smaller step on x's smooth piece,
-#: a switch at x still shows there. Truncation and round-off grow by at most that factor (about 1e-7 of the
-#: Jacobian's scale at 2^-24); the change of the LCP's data stays far above DIFF_RES_TOL
+#: a switch at x still shows there. Round-off grows by that factor and truncation shrinks by its square (the
+#: oracle states' largest error, retried ones included, stays 1.5e-6: docs/method.md); the change of the LCP's data
+#: stays far above DIFF_RES_TOL
 DIFF_RETRY_SHRINK = 16.0
 #: the fixed-point form's iteration count may differ between the perturbed steps when its tolerance (the largest
 #: pose change it stops at, by which two counts' answers differ) is below this fraction of the differences' step:
