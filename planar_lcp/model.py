@@ -87,6 +87,12 @@ class Model:
     def max_unknowns(self):
         """LCP size bound: 4 per contact (normal, two friction rays, slack) plus columns + 1 per support element,
         plus the force-limited kinematic bodies' lag velocities."""
+        return self._max_unknowns
+
+    @functools.cached_property
+    def _max_unknowns(self):
+        # computed once (about 2.5 us): step_derivatives asks it per call, and the arrays' sizes and which kinematic
+        # bodies are force-limited never change after compile
         return (4 * self.max_contacts() + (self.support_columns() + 1) * len(self.arrays.sup_dyn)
                 + self.servo_unknowns())
 

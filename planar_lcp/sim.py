@@ -179,6 +179,7 @@ class Simulator:
         # None: the kernel is compiled (or cached), or it compiles in this process at its first call
         self._ready = compiled(self._kernel)
         self._background = None if self._ready else start_background(self._kernel)
+        self._twins = (None, {})    # `twin`'s simulators: (the options they were made from, {changes: simulator})
 
     @property
     def kmodel(self):
@@ -200,6 +201,23 @@ class Simulator:
     @property
     def h(self):
         return self.options.h
+
+    def twin(self, **changes):
+        """This simulator where its options already have the values `changes` names, else a simulator of the same
+        model (its arrays shared) with those options replaced, made once per simulator and changes and kept: the
+        steps a computation takes aside with other options (the derivatives' at a tighter certificate tolerance, or
+        on the dense path) leave this simulator's warm-start memory and stats alone, and cost no construction after
+        the first."""
+        made_from, twins = self._twins
+        if made_from is not self.options:
+            made_from, twins = self.options, {}
+            self._twins = (made_from, twins)
+        key = tuple(sorted(changes.items()))
+        got = twins.get(key)
+        if got is None:
+            same = all(getattr(self.options, k) == x for k, x in changes.items())
+            got = twins[key] = self if same else type(self)(self.model, dataclasses.replace(self.options, **changes))
+        return got
 
     def initial_state(self):
         m = self.model

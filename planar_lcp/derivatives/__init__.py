@@ -390,20 +390,14 @@ SIDES_RTOL = 1e-9
 #: and to this fraction of the Jacobian's largest entry (a row and a column of round-off zeros are no scale)
 SIDES_FLOOR = 1e-12
 
-_twins = {}
-
-
 def _dense_twin(sim):
     """The simulator whose step is differentiated: `sim` itself, or for options that send large islands to the sparse
-    solver (SimOptions.sparse_min_unknowns > 0: it writes no dense LCP to differentiate) a simulator of the same model
-    and options with every island on the dense path (decided and made once per simulator)."""
-    twin = _twins.get(id(sim))
-    if twin is None or twin[0] is not sim:
-        dense = sim.options.sparse_min_unknowns == 0 or sim.model.max_unknowns() < sim.options.sparse_min_unknowns
-        twin = (sim, sim if dense else type(sim)(sim.model, dataclasses.replace(sim.options, sparse_min_unknowns=0)))
-        _twins.clear()
-        _twins[id(sim)] = twin
-    return twin[1]
+    solver (SimOptions.sparse_min_unknowns > 0: it writes no dense LCP to differentiate) its twin with every island on
+    the dense path (`Simulator.twin`)."""
+    limit = sim.options.sparse_min_unknowns
+    if limit == 0 or sim.model.max_unknowns() < limit:
+        return sim
+    return sim.twin(sparse_min_unknowns=0)
 
 
 def mixed_direction(x):
@@ -427,12 +421,13 @@ def mixed_agrees(J, d, right, left):
     return bool(np.all(np.abs(along - predicted[:, None]) <= tol[:, None]))
 
 
-def _run_on_duals(sim, m, q, v, qk, vk, K):
+def _run_on_duals(sim, m, q, v, qk, vk, K, d):
     """The step on duals along 2 K + 2 directions: +e_k (columns 0 ... K - 1) and -e_k (K ... 2 K - 1) of the K
     inputs (q, v, qk, vk, then the parameters': the model arrays m carry those), then +d and -d (columns 2 K and
-    2 K + 1), d = `mixed_direction` of the state's inputs. Every direction is propagated on its own (the dual `max`
-    and `min` and the derivative LCP act column by column), so one run gives both one-sided derivatives along each
-    input and along d. Returns (outputs (q+, v+, qk+) as object arrays, status, stats, work, the Recorder)."""
+    2 K + 1), d a direction of the state's inputs (`mixed_direction`). Every direction is propagated on its own (the
+    dual `max` and `min` and the derivative LCP act column by column), so one run gives both one-sided derivatives
+    along each input and along d. Returns (outputs (q+, v+, qk+) as object arrays, status, stats, work, the
+    Recorder)."""
     from planar_lcp.engine.layout import StepWork
     from planar_lcp.engine.rollout import lemke_step, pgs_step
     nd, nk = len(q), len(qk)
@@ -440,12 +435,11 @@ def _run_on_duals(sim, m, q, v, qk, vk, K):
     w.warm_size[:] = -1
     w.sparse_pair_mode[:] = -1
     opt = sim.kopt._replace(warm_start=False)
-    x = np.concatenate([q.ravel(), v.ravel(), qk.ravel(), vk.ravel()])
-    n = len(x)
+    n = len(d)
     seeds = np.zeros((n, 2 * K + 2))
     seeds[np.arange(n), np.arange(n)] = 1.0
     seeds[np.arange(n), K + np.arange(n)] = -1.0
-    seeds[:, 2 * K] = mixed_direction(x)
+    seeds[:, 2 * K] = d
     seeds[:, 2 * K + 1] = -seeds[:, 2 * K]
     cuts = np.cumsum([0, q.size, v.size, qk.size, vk.size])
     state = tuple(with_derivatives(a, seeds[cuts[i]:cuts[i + 1]].reshape(a.shape + (2 * K + 2,)))
@@ -576,7 +570,8 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
     sim.reset_warm_start()
     q1, v1, qk1, status = sim.step(q, v, qk, vk)
     sim.reset_warm_start()
-    out, st, stats, w, rec = _run_on_duals(sim, m, q, v, qk, vk, K)
+    d = mixed_direction(np.concatenate([q.ravel(), v.ravel(), qk.ravel(), vk.ravel()]))
+    out, st, stats, w, rec = _run_on_duals(sim, m, q, v, qk, vk, K, d)
     qd, vd, qkd = (values(a) for a in out)
     # the fixed-point form on duals may iterate on past the compiled step (forward.py, FP_DERIVATIVE_RTOL): its
     # values then move by less than the iteration's tolerance
@@ -590,7 +585,6 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
     both = np.concatenate([grads(a, 2 * K + 2).reshape(-1, 2 * K + 2) for a in out], axis=0)
     right, left = both[:, :K], -both[:, K:2 * K]
     ns = 6 * nd + 6 * nk
-    d = mixed_direction(np.concatenate([q.ravel(), v.ravel(), qk.ravel(), vk.ravel()]))
     mixed_agree = mixed_agrees(0.5 * (right[:, :ns] + left[:, :ns]), d, both[:, 2 * K], -both[:, 2 * K + 1])
     unbounded = ~np.all(np.isfinite(right) & np.isfinite(left), axis=0)
     big = np.maximum(np.abs(right), np.abs(left))

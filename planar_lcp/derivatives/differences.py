@@ -1,5 +1,9 @@
 """The step's derivatives by checked central differences of the compiled step: the fast method of `step_derivatives`.
 
+Its first try is the derivatives at the cold step's certified bases (engine/tangent.py `step_tangent`: the LCP's
+part by one solve with the bases' matrices, the rest by differences of the step's smooth stages alone), where that
+covers the step and its checks hold; where not, the differences of whole steps below.
+
 `step_differences` (engine/rollout.py) runs, in one compiled call, the cold step at the state x, then the step at
 x +- eps_k e_k for each of the K inputs, each warm-started on the cold step's final LCP bases and certified to
 DIFF_RES_TOL: where the contact modes are strictly complementary those bases stay certified nearby
@@ -32,6 +36,7 @@ import numpy as np
 from planar_lcp.engine.layout import NSTAT
 from planar_lcp.engine.rollout import (DIFF_KINK, DIFF_MOVES, DIFF_NONFINITE, DIFF_OK, DIFF_REASONS, DIFF_SPACE,
                                        DIFF_STRUCTURE, _same_structure, step_differences)
+from planar_lcp.engine.tangent import TANGENT_NOT_COVERED, step_tangent
 
 #: the differences' step along input k: DIFF_STEP * max(1, |x_k|) (m, rad, m/s, rad/s). Truncation (eps^2 times the
 #: third derivative) and the round-off of gaps of metre-sized poses over it balance near 1e-6; the change it makes
@@ -66,15 +71,10 @@ DIFF_FP_RATIO = 1e-7
 _settings = {}
 
 
-def checked_differences(sim, q, v, qk, vk):
-    """((q+, v+, qk+), status, jacobian (6 ndyn + 3 nkin, 6 ndyn + 6 nkin)) of the cold step by its checked
-    differences and "", where they stand for its derivatives (module docstring); the same and the reason where only
-    the mixed direction's check failed (each input's differences hold, the step is not linear in them together:
-    not differentiable); else (None, why), the reason DIFF_REASONS[DIFF_NONFINITE] where an input is not finite.
-    The state's arrays: float64, C-contiguous, of the model's shapes."""
-    nd, nk = len(q), len(qk)
-    # the perturbed steps' options (the warm start on, DIFF_RES_TOL) and the checks' tolerances, made once per
-    # simulator's options
+def kernel_settings(sim):
+    """(the perturbed steps' options: the warm start on, DIFF_RES_TOL; the checks' tolerances at DIFF_STEP, and at
+    the retry's smaller step), as `step_tangent` and `step_differences` take them, made once per simulator's
+    options."""
     got = _settings.get(id(sim.kopt))
     if got is None or got[0] is not sim.kopt:
         step2 = DIFF_STEP / DIFF_RETRY_SHRINK
@@ -83,24 +83,51 @@ def checked_differences(sim, q, v, qk, vk):
                           float(sim.options.fixed_point_tol <= DIFF_FP_RATIO * step)]) for step in (DIFF_STEP, step2)])
         _settings.clear()
         _settings[id(sim.kopt)] = got
-    _, warm_opt, (tols, retry_tols) = got
+    return got[1], got[2][0], got[2][1]
+
+
+def tangent_at_bases(sim, q, v, qk, vk):
+    """(code, jacobian) of the first try alone, the derivatives at the cold step's bases (engine/tangent.py
+    `step_tangent`): DIFF_OK where it answers (for measurements and tests; `checked_differences` is the method).
+    The state's arrays as `checked_differences` takes them."""
+    warm_opt, tols, _ = kernel_settings(sim)
+    nd, nk = len(q), len(qk)
+    jac = np.full((6 * nd + 3 * nk, 6 * nd + 6 * nk), np.nan)
+    sim.reset_warm_start()
+    code = step_tangent(sim.kmodel, sim.h, sim.kopt, warm_opt, sim.kwork, q, v, qk, vk, tols, jac, np.empty((nd, 3)),
+                        np.empty((nd, 3)), np.empty((nk, 3)), np.empty(NSTAT))
+    sim.reset_warm_start()
+    return int(code), jac
+
+
+def checked_differences(sim, q, v, qk, vk):
+    """((q+, v+, qk+), status, jacobian (6 ndyn + 3 nkin, 6 ndyn + 6 nkin)) of the cold step by its checked
+    differences and "", where they stand for its derivatives (module docstring); the same and the reason where only
+    the mixed direction's check failed (each input's differences hold, the step is not linear in them together:
+    not differentiable); else (None, why), the reason DIFF_REASONS[DIFF_NONFINITE] where an input is not finite.
+    The state's arrays: float64, C-contiguous, of the model's shapes."""
+    nd, nk = len(q), len(qk)
+    warm_opt, tols, retry_tols = kernel_settings(sim)
     jac = np.empty((6 * nd + 3 * nk, 6 * nd + 6 * nk))
     q1, v1, qk1 = np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3))
     stats = np.empty(NSTAT)
 
-    def run(tols):
+    def run(kernel, tols):
         sim.reset_warm_start()              # the next `step` starts cold, as after any cold step
-        return step_differences(sim.kmodel, sim.h, sim.kopt, warm_opt, sim.kwork, q, v, qk, vk, tols, jac, q1, v1,
-                                qk1, stats)
+        return kernel(sim.kmodel, sim.h, sim.kopt, warm_opt, sim.kwork, q, v, qk, vk, tols, jac, q1, v1, qk1, stats)
 
-    code = run(tols)
+    # the derivatives at the cold step's bases first (engine/tangent.py), where they cover the step and its checks
+    # hold; else the differences of whole steps
+    code = run(step_tangent, tols)
     if code == DIFF_SPACE:
         # an island larger than the dense buffers: a step grows them (as often as it needs), then again
         sim.step(q, v, qk, vk)
-        code = run(tols)
-    if code in (DIFF_KINK, DIFF_STRUCTURE):
-        # a switch within DIFF_STEP of x, or at x: the smaller step tells them apart (DIFF_RETRY_SHRINK)
-        code = run(retry_tols)
+        code = run(step_tangent, tols)
+    if code >= TANGENT_NOT_COVERED:
+        code = run(step_differences, tols)
+        if code in (DIFF_KINK, DIFF_STRUCTURE):
+            # a switch within DIFF_STEP of x, or at x: the smaller step tells them apart (DIFF_RETRY_SHRINK)
+            code = run(step_differences, retry_tols)
     if code == DIFF_SPACE:
         return None, "a step nearby needs larger dense buffers than the state's"
     if code == DIFF_NONFINITE:
@@ -113,23 +140,6 @@ def checked_differences(sim, q, v, qk, vk):
     return ((q1, v1, qk1), 0, jac), ""
 
 
-_twins = {}
-
-
-def _tight_twin(sim):
-    """A simulator of `sim`'s model (its arrays shared) and options but res_tol at most DIFF_RES_TOL: the parameters'
-    perturbed steps (made once per simulator)."""
-    import dataclasses
-    twin = _twins.get(id(sim))
-    if twin is None or twin[0] is not sim:
-        res_tol = min(sim.options.res_tol, DIFF_RES_TOL)
-        twin = (sim, sim if res_tol == sim.options.res_tol else
-                type(sim)(sim.model, dataclasses.replace(sim.options, res_tol=res_tol)))
-        _twins.clear()
-        _twins[id(sim)] = twin
-    return twin[1]
-
-
 def param_differences(sim, q, v, qk, vk, compiles, base):
     """The Jacobian's columns of scene parameters ((6 ndyn + 3 nkin, len(compiles)), "") by central differences of
     the cold step (certified to DIFF_RES_TOL) with the model's arrays compiled at each parameter's lo and hi
@@ -138,7 +148,8 @@ def param_differences(sim, q, v, qk, vk, compiles, base):
     and the cold step's (q+, v+, qk+), base (its stats in sim.stats); or (None, why) where its checks fail (the same
     as the state's: the step's structure on both sides, the one-sided differences)."""
     arrays = sim.model.arrays
-    tight = _tight_twin(sim)
+    # the perturbed steps certified to DIFF_RES_TOL, as the state's (a twin: sim's warm-start memory stays)
+    tight = sim.twin(res_tol=min(sim.options.res_tol, DIFF_RES_TOL))
     base_stats = sim.stats.copy()
     x1 = np.concatenate([a.ravel() for a in base])
     cols = np.empty((len(x1), len(compiles)))

@@ -7,6 +7,7 @@ the LCP conditions checked with numpy (for a non-unique LCP); the cold-start sim
 step); bitwise equality where the contract promises it.
 """
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -296,3 +297,23 @@ def test_the_scaling_warm_start_example_runs():
             ([x.strip() for x in r.strip("|").split("|")] for r in run.stdout.splitlines()[2:] if r.startswith("|"))}
     assert sorted(rows) == [1, 2, 4, 8, 16, 32]
     assert all(rows[n][2] == 0.95 for n in rows), rows          # 19 of 20 steps (the rollout starts cold)
+
+
+def test_a_twin_takes_its_steps_aside():
+    """`Simulator.twin`: the simulator itself where nothing changes, else one twin per change, made once, of the same
+    model with only those options replaced; its steps leave the first simulator's warm-start memory and stats alone
+    (what the derivatives' steps at another tolerance rely on); new options make new twins."""
+    sim = Simulator(compile_scene(load_scene("box_push")), SimOptions(warm_start=True))
+    assert sim.twin() is sim and sim.twin(res_tol=sim.options.res_tol) is sim
+    tight = sim.twin(res_tol=1e-13)
+    assert tight is not sim and sim.twin(res_tol=1e-13) is tight
+    assert tight.model is sim.model and tight.options.res_tol == 1e-13
+    assert tight.options == dataclasses.replace(sim.options, res_tol=1e-13)
+    q, v, qk, vk = sim.initial_state()
+    q1, v1, qk1, _ = sim.step(q, v, qk, vk)
+    memory, stats = sim.work.warm_size.copy(), sim.stats.copy()
+    assert np.any(memory >= 0)                    # the step kept a basis for the next one
+    tight.step(q1, v1, qk1, vk)
+    assert np.array_equal(sim.work.warm_size, memory) and np.array_equal(sim.stats, stats)
+    sim.options = dataclasses.replace(sim.options, warm_start=False)
+    assert sim.twin(res_tol=1e-13) is not tight and not sim.twin(res_tol=1e-13).options.warm_start

@@ -1,0 +1,91 @@
+"""The derivatives at the cold step's certified bases (engine/tangent.py `step_tangent`, the first try of
+step_derivatives(method="differences")) against the dual numbers, the exact oracle: where it answers, the dual numbers
+call the step exact and their Jacobians agree far inside the checked differences' tolerance (the LCP's part is a
+solve, not a difference); states it does not cover, or where an island is degenerate, are left to the differences of
+whole steps."""
+
+import numpy as np
+import pytest
+
+from planar_lcp.derivatives import step_derivatives
+from planar_lcp.derivatives.differences import tangent_at_bases
+from planar_lcp.engine.rollout import DIFF_OK
+from planar_lcp.engine.tangent import TANGENT_NOT_COVERED, step_tangent
+from planar_lcp.model import compile_scene
+from planar_lcp.sim import SimOptions, Simulator
+from planar_lcp.spec.scene import load_scene
+
+from derivative_scenes import SHIPPED, options, random_pushing_scene, random_vertical_scene, states_along
+from test_differences import relative_error
+
+pytestmark = pytest.mark.filterwarnings("ignore::RuntimeWarning")
+
+#: the tangent's largest difference from the dual numbers, relative to its row's or column's largest entry: the
+#: smooth part's central differences alone (2.1e-9 on derivative_methods.py's states; whole steps' differences: 1e-5)
+TANGENT_RTOL = 1e-7
+
+
+def tangent(sim, q, v, qk, vk):
+    return tangent_at_bases(sim, *(np.ascontiguousarray(a, dtype=float) for a in (q, v, qk, vk)))
+
+
+def check(sim, states):
+    """(states the tangent answers, states the dual numbers call exact); asserts the agreement where it answers."""
+    answered = exact = 0
+    for q, v, qk, vk in states:
+        ref = step_derivatives(sim, q, v, qk, vk)
+        code, jac = tangent(sim, q, v, qk, vk)
+        exact += ref.exact
+        if code != DIFF_OK:
+            continue
+        answered += 1
+        assert ref.exact, f"the tangent answers where the dual numbers find {ref.degenerate}"
+        assert relative_error(type(ref)(**{**ref.__dict__, "jacobian": jac}), ref) <= TANGENT_RTOL
+    return answered, exact
+
+
+def test_shipped_position_form_states_agree_with_the_dual_numbers():
+    answered = exact = 0
+    for name in SHIPPED:
+        sim = Simulator(compile_scene(load_scene(name)), options("position"))
+        a, e = check(sim, states_along(sim, *sim.initial_state(), 40, 8))
+        answered, exact = answered + a, exact + e
+    # it answers on most exact states (the others: a body at rest on its limit surface, a contact touching without
+    # load, a restitution's or the fixed-point form's step; 23 of 45 when written)
+    assert answered >= 0.4 * exact, f"the tangent answers on {answered} of {exact} exact states"
+
+
+def test_random_scenes_agree_with_the_dual_numbers():
+    answered = exact = 0
+    for seed in range(6):
+        for scene in (random_vertical_scene(seed), random_pushing_scene(seed)):
+            sim = Simulator(compile_scene(scene), options("position"))
+            a, e = check(sim, states_along(sim, *sim.initial_state(), 60, 15))
+            answered, exact = answered + a, exact + e
+    assert answered >= 0.3 * exact, f"the tangent answers on {answered} of {exact} exact states"
+
+
+def test_a_sticking_contact_is_answered_and_a_contact_without_load_is_not():
+    """box_push's pusher sticks on the box: one friction ray carries the load and the other has z = 0 and w = 0 (its
+    slip rate and the contact's are zero), a degenerate index that stays at zero along every input, so the basis
+    holds on both sides. A contact that touches without load is degenerate in the mode that matters: the tangent
+    gives way (to the differences of whole steps)."""
+    sim = Simulator(compile_scene(load_scene("box_push")), SimOptions())
+    q, v, qk, vk = sim.initial_state()
+    r = sim.rollout(q, v, qk, vk[None], 100)
+    state = (r["q"][100], r["v"][100], r["qk"][100], vk)
+    code, jac = tangent(sim, *state)
+    ref = step_derivatives(sim, *state)
+    assert code == DIFF_OK and ref.exact
+    assert relative_error(type(ref)(**{**ref.__dict__, "jacobian": jac}), ref) <= TANGENT_RTOL
+    # the scene's start with the pusher still: it touches the box's face (gap 0) with no load, on a box at rest on
+    # its limit surface
+    q, v, qk, _ = sim.initial_state()
+    still = np.zeros_like(vk)
+    assert tangent(sim, q, v, qk, still)[0] != DIFF_OK
+    assert not step_derivatives(sim, q, v, qk, still).exact
+
+
+def test_the_velocity_form_is_not_covered():
+    sim = Simulator(compile_scene(load_scene("box_push")), SimOptions(formulation="velocity"))
+    assert tangent(sim, *sim.initial_state())[0] == TANGENT_NOT_COVERED
