@@ -152,12 +152,13 @@ def begin_step(m, q, v, qk, vk, h, opt, w, qk_out, stats):
 
 
 @njit(cache=True, inline='always')
-def prepare_contacts(m, w, opt, qk_lin, stats):
+def prepare_contacts(m, w, opt, qk_lin, stats, recentre=True):
     """Contacts at (w.q_hat, qk_lin), the per-pair count of the set, islands; w.v_new = v_tilde; the limit surfaces'
-    re-centred columns at that pose.
+    re-centred columns at that pose (recentre=False keeps them as they are: engine/tangent.py, where a pose moves
+    that they do not depend on).
     Returns (number of contacts, number of islands)."""
     body_poses(m, w.q_hat, qk_lin, w.body_pose)
-    if m.support_model == SUPPORT_LIMIT_SURFACE:
+    if recentre and m.support_model == SUPPORT_LIMIT_SURFACE:
         recentre_limit_surfaces(m, w)
     world_vertices(m, w.body_pose, w.vert_world)
     ncon = find_contacts(m, w.vert_world, opt.margin, w.pair_forced, w.con_pair, w.con_phi, w.con_n, w.con_p,

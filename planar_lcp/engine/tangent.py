@@ -6,15 +6,14 @@ there the answer is z_B = -A_BB^-1 b_B: the implicit function theorem gives its 
 dz_B = -A_BB^-1 d(A z + b)_B, z held. The step's other stages (contacts, the limit surfaces' re-centred columns, the
 assembly of A and b, the impulses' velocity change M^-1 G z and the integration) are smooth functions of the inputs
 for the contacts and islands fixed; `step_tangent` takes their derivatives with z held by central differences of
-that smooth part alone (no LCP is solved there: two evaluations of the contacts, force columns and rows per input),
-and adds the LCP's through one solve with A_BB at the state. Only the rows of A and b that depend on the state enter:
-the Delassus part G^T M^-1 G z + b over the force unknowns (computed as G^T (M^-1 (G z)), linear in the unknowns),
-the friction and slack rows being constant.
+that smooth part alone (no LCP is solved there: two evaluations per input, along the smooth part's own inputs,
+SMOOTH_*, the velocities' without contact detection), and adds the LCP's through one solve with A_BB at the state.
+Only the rows of A and b that depend on the state enter: the Delassus part G^T M^-1 G z + b over the force unknowns
+(computed as G^T (M^-1 (G z)), linear in the unknowns), the friction and slack rows being constant.
 
 It answers for the steps it covers (`_covered`): the position form, every island solved by Lemke's first try from
 scratch (no warm start, no retry, no sparse or block solver, no force-limited body in the island), no active-set
-re-solve, and no pair outside the contact set penetrating at the step's end pose (a re-solve a perturbation could
-start). Everywhere else, and where its checks fail, it returns a code and the checked differences of whole steps
+re-solve. Everywhere else, and where its checks fail, it returns a code and the checked differences of whole steps
 (`step_differences`, engine/rollout.py) answer instead. Its checks:
 
 - each island's basis holds on both sides: every index at the certificate's zero on both sides, z_i and
@@ -22,7 +21,8 @@ start). Everywhere else, and where its checks fail, it returns a code and the ch
   along every input (its rate below DEGENERATE_RTOL of the island's: a sticking contact's unloaded friction ray,
   whose w = lambda + t.v has lambda and t.v both held at zero), where a contact touching without load opens or
   closes;
-- every evaluation x +- eps_k e_k has x's contacts (the same pairs, in the same order, hence the same islands);
+- every evaluation at a moved pose has x's contacts (the same pairs, in the same order, hence the same islands) and
+  its end-of-step check adds no pair;
 - the one-sided differences of the smooth part agree (a kink of the contact geometry, of max and min in the rows,
   or a body at rest on its limit surface, whose re-centred column jumps);
 - the cold steps at x +- d move as J d predicts (d the mixed direction of `step_differences`).
@@ -34,7 +34,10 @@ import numpy as np
 from numba import njit
 
 from planar_lcp.engine.assemble import (apply_impulses, assemble_columns, assemble_lcp, column_dot,
-                                        island_problem_size, island_servo, support_column_count)
+                                        island_problem_size, island_servo, recentre_limit_surfaces,
+                                        support_column_count)
+from planar_lcp.engine.constants import SUPPORT_LIMIT_SURFACE
+from planar_lcp.engine.contacts import body_poses
 from planar_lcp.engine.islands import island_members
 from planar_lcp.engine.layout import Stat
 from planar_lcp.engine.rollout import (DIFF_FAILED, DIFF_MOVES, DIFF_NONFINITE, DIFF_OK, DIFF_SPACE,
@@ -43,13 +46,20 @@ from planar_lcp.engine.step import (FORM_POSITION, STEP_NEEDS_SPACE, STEP_OK, be
                                     kinematic_linearization, prepare_contacts)
 
 #: step_tangent's answers besides the DIFF_* codes it shares with step_differences: the step is not one it covers
-#: (`_covered`), an island's answer is not strictly complementary, an evaluation nearby has other contacts, the
-#: one-sided differences of the smooth part differ. The checked differences of whole steps answer then.
+#: (`_covered`), an island's basis does not hold on both sides, an evaluation nearby has other contacts or a re-solve,
+#: the one-sided differences of the smooth part differ. The checked differences of whole steps answer then.
 TANGENT_NOT_COVERED = 10
 TANGENT_DEGENERATE = 11
 TANGENT_CONTACTS = 12
 TANGENT_KINK = 13
 
+#: the smooth part's inputs (`_moved_start`), in the order and layout of the state's (x: q, v, qk, vk): the
+#: linearization pose q_hat = q + h v_s, the velocity v_s = v damping^h, the kinematic poses qk_hat = qk + h vk (= qk+)
+#: and the kinematic velocities in the rows. The state's inputs reach the smooth part only through them (and q,
+#: directly, in q+ = q + h v+): d/dq = d/dq_hat + (q+ = q + ...), d/dv = damping^h (h d/dq_hat + d/dv_s),
+#: d/dqk = d/dqk_hat, d/dvk = h d/dqk_hat + d/dkinv. The velocities' columns need neither the contacts (the poses are
+#: held) nor the end-of-step check (q+ moves by h times them)
+SMOOTH_POSE, SMOOTH_VELOCITY, SMOOTH_KIN_POSE, SMOOTH_KIN_VELOCITY = 0, 1, 2, 3
 #: a degenerate index (z_i = w_i = 0) keeps its basis on both sides where its w (z, if basic) changes along no
 #: input: by less than this fraction of the island's largest rate along that input (the smooth part's differences
 #: are good to about 1e-7 of it; a mode that switches moves at the scale of the others)
@@ -102,11 +112,35 @@ def _contacts_at(m, h, opt, w, x, nd, nk, q, v, qk, vk, qk_out, scratch):
 
 
 @njit(cache=True, inline='always')
-def _smooth_part(m, h, opt, w, vk, nisl, ncon, z, zoff, q, qk_out, r, out, dv, scratch):
+def _moved_start(m, h, opt, w, q, v, qk, vk, kinv, qk_out, scratch, kind, i, c, delta):
+    """The step's first stage at the state (begin_step), then one input of the smooth part moved by delta (kind:
+    SMOOTH_*, body i, coordinate c): the linearization pose q_hat, the velocity v_s the free motion starts from
+    (v_start, v_tilde = v_s + h g and the position form's v_hat = v_s move together, q_hat held), a kinematic body's
+    pose (qk_hat = qk+) or its velocity in the rows (kinv, a copy of vk)."""
+    begin_step(m, q, v, qk, vk, h, opt, w, qk_out, scratch)
+    for j in range(vk.shape[0]):
+        for a in range(3):
+            kinv[j, a] = vk[j, a]
+    if kind == SMOOTH_POSE:
+        w.q_hat[i, c] += delta
+    elif kind == SMOOTH_VELOCITY:
+        w.v_start[i, c] += delta
+        w.v_tilde[i, c] += delta
+        w.v_hat[i, c] += delta
+    elif kind == SMOOTH_KIN_POSE:
+        w.qk_hat[i, c] += delta
+        qk_out[i, c] += delta
+    elif kind == SMOOTH_KIN_VELOCITY:
+        kinv[i, c] += delta
+        w.kin_velocity[i, c] += delta
+
+
+@njit(cache=True, inline='always')
+def _smooth_part(m, h, w, vk, nisl, ncon, z, zoff, q, qk_out, r, out, dv):
     """With the contacts and islands of `_contacts_at` and the answers z held (island i's at zoff[i] ...
     zoff[i + 1]): the rows r = (A z + b) of every island over its force unknowns (G^T (M^-1 G z) + b; b alone on the
     constant rows), and the step's outputs out = (q + h v+, v+, qk+) with v+ = v_tilde + M^-1 G z. dv: (ndyn, 3)
-    scratch. Returns the pairs the step's end-of-step check adds at that q+ (a re-solve: none where covered)."""
+    scratch. Leaves q+ in w.q_new (for the end-of-step check)."""
     k = support_column_count(m)
     nd = q.shape[0]
     for isl in range(nisl):
@@ -133,7 +167,6 @@ def _smooth_part(m, h, opt, w, vk, nisl, ncon, z, zoff, q, qk_out, r, out, dv, s
     for j in range(qk_out.shape[0]):
         for c in range(3):
             out[6 * nd + 3 * j + c] = qk_out[j, c]
-    return check_end_configuration(m, w, opt, qk_out, scratch)
 
 
 @njit(cache=True)
@@ -254,58 +287,88 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                 if wi < -res_tol * scale:
                     return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
                 degenerate[o + i] = wi <= res_tol * scale
-    # the smooth part at x, then at x +- eps_k e_k
+    # the smooth part at x (its end-of-step check moves the body poses: put back for the velocities' columns)
     f0 = np.empty(nout)
-    if _smooth_part(m, h, cold_opt, w, vka, nisl, ncon, z, zoff, qa, qk_out, r0, f0, dv, scratch) != 0:
-        _restore_memory(msize, mbasic, mmodes, w)
-        return TANGENT_CONTACTS
+    _smooth_part(m, h, w, vka, nisl, ncon, z, zoff, qa, qk_out, r0, f0, dv)
+    if check_end_configuration(m, w, cold_opt, qk_out, scratch) != 0:
+        return _give_way(msize, mbasic, mmodes, w, TANGENT_CONTACTS)
+    body_poses(m, w.q_hat, w.qk_hat, w.body_pose)
+    # then along each of the smooth part's inputs, +- eps_k: the velocities' first (on x's contacts and poses),
+    # the kinematic ones before the dynamic ones' (which move the limit surfaces' re-centred columns), then the poses'
+    # (each with its contacts, the limit surfaces re-centred, and the end-of-step check)
     rp, rm = np.empty(N), np.empty(N)
     fp, fm = np.empty(nout), np.empty(nout)
     dr = np.zeros((N, K))
-    xx = x.copy()
+    jy = np.zeros((nout, K))           # d(q+, v+, qk+) along the smooth part's inputs
+    kinv = np.empty((nk, 3))
+    at_x = True                        # w.sup_recentred holds x's re-centred columns
     code = DIFF_OK
-    for k in range(K):
+    for t in range(K):
+        if t < 3 * nk:
+            k = 6 * nd + 3 * nk + t                                      # kinematic velocities
+        elif t < 3 * nk + 3 * nd:
+            k = 3 * nd + (t - 3 * nk)                                    # dynamic velocities
+        elif t < 3 * nk + 6 * nd:
+            k = t - 3 * nk - 3 * nd                                      # dynamic poses
+        else:
+            k = t - 3 * nk                                               # kinematic poses
+        kind = SMOOTH_POSE if k < 3 * nd else (SMOOTH_VELOCITY if k < 6 * nd else (
+            SMOOTH_KIN_POSE if k < 6 * nd + 3 * nk else SMOOTH_KIN_VELOCITY))
+        i = (k % (3 * nd)) // 3 if k < 6 * nd else ((k - 6 * nd) % (3 * nk)) // 3
+        c = k % 3
         e = steps[0, k]
         for sgn in range(2):
-            xx[k] = x[k] + e if sgn == 0 else x[k] - e
-            nc, ni = _contacts_at(m, h, cold_opt, w, xx, nd, nk, qa, va, qka, vka, qk_out, scratch)
-            if nc != ncon or ni != nisl:
-                code = TANGENT_CONTACTS
+            _moved_start(m, h, cold_opt, w, qa, va, qka, vka, kinv, qk_out, scratch, kind, i, c, e if sgn == 0 else -e)
+            pose = kind == SMOOTH_POSE or kind == SMOOTH_KIN_POSE
+            if pose:
+                # the re-centred columns depend on a dynamic body's angle and velocity only: an evaluation that
+                # moves neither keeps them, once they are x's again (at_x)
+                turns = kind == SMOOTH_POSE and c == 2
+                nc, ni = prepare_contacts(m, w, cold_opt, w.qk_hat, scratch, turns or not at_x)
+                at_x = not turns
+                if nc != ncon or ni != nisl:
+                    code = TANGENT_CONTACTS
+                else:
+                    for j in range(ncon):
+                        if w.con_pair[j] != pairs[j]:
+                            code = TANGENT_CONTACTS
+                if code != DIFF_OK:
+                    break
             else:
-                for j in range(ncon):
-                    if w.con_pair[j] != pairs[j]:
-                        code = TANGENT_CONTACTS
-            if code != DIFF_OK:
-                break
-            if _smooth_part(m, h, cold_opt, w, vka, nisl, ncon, z, zoff, qa, qk_out, rp if sgn == 0 else rm,
-                            fp if sgn == 0 else fm, dv, scratch) != 0:
+                if kind == SMOOTH_VELOCITY and m.support_model == SUPPORT_LIMIT_SURFACE:
+                    recentre_limit_surfaces(m, w)
+                    at_x = False
+                for d in range(nd):
+                    for a in range(3):
+                        w.v_new[d, a] = w.v_tilde[d, a]
+            _smooth_part(m, h, w, kinv, nisl, ncon, z, zoff, qa, qk_out, rp if sgn == 0 else rm,
+                         fp if sgn == 0 else fm, dv)
+            if pose and check_end_configuration(m, w, cold_opt, qk_out, scratch) != 0:
                 code = TANGENT_CONTACTS
                 break
-        xx[k] = x[k]
         if code != DIFF_OK:
             break
         # one-sided differences of the smooth part, its rows and its outputs each against their own scale
         for part in range(2):
             big = 0.0
             gap = 0.0
-            for i in range(N if part == 0 else nout):
-                p0 = r0[i] if part == 0 else f0[i]
-                pp = rp[i] if part == 0 else fp[i]
-                pm = rm[i] if part == 0 else fm[i]
+            for r in range(N if part == 0 else nout):
+                p0 = r0[r] if part == 0 else f0[r]
+                pp = rp[r] if part == 0 else fp[r]
+                pm = rm[r] if part == 0 else fm[r]
                 right, left = (pp - p0) / e, (p0 - pm) / e
                 big = max(big, abs(right), abs(left))
                 gap = max(gap, abs(right - left))
                 if part == 0:
-                    dr[i, k] = (pp - pm) / (2.0 * e)
+                    dr[r, k] = (pp - pm) / (2.0 * e)
                 else:
-                    jac[i, k] = (pp - pm) / (2.0 * e)
+                    jy[r, k] = (pp - pm) / (2.0 * e)
             if gap > rtol_kink * max(big, floor):
                 code = TANGENT_KINK
         if code != DIFF_OK:
             break
     if code != DIFF_OK:
-        _restore_memory(msize, mbasic, mmodes, w)
-        return code
+        return _give_way(msize, mbasic, mmodes, w, code)
     # the LCP's part: dz_B = -A_BB^-1 dr_B per island, and its velocity change M^-1 G dz at x's columns
     _contacts_at(m, h, cold_opt, w, x, nd, nk, qa, va, qka, vka, qk_out, scratch)
     dz = np.zeros((N, K))
@@ -367,9 +430,23 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
             apply_impulses(nforce, w.column_slot, w.column_g, zk[o:o + n], m, dv)
             for d in range(nd):
                 for c in range(3):
-                    jac[3 * d + c, k] += h * dv[d, c]
-                    jac[3 * nd + 3 * d + c, k] += dv[d, c]
+                    jy[3 * d + c, k] += h * dv[d, c]
+                    jy[3 * nd + 3 * d + c, k] += dv[d, c]
+    # the state's columns from the smooth part's (SMOOTH_POSE's comment)
+    keep = 1.0 if m.damping == 1.0 else m.damping ** h
+    for r in range(nout):
+        for d in range(nd):
+            for c in range(3):
+                kq, kv = 3 * d + c, 3 * nd + 3 * d + c
+                jac[r, kq] = jy[r, kq] + (1.0 if r == kq else 0.0)
+                jac[r, kv] = keep * (h * jy[r, kq] + jy[r, kv])
+        for j in range(nk):
+            for c in range(3):
+                kq, kv = 6 * nd + 3 * j + c, 6 * nd + 3 * nk + 3 * j + c
+                jac[r, kq] = jy[r, kq]
+                jac[r, kv] = h * jy[r, kq] + jy[r, kv]
     # the cold steps at x +- d against the Jacobian's prediction J d
+    xx = x.copy()
     for sgn in range(2):
         for k in range(K):
             xx[k] = x[k] + steps[1, k] if sgn == 0 else x[k] - steps[1, k]
