@@ -268,15 +268,14 @@ def _model_with_param_derivatives(model, params, first, k, ncols):
 def _check_state(sim, q, v, qk, vk):
     """The state's arrays as C-contiguous float64 of the model's shapes (ValueError naming the one that is not);
     their finiteness is `_check_finite`'s."""
+    q, v, qk, vk = (np.ascontiguousarray(a, dtype=np.float64) for a in (q, v, qk, vk))
     m = sim.model
-    nd, nk = m.ndyn, m.nkin
-    out = []
-    for name, a, rows in (("q", q, nd), ("v", v, nd), ("qk", qk, nk), ("vk", vk, nk)):
-        a = np.ascontiguousarray(a, dtype=np.float64)
-        if a.shape != (rows, 3):
-            raise ValueError(f"step_derivatives: {name} must have shape ({rows}, 3), got {a.shape}")
-        out.append(a)
-    return out
+    dyn, kin = (len(m.dyn_names), 3), (len(m.kin_names), 3)
+    if q.shape != dyn or v.shape != dyn or qk.shape != kin or vk.shape != kin:
+        for name, a, rows in (("q", q, dyn), ("v", v, dyn), ("qk", qk, kin), ("vk", vk, kin)):
+            if a.shape != rows:
+                raise ValueError(f"step_derivatives: {name} must have shape {rows}, got {a.shape}")
+    return q, v, qk, vk
 
 
 def _check_finite(q, v, qk, vk):

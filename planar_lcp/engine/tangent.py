@@ -36,7 +36,7 @@ from numba import njit
 from planar_lcp.engine.assemble import (apply_impulses, assemble_columns, assemble_lcp, column_dot,
                                         island_problem_size, island_servo, recentre_limit_surfaces,
                                         support_column_count)
-from planar_lcp.engine.constants import SUPPORT_LIMIT_SURFACE
+from planar_lcp.engine.constants import BODY_STATIC, SUPPORT_LIMIT_SURFACE
 from planar_lcp.engine.contacts import body_poses
 from planar_lcp.engine.islands import island_members
 from planar_lcp.engine.layout import Stat
@@ -78,6 +78,19 @@ def _covered(opt, stats):
         return False
     for a in _UNCOVERED:
         if stats[a] != 0.0:
+            return False
+    return True
+
+
+@njit(cache=True)
+def translation_free(m):
+    """Whether no shape pair has a static body's shape: the step's smooth part then moves with every pose moved alike
+    (contacts and rows are the same, the table's friction the same everywhere, gravity uniform; qk+ moves along, q+ =
+    q + h v+ does not), so along each axis the pose columns sum to the kinematic bodies' qk+ rows, and the last pose
+    column follows from the others."""
+    for p in range(m.pair_a.shape[0]):
+        if (m.body_kind[m.shape_body[m.pair_a[p]]] == BODY_STATIC
+                or m.body_kind[m.shape_body[m.pair_b[p]]] == BODY_STATIC):
             return False
     return True
 
@@ -302,6 +315,10 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     jy = np.zeros((nout, K))           # d(q+, v+, qk+) along the smooth part's inputs
     kinv = np.empty((nk, 3))
     at_x = True                        # w.sup_recentred holds x's re-centred columns
+    # the last body's x and y pose columns, where they follow from the others' (`translation_free`); -1: none
+    derived = -1
+    if translation_free(m):
+        derived = 6 * nd + 3 * (nk - 1) if nk > 0 else 3 * (nd - 1)
     code = DIFF_OK
     for t in range(K):
         if t < 3 * nk:
@@ -316,6 +333,8 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
             SMOOTH_KIN_POSE if k < 6 * nd + 3 * nk else SMOOTH_KIN_VELOCITY))
         i = (k % (3 * nd)) // 3 if k < 6 * nd else ((k - 6 * nd) % (3 * nk)) // 3
         c = k % 3
+        if derived >= 0 and (k == derived or k == derived + 1):
+            continue
         e = steps[0, k]
         for sgn in range(2):
             _moved_start(m, h, cold_opt, w, qa, va, qka, vka, kinv, qk_out, scratch, kind, i, c, e if sgn == 0 else -e)
@@ -369,6 +388,22 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
             break
     if code != DIFF_OK:
         return _give_way(msize, mbasic, mmodes, w, code)
+    if derived >= 0:
+        for a in range(2):
+            kd = derived + a
+            for r in range(N):
+                dr[r, kd] = 0.0
+            for r in range(nout):
+                jy[r, kd] = 0.0
+            for j in range(nk):
+                jy[6 * nd + 3 * j + a, kd] = 1.0
+            for k in range(6 * nd + 3 * nk):
+                if k % 3 != a or (k >= 3 * nd and k < 6 * nd) or k == kd:
+                    continue
+                for r in range(N):
+                    dr[r, kd] -= dr[r, k]
+                for r in range(nout):
+                    jy[r, kd] -= jy[r, k]
     # the LCP's part: dz_B = -A_BB^-1 dr_B per island, and its velocity change M^-1 G dz at x's columns
     _contacts_at(m, h, cold_opt, w, x, nd, nk, qa, va, qka, vka, qk_out, scratch)
     dz = np.zeros((N, K))

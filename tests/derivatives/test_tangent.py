@@ -10,7 +10,7 @@ import pytest
 from planar_lcp.derivatives import step_derivatives
 from planar_lcp.derivatives.differences import tangent_at_bases
 from planar_lcp.engine.rollout import DIFF_OK
-from planar_lcp.engine.tangent import TANGENT_NOT_COVERED, step_tangent
+from planar_lcp.engine.tangent import TANGENT_NOT_COVERED, translation_free
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
 from planar_lcp.spec.scene import load_scene
@@ -84,6 +84,15 @@ def test_a_sticking_contact_is_answered_and_a_contact_without_load_is_not():
     still = np.zeros_like(vk)
     assert tangent(sim, q, v, qk, still)[0] != DIFF_OK
     assert not step_derivatives(sim, q, v, qk, still).exact
+
+
+def test_a_scene_without_static_shapes_takes_its_last_pose_columns_from_the_others():
+    """Without a pair of a static shape the step's smooth part moves with every pose moved alike: box_push (a pusher
+    and a box on a table) has its pusher's x and y columns from the box's (the agreement with the dual numbers above
+    holds them), falling_rod (a rod over the ground) has every pose column evaluated."""
+    box = Simulator(compile_scene(load_scene("box_push")), SimOptions())
+    rod = Simulator(compile_scene(load_scene("falling_rod")), SimOptions())
+    assert translation_free(box.kmodel) and not translation_free(rod.kmodel)
 
 
 def test_the_velocity_form_is_not_covered():
