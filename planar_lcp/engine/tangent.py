@@ -60,6 +60,9 @@ TANGENT_KINK = 13
 #: d/dqk = d/dqk_hat, d/dvk = h d/dqk_hat + d/dkinv. The velocities' columns need neither the contacts (the poses are
 #: held) nor the end-of-step check (q+ moves by h times them)
 SMOOTH_POSE, SMOOTH_VELOCITY, SMOOTH_KIN_POSE, SMOOTH_KIN_VELOCITY = 0, 1, 2, 3
+#: a basis matrix A_BB whose pivot falls below this fraction of its largest entry is singular to working precision:
+#: the tangent gives way (a certified basis has a well-conditioned matrix; Lemke's own LU accepted it)
+SINGULAR_RTOL = 1e-14
 #: a degenerate index (z_i = w_i = 0) keeps its basis on both sides where its w (z, if basic) changes along no
 #: input: by less than this fraction of the island's largest rate along that input (the smooth part's differences
 #: are good to about 1e-7 of it; a mode that switches moves at the scale of the others)
@@ -93,6 +96,52 @@ def translation_free(m):
                 or m.body_kind[m.shape_body[m.pair_b[p]]] == BODY_STATIC):
             return False
     return True
+
+
+@njit(cache=True)
+def _lu_factor(a, perm):
+    """a (n, n) in place into its LU factors by Gaussian elimination with partial pivoting, the row order in perm.
+    False where a pivot is below SINGULAR_RTOL of a's largest entry (singular to working precision)."""
+    n = a.shape[0]
+    big = 0.0
+    for i in range(n):
+        perm[i] = i
+        for j in range(n):
+            big = max(big, abs(a[i, j]))
+    for k in range(n):
+        p = k
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > abs(a[p, k]):
+                p = i
+        if not abs(a[p, k]) > SINGULAR_RTOL * big:
+            return False
+        if p != k:
+            for j in range(n):
+                a[k, j], a[p, j] = a[p, j], a[k, j]
+            perm[k], perm[p] = perm[p], perm[k]
+        for i in range(k + 1, n):
+            a[i, k] /= a[k, k]
+            f = a[i, k]
+            for j in range(k + 1, n):
+                a[i, j] -= f * a[k, j]
+    return True
+
+
+@njit(cache=True)
+def _lu_solve(a, perm, b, x):
+    """x (n, m) = a^-1 b for a's factors from `_lu_factor` (b is not changed)."""
+    n, cols = b.shape
+    for c in range(cols):
+        for i in range(n):
+            s = b[perm[i], c]
+            for j in range(i):
+                s -= a[i, j] * x[j, c]
+            x[i, c] = s
+        for i in range(n - 1, -1, -1):
+            s = x[i, c]
+            for j in range(i + 1, n):
+                s -= a[i, j] * x[j, c]
+            x[i, c] = s / a[i, i]
 
 
 @njit(cache=True, inline='always')
@@ -243,7 +292,8 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
         zoff[isl + 1] = zoff[isl] + n
     N = zoff[nisl]
     z = np.zeros(N)
-    lu = np.zeros((N, N))            # each island's A_BB, on its diagonal block
+    lu = np.zeros((N, N))            # each island's A_BB's LU factors, on its diagonal block
+    perm = np.zeros(N, np.int64)     # and their row order
     afull = np.zeros((N, N))         # each island's A
     basic = np.zeros(N, np.bool_)
     degenerate = np.zeros(N, np.bool_)
@@ -268,17 +318,18 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                 idx[c] = i
                 c += 1
         if nb > 0:
-            Abb = np.empty((nb, nb))
-            rhs = np.empty(nb)
+            fac = lu[o:o + nb, o:o + nb]
+            rhs = np.empty((nb, 1))
             for a in range(nb):
-                rhs[a] = -b[idx[a]]
+                rhs[a, 0] = -b[idx[a]]
                 for c in range(nb):
-                    Abb[a, c] = A[idx[a], idx[c]]
-            zb = np.linalg.solve(Abb, rhs)
+                    fac[a, c] = A[idx[a], idx[c]]
+            if not _lu_factor(fac, perm[o:o + nb]):
+                return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
+            zb = np.empty((nb, 1))
+            _lu_solve(fac, perm[o:o + nb], rhs, zb)
             for a in range(nb):
-                z[o + idx[a]] = zb[a]
-                for c in range(nb):
-                    lu[o + a, o + c] = Abb[a, c]
+                z[o + idx[a]] = zb[a, 0]
         # the indices at the certificate's zero on both sides (forward.py `degenerate_indices`): z_i = w_i = 0
         scale = 1.0
         zmax = 1.0
@@ -308,7 +359,7 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     body_poses(m, w.q_hat, w.qk_hat, w.body_pose)
     # then along each of the smooth part's inputs, +- eps_k: the velocities' first (on x's contacts and poses),
     # the kinematic ones before the dynamic ones' (which move the limit surfaces' re-centred columns), then the poses'
-    # (each with its contacts, the limit surfaces re-centred, and the end-of-step check)
+    # (each with its contacts and the end-of-step check, the re-centred columns where they move)
     rp, rm = np.empty(N), np.empty(N)
     fp, fm = np.empty(nout), np.empty(nout)
     dr = np.zeros((N, K))
@@ -424,7 +475,8 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
         for a in range(nb):
             for k in range(K):
                 rhs[a, k] = -dr[o + idx[a], k]
-        sol = np.linalg.solve(np.ascontiguousarray(lu[o:o + nb, o:o + nb]), rhs)
+        sol = np.empty((nb, K))
+        _lu_solve(lu[o:o + nb, o:o + nb], perm[o:o + nb], rhs, sol)
         for a in range(nb):
             for k in range(K):
                 dz[o + idx[a], k] = sol[a, k]

@@ -126,6 +126,13 @@ def close_cluster(client, cluster, futures=(), quiet=False):
                     cluster.sync(_kill_workers, cluster, STOP_GRACE_S)
                 except Exception:  # noqa: BLE001 - cluster.close() below stops whatever is left
                     pass
+            else:
+                try:
+                    # the workers before the scheduler: a worker whose heartbeat meets a scheduler already closed
+                    # logs the failure with a traceback on the command's stderr
+                    cluster.sync(_close_workers, cluster, CLOSE_TIMEOUT_S)
+                except Exception:  # noqa: BLE001 - cluster.close() below stops whatever is left
+                    pass
             cluster.close()
 
 
@@ -146,6 +153,21 @@ def _silence_distributed():
 
 #: seconds a local worker's nanny is given to see its killed process joined when a stopped command closes its cluster
 STOP_GRACE_S = 0.5
+
+
+#: seconds each local worker is given to close (its runs are done) when a command closes its cluster
+CLOSE_TIMEOUT_S = 10.0
+
+
+async def _close_workers(cluster, timeout):
+    """Close each local worker and its nanny (the nanny told first that the cluster closes, so that it does not start
+    a new one), before the scheduler."""
+    import asyncio
+
+    nannies = list(cluster.workers.values())
+    for nanny in nannies:
+        nanny.close_gracefully(reason="planar-lcp-done")
+    await asyncio.gather(*[nanny.close(timeout=timeout) for nanny in nannies], return_exceptions=True)
 
 
 async def _kill_workers(cluster, timeout):

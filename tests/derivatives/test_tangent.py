@@ -10,7 +10,7 @@ import pytest
 from planar_lcp.derivatives import step_derivatives
 from planar_lcp.derivatives.differences import tangent_at_bases
 from planar_lcp.engine.rollout import DIFF_OK
-from planar_lcp.engine.tangent import TANGENT_NOT_COVERED, translation_free
+from planar_lcp.engine.tangent import TANGENT_NOT_COVERED, _lu_factor, _lu_solve, translation_free
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
 from planar_lcp.spec.scene import load_scene
@@ -98,3 +98,16 @@ def test_a_scene_without_static_shapes_takes_its_last_pose_columns_from_the_othe
 def test_the_velocity_form_is_not_covered():
     sim = Simulator(compile_scene(load_scene("box_push")), SimOptions(formulation="velocity"))
     assert tangent(sim, *sim.initial_state())[0] == TANGENT_NOT_COVERED
+
+
+def test_the_basis_solve_agrees_with_numpy_and_refuses_a_singular_basis():
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 5, 12):
+        A = rng.standard_normal((n, n))
+        B = rng.standard_normal((n, 4))
+        lu, perm, x = A.copy(), np.zeros(n, np.int64), np.empty((n, 4))
+        assert _lu_factor(lu, perm)
+        _lu_solve(lu, perm, B, x)
+        np.testing.assert_allclose(x, np.linalg.solve(A, B), rtol=1e-10, atol=1e-12)
+    singular = np.array([[1.0, 2.0], [2.0, 4.0]])
+    assert not _lu_factor(singular.copy(), np.zeros(2, np.int64))
