@@ -286,19 +286,57 @@ def _restore_memory(size, basic_z, modes, w):
     copy_pair_modes(modes, w.sparse_pair_mode)
 
 
+@njit(cache=True, inline='always')
+def flat_inputs(q, v, qk, vk, x):
+    """The step's inputs flattened into x (q, v, qk, vk row-major: the derivatives' columns). Returns whether every
+    entry is finite."""
+    nd, nk = q.shape[0], qk.shape[0]
+    finite = True
+    for i in range(nd):
+        for c in range(3):
+            x[3 * i + c] = q[i, c]
+            x[3 * nd + 3 * i + c] = v[i, c]
+    for j in range(nk):
+        for c in range(3):
+            x[6 * nd + 3 * j + c] = qk[j, c]
+            x[6 * nd + 3 * nk + 3 * j + c] = vk[j, c]
+    for k in range(x.shape[0]):
+        if not np.isfinite(x[k]):
+            finite = False
+    return finite
+
+
+@njit(cache=True, inline='always')
+def unflatten_inputs(x, nd, nk, q, v, qk, vk):
+    """`flat_inputs` undone: x into q, v (nd, 3) and qk, vk (nk, 3)."""
+    for i in range(nd):
+        for c in range(3):
+            q[i, c] = x[3 * i + c]
+            v[i, c] = x[3 * nd + 3 * i + c]
+    for j in range(nk):
+        for c in range(3):
+            qk[j, c] = x[6 * nd + 3 * j + c]
+            vk[j, c] = x[6 * nd + 3 * nk + 3 * j + c]
+
+
+@njit(cache=True, inline='always')
+def difference_steps(x, step):
+    """(2, K): the differences' step along each input, step max(1, |x_k|), and the mixed direction's, the same
+    magnitudes with the signs of sin(k + 1)."""
+    K = x.shape[0]
+    steps = np.empty((2, K))
+    for k in range(K):
+        steps[0, k] = step * max(1.0, abs(x[k]))
+        steps[1, k] = steps[0, k] if math.sin(k + 1.0) >= 0.0 else -steps[0, k]
+    return steps
+
+
 @njit(cache=True)
 def _step_from_flat(m, x, nd, nk, h, opt, w, rec, cold, f):
     """One step from the flattened inputs x (q, v, qk, vk row-major), cold (the warm-start memory forgotten) or on
     the memory as it is; its (q+, v+, qk+) flattened into f. Returns its status."""
-    for i in range(nd):
-        for c in range(3):
-            rec.q[0, i, c] = x[3 * i + c]
-            rec.v[0, i, c] = x[3 * nd + 3 * i + c]
     vk = np.empty((1, nk, 3))
-    for j in range(nk):
-        for c in range(3):
-            rec.qk[0, j, c] = x[6 * nd + 3 * j + c]
-            vk[0, j, c] = x[6 * nd + 3 * nk + 3 * j + c]
+    unflatten_inputs(x, nd, nk, rec.q[0], rec.v[0], rec.qk[0], vk[0])
     rollout_lemke(m, RolloutRun(rec.q[0], rec.v[0], rec.qk[0], vk, 0, 1, False, cold), h, opt, w, rec)
     o = 0
     for i in range(nd):
@@ -317,6 +355,44 @@ def _step_from_flat(m, x, nd, nk, h, opt, w, rec, cold, f):
 
 
 @njit(cache=True)
+def mixed_direction_check(m, h, opt, w, rec, x, steps, jac, base, memory, tols, fp, fm, q1, v1, qk1):
+    """The differences' last check, shared by step_differences and engine/tangent.py's step_tangent: the cold steps
+    at x +- d (d = steps[1], on opt from no memory) against the Jacobian's prediction J d, to tols[2] of the
+    prediction's size (at least tols[3] times d's largest entry). The cold step's state `base` goes into q1, v1, qk1
+    and the warm-start memory (msize, mbasic, mmodes) back into the work whatever the answer. Returns DIFF_OK, or
+    DIFF_MOVES (jac and the state written: the step is not linear in its inputs there). fp, fm: scratch like base."""
+    nd, nk = q1.shape[0], qk1.shape[0]
+    K = x.shape[0]
+    xx = x.copy()
+    code = DIFF_OK
+    for sgn in range(2):
+        for k in range(K):
+            xx[k] = x[k] + steps[1, k] if sgn == 0 else x[k] - steps[1, k]
+        if _step_from_flat(m, xx, nd, nk, h, opt, w, rec, True, fp if sgn == 0 else fm) != STEP_OK:
+            code = DIFF_MOVES
+    msize, mbasic, mmodes = memory
+    _restore_memory(msize, mbasic, mmodes, w)
+    for i in range(nd):
+        for c in range(3):
+            q1[i, c] = base[3 * i + c]
+            v1[i, c] = base[3 * nd + 3 * i + c]
+    for j in range(nk):
+        for c in range(3):
+            qk1[j, c] = base[6 * nd + 3 * j + c]
+    if code != DIFF_OK:
+        return code
+    worst = 0.0
+    size = tols[3] * np.max(np.abs(steps[1]))
+    for r in range(base.shape[0]):
+        pred = 0.0
+        for k in range(K):
+            pred += jac[r, k] * steps[1, k]
+        size = max(size, abs(pred))
+        worst = max(worst, abs(0.5 * (fp[r] - fm[r]) - pred))
+    return DIFF_MOVES if worst > tols[2] * size else DIFF_OK
+
+
+@njit(cache=True)
 def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, qk1, stats):
     """The central differences of the step at the state (q, v, qk, vk) along +- eps_k e_k for each of its K inputs
     (x: q, v, qk, vk flattened row-major; eps_k = tols[0] max(1, |x_k|)), each step warm-started (warm_opt) on the
@@ -328,24 +404,10 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
     nd, nk = q.shape[0], qk.shape[0]
     K = 6 * nd + 6 * nk
     x = np.empty(K)
-    for i in range(nd):
-        for c in range(3):
-            x[3 * i + c] = q[i, c]
-            x[3 * nd + 3 * i + c] = v[i, c]
-    for j in range(nk):
-        for c in range(3):
-            x[6 * nd + 3 * j + c] = qk[j, c]
-            x[6 * nd + 3 * nk + 3 * j + c] = vk[j, c]
-    for k in range(K):
-        if not np.isfinite(x[k]):
-            return DIFF_NONFINITE
-    # the steps along each input, and the mixed direction's: +-1 by the signs of sin(k + 1), scaled alike
-    steps = np.empty((2, K))
-    for k in range(K):
-        steps[0, k] = tols[0] * max(1.0, abs(x[k]))
-        steps[1, k] = steps[0, k] if math.sin(k + 1.0) >= 0.0 else -steps[0, k]
+    if not flat_inputs(q, v, qk, vk, x):
+        return DIFF_NONFINITE
+    steps = difference_steps(x, tols[0])
     base = np.empty(6 * nd + 3 * nk)
-    tols = tols[1:]
     nout = base.shape[0]
     rec = _compiled_recording(1, nd, nk)
     st = _step_from_flat(m, x, nd, nk, h, cold_opt, w, rec, True, base)
@@ -359,7 +421,7 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
     msize, mbasic, mmodes = w.warm_size.copy(), w.warm_basic_z.copy(), w.sparse_pair_mode.copy()
     xx = x.copy()
     fp, fm = np.empty(nout), np.empty(nout)
-    rtol_kink, rtol_mixed, floor = tols[0], tols[1], tols[2]
+    rtol_kink, floor = tols[1], tols[3]
     code = DIFF_OK
     for k in range(K):
         e = steps[0, k]
@@ -371,7 +433,7 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
                 code = DIFF_SPACE
             elif st != STEP_OK:
                 code = DIFF_STRUCTURE
-            elif not _same_structure(stats, rec.stats[0], tols[3] > 0.0):
+            elif not _same_structure(stats, rec.stats[0], tols[4] > 0.0):
                 code = DIFF_STRUCTURE
             if code != DIFF_OK:
                 break
@@ -394,34 +456,8 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
     _restore_memory(msize, mbasic, mmodes, w)
     if code != DIFF_OK:
         return code
-    # the cold steps at x +- d (d = steps[1]) against the Jacobian's prediction J d (DIFF_MOVES: jac and the state
-    # are written, the step is not linear in its inputs there)
-    for sgn in range(2):
-        for k in range(K):
-            xx[k] = x[k] + steps[1, k] if sgn == 0 else x[k] - steps[1, k]
-        st = _step_from_flat(m, xx, nd, nk, h, warm_opt, w, rec, True, fp if sgn == 0 else fm)
-        if st != STEP_OK:
-            code = DIFF_MOVES
-    _restore_memory(msize, mbasic, mmodes, w)
-    if code != DIFF_OK:
-        return code
-    worst = 0.0
-    size = floor * np.max(np.abs(steps[1]))
-    for r in range(nout):
-        pred = 0.0
-        for k in range(K):
-            pred += jac[r, k] * steps[1, k]
-        size = max(size, abs(pred))
-        worst = max(worst, abs(0.5 * (fp[r] - fm[r]) - pred))
-    code = DIFF_MOVES if worst > rtol_mixed * size else DIFF_OK
-    for i in range(nd):
-        for c in range(3):
-            q1[i, c] = base[3 * i + c]
-            v1[i, c] = base[3 * nd + 3 * i + c]
-    for j in range(nk):
-        for c in range(3):
-            qk1[j, c] = base[6 * nd + 3 * j + c]
-    return code
+    return mixed_direction_check(m, h, warm_opt, w, rec, x, steps, jac, base, (msize, mbasic, mmodes), tols, fp, fm,
+                                 q1, v1, qk1)
 
 
 @njit(cache=True)

@@ -28,8 +28,6 @@ re-solve. Everywhere else, and where its checks fail, it returns a code and the 
 - the cold steps at x +- d move as J d predicts (d the mixed direction of `step_differences`).
 """
 
-import math
-
 import numpy as np
 from numba import njit
 
@@ -40,8 +38,9 @@ from planar_lcp.engine.constants import BODY_STATIC, SUPPORT_LIMIT_SURFACE
 from planar_lcp.engine.contacts import body_poses
 from planar_lcp.engine.islands import island_members
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.rollout import (DIFF_FAILED, DIFF_MOVES, DIFF_NONFINITE, DIFF_OK, DIFF_SPACE,
-                                       _compiled_recording, _restore_memory, _step_from_flat)
+from planar_lcp.engine.rollout import (DIFF_FAILED, DIFF_NONFINITE, DIFF_OK, DIFF_SPACE, _compiled_recording,
+                                       _restore_memory, _step_from_flat, difference_steps, flat_inputs,
+                                       mixed_direction_check, unflatten_inputs)
 from planar_lcp.engine.step import (FORM_POSITION, STEP_NEEDS_SPACE, STEP_OK, begin_step, check_end_configuration,
                                     kinematic_linearization, prepare_contacts)
 
@@ -152,23 +151,11 @@ def _give_way(msize, mbasic, mmodes, w, code):
 
 
 @njit(cache=True, inline='always')
-def _unflatten(x, nd, nk, q, v, qk, vk):
-    for i in range(nd):
-        for c in range(3):
-            q[i, c] = x[3 * i + c]
-            v[i, c] = x[3 * nd + 3 * i + c]
-    for j in range(nk):
-        for c in range(3):
-            qk[j, c] = x[6 * nd + 3 * j + c]
-            vk[j, c] = x[6 * nd + 3 * nk + 3 * j + c]
-
-
-@njit(cache=True, inline='always')
 def _contacts_at(m, h, opt, w, x, nd, nk, q, v, qk, vk, qk_out, scratch):
     """The step's first stages at the flattened state x: its inputs into q, v, qk, vk, the free motion, the
     linearization pose, the contacts and islands (w.con_*, w.body_island), w.v_new = v_tilde. Returns (contacts,
     islands)."""
-    _unflatten(x, nd, nk, q, v, qk, vk)
+    unflatten_inputs(x, nd, nk, q, v, qk, vk)
     begin_step(m, q, v, qk, vk, h, opt, w, qk_out, scratch)
     return prepare_contacts(m, w, opt, kinematic_linearization(w, qk, False), scratch)
 
@@ -242,23 +229,11 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     nd, nk = q.shape[0], qk.shape[0]
     K = 6 * nd + 6 * nk
     x = np.empty(K)
-    for i in range(nd):
-        for c in range(3):
-            x[3 * i + c] = q[i, c]
-            x[3 * nd + 3 * i + c] = v[i, c]
-    for j in range(nk):
-        for c in range(3):
-            x[6 * nd + 3 * j + c] = qk[j, c]
-            x[6 * nd + 3 * nk + 3 * j + c] = vk[j, c]
-    for k in range(K):
-        if not np.isfinite(x[k]):
-            return DIFF_NONFINITE
+    if not flat_inputs(q, v, qk, vk, x):
+        return DIFF_NONFINITE
     # the steps along each input and the mixed direction's, as step_differences takes them
-    steps = np.empty((2, K))
-    for k in range(K):
-        steps[0, k] = tols[0] * max(1.0, abs(x[k]))
-        steps[1, k] = steps[0, k] if math.sin(k + 1.0) >= 0.0 else -steps[0, k]
-    rtol_kink, rtol_mixed, floor = tols[1], tols[2], tols[3]
+    steps = difference_steps(x, tols[0])
+    rtol_kink, floor = tols[1], tols[3]
     nout = 6 * nd + 3 * nk
     base = np.empty(nout)
     rec = _compiled_recording(1, nd, nk)
@@ -532,30 +507,5 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                 kq, kv = 6 * nd + 3 * j + c, 6 * nd + 3 * nk + 3 * j + c
                 jac[r, kq] = jy[r, kq]
                 jac[r, kv] = h * jy[r, kq] + jy[r, kv]
-    # the cold steps at x +- d against the Jacobian's prediction J d
-    xx = x.copy()
-    for sgn in range(2):
-        for k in range(K):
-            xx[k] = x[k] + steps[1, k] if sgn == 0 else x[k] - steps[1, k]
-        st = _step_from_flat(m, xx, nd, nk, h, warm_opt, w, rec, True, fp if sgn == 0 else fm)
-        if st != STEP_OK:
-            code = DIFF_MOVES
-    _restore_memory(msize, mbasic, mmodes, w)
-    for i in range(nd):
-        for c in range(3):
-            q1[i, c] = base[3 * i + c]
-            v1[i, c] = base[3 * nd + 3 * i + c]
-    for j in range(nk):
-        for c in range(3):
-            qk1[j, c] = base[6 * nd + 3 * j + c]
-    if code != DIFF_OK:
-        return code
-    worst = 0.0
-    size = floor * np.max(np.abs(steps[1]))
-    for r in range(nout):
-        pred = 0.0
-        for k in range(K):
-            pred += jac[r, k] * steps[1, k]
-        size = max(size, abs(pred))
-        worst = max(worst, abs(0.5 * (fp[r] - fm[r]) - pred))
-    return DIFF_MOVES if worst > rtol_mixed * size else DIFF_OK
+    return mixed_direction_check(m, h, warm_opt, w, rec, x, steps, jac, base, (msize, mbasic, mmodes), tols, fp, fm,
+                                 q1, v1, qk1)
