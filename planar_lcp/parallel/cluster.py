@@ -118,21 +118,14 @@ def close_cluster(client, cluster, futures=(), quiet=False):
             raise
     finally:
         if cluster is not None:
-            if quiet:
-                try:
-                    # a worker inside a run does not stop before the run's end (a planning run holds its one thread
-                    # for up to --time), and one still alive when the scheduler closes logs its failed heartbeat
-                    # with a traceback: stopped or failed, nothing a worker holds is kept, so each is killed
-                    cluster.sync(_kill_workers, cluster, STOP_GRACE_S)
-                except Exception:  # noqa: BLE001 - cluster.close() below stops whatever is left
-                    pass
-            else:
-                try:
-                    # the workers before the scheduler: a worker whose heartbeat meets a scheduler already closed
-                    # logs the failure with a traceback on the command's stderr
-                    cluster.sync(_close_workers, cluster, CLOSE_TIMEOUT_S)
-                except Exception:  # noqa: BLE001 - cluster.close() below stops whatever is left
-                    pass
+            try:
+                # the workers before the scheduler: one alive when the scheduler closes logs its failed heartbeat
+                # with a traceback on the command's stderr. Quiet: a worker inside a run does not stop before the
+                # run's end (a planning run holds its one thread for up to --time); stopped or failed, nothing a
+                # worker holds is kept, so each is killed
+                cluster.sync(_close_workers, cluster, STOP_GRACE_S if quiet else CLOSE_TIMEOUT_S, quiet)
+            except Exception:  # noqa: BLE001 - cluster.close() below stops whatever is left
+                pass
             cluster.close()
 
 
@@ -159,29 +152,18 @@ STOP_GRACE_S = 0.5
 CLOSE_TIMEOUT_S = 10.0
 
 
-async def _close_workers(cluster, timeout):
-    """Close each local worker and its nanny (the nanny told first that the cluster closes, so that it does not start
-    a new one), before the scheduler."""
-    import asyncio
-
-    nannies = list(cluster.workers.values())
-    for nanny in nannies:
-        nanny.close_gracefully(reason="planar-lcp-done")
-    await asyncio.gather(*[nanny.close(timeout=timeout) for nanny in nannies], return_exceptions=True)
-
-
-async def _kill_workers(cluster, timeout):
-    """SIGKILL each local worker process (a killed process prints nothing), its nanny told first that the cluster
-    closes, so that it does not start a new one, then close the nannies."""
+async def _close_workers(cluster, timeout, kill=False):
+    """Close each local worker's nanny, told first that the cluster closes so that it does not start a new worker
+    (before the scheduler); with kill, SIGKILL each worker process first (a killed process prints nothing)."""
     import asyncio
     import os
     import signal
 
     nannies = list(cluster.workers.values())
     for nanny in nannies:
-        nanny.close_gracefully(reason="planar-lcp-stopped")
+        nanny.close_gracefully(reason="planar-lcp-stopped" if kill else "planar-lcp-done")
         pid = nanny.pid
-        if pid:
+        if kill and pid:
             try:
                 os.kill(pid, signal.SIGKILL)
             except ProcessLookupError:
