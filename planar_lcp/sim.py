@@ -240,6 +240,11 @@ class Simulator:
         """Forget the LCP bases kept for warm starts and the sparse solver's modes: the next `step` starts cold."""
         self.work.warm_size[:] = -1
         self.work.sparse_pair_mode[:] = -1
+        self.forget_last_step()
+
+    def forget_last_step(self):
+        """The next `step` starts cold, whatever its state: it does not continue the last one. The warm-start
+        memory itself is left to whoever runs a cold step next (a kernel's cold step clears it, as `step` does)."""
         self._last_step_out = None
 
     def step(self, q, v, qk, vk):
@@ -326,7 +331,7 @@ class Simulator:
         first), len(rec.status) steps from (q, v, qk). vk_seq: a C-contiguous float (nvk, nkin, 3). For callers
         that make many short rollouts (a planner's propagations): the same kernels, the same results bit for bit,
         without allocating per call. Returns the steps done."""
-        self._last_step_out = None  # the rollout starts cold and leaves no state for `step` to continue
+        self.forget_last_step()  # the rollout starts cold and leaves no state for `step` to continue
         rec.q[0], rec.v[0], rec.qk[0] = q, v, qk
         return self._run_chunks(rec, vk_seq, len(rec.status), bool(stop_on_failure))
 

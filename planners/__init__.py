@@ -7,7 +7,7 @@
     p.save("plan.json"); p.plot("plan.png")
     planners.load_plan("plan.json").replay()       # bit for bit the planner's states
     planners.load_plan("plan.json").replay("pymunk", closed_loop=True)   # with feedback (planners.PlanTracker)
-    planners.refine(p)                             # less pusher travel by gradients, the goal held
+    planners.refine(p)                             # a shorter plan by gradients, the goal held
 
 A task is a scene file with a [task] table (docs/scene-format.md, "Task files"; docs/planning.md, "Plan your own
 task"). Importing this package does not import ompl: `plan` does, when it is called.

@@ -115,7 +115,7 @@ def checked_differences(sim, q, v, qk, vk):
     def run(kernel, tols):
         # the kernel's cold step forgets the warm-start memory itself (`reset_warm_start`'s work); the next `step`
         # starts cold, as after any cold step
-        sim._last_step_out = None
+        sim.forget_last_step()
         return kernel(sim.kmodel, sim.h, sim.kopt, warm_opt, sim.kwork, q, v, qk, vk, tols, jac, q1, v1, qk1, stats)
 
     # the derivatives at the cold step's bases first (engine/tangent.py), where they cover the step and its checks

@@ -20,9 +20,15 @@ re-solve. Everywhere else, and where its checks fail, it returns a code and the 
   w_i = (A z + b)_i (the dual numbers' test of a degenerate index, planar_lcp/derivatives/forward.py), stays there
   along every input (its rate below DEGENERATE_RTOL of the island's: a sticking contact's unloaded friction ray,
   whose w = lambda + t.v has lambda and t.v both held at zero), where a contact touching without load opens or
-  closes;
-- every evaluation at a moved pose has x's contacts (the same pairs, in the same order, hence the same islands) and
-  its end-of-step check adds no pair;
+  closes. Two kinds of contact are exempt, their step smooth where their indices move: one at rest, loaded inside
+  its friction cone, with both friction rays at zero (it sticks whichever way it is pushed: its rays are solved as
+  one bilateral constraint, the +t ray in the basis with a rate of either sign), and a separating one's friction
+  (held at zero; its slack's kink enters no other row). Where either is present, the island's LCP answers must form
+  no segment but a contact's own two rays (A over the basic and degenerate unknowns has no other null vector: two
+  contacts' coinciding friction columns, say, give way, as the dual numbers call them non-unique);
+- every evaluation at a moved pose has x's contacts (the same pairs, in the same order, hence the same islands; a
+  pair's contacts, whose order can swap between the two sides of a pose, matched to x's by their points) and its
+  end-of-step check adds no pair;
 - the one-sided differences of the smooth part agree (a kink of the contact geometry, of max and min in the rows,
   or a body at rest on its limit surface, whose re-centred column jumps);
 - the cold steps at x +- d move as J d predicts (d the mixed direction of `step_differences`).
@@ -66,6 +72,9 @@ SINGULAR_RTOL = 1e-14
 #: input: by less than this fraction of the island's largest rate along that input (the smooth part's differences
 #: are good to about 1e-7 of it; a mode that switches moves at the scale of the others)
 DEGENERATE_RTOL = 1e-6
+#: a pivot of an island's A (over the unknowns that may be positive) below this fraction of its largest entry marks
+#: a null vector: a segment of LCP answers (the dual numbers' threshold on singular values, forward._check_unique)
+NULL_RTOL = 1e-9
 #: the stats of a cold step a tangent does not cover where nonzero: another try, solver or re-solve than Lemke's
 #: first from scratch
 _UNCOVERED = np.array([Stat.LEMKE_RETRIES, Stat.WARM_STARTS, Stat.SOLVED_SPARSE, Stat.SOLVED_BLOCK,
@@ -141,6 +150,111 @@ def _lu_solve(a, perm, b, x):
             for j in range(i + 1, n):
                 s -= a[i, j] * x[j, c]
             x[i, c] = s / a[i, i]
+
+
+@njit(cache=True)
+def _nullity(a, tol):
+    """The dimension of a's null space to tol: Gaussian elimination of a (in place) with complete pivoting, which
+    stops where every entry left is below tol (rank-revealing on these small, well-scaled matrices; no LAPACK)."""
+    n = a.shape[0]
+    for k in range(n):
+        p, q, best = k, k, 0.0
+        for i in range(k, n):
+            for j in range(k, n):
+                if abs(a[i, j]) > best:
+                    p, q, best = i, j, abs(a[i, j])
+        if best <= tol:
+            return n - k
+        for j in range(n):
+            a[k, j], a[p, j] = a[p, j], a[k, j]
+        for i in range(n):
+            a[i, k], a[i, q] = a[i, q], a[i, k]
+        for i in range(k + 1, n):
+            f = a[i, k] / a[k, k]
+            for j in range(k, n):
+                a[i, j] -= f * a[k, j]
+    return 0
+
+
+@njit(cache=True)
+def _segments_are_friction_rays(afull, basic, degenerate, o, n, nci, nf):
+    """Whether every segment of the island's LCP answers is a contact's own pair of friction rays: A over the
+    unknowns that may be positive (the basic and the degenerate) has no null vector but the sums e_+t + e_-t of a
+    contact's two rays (whose force columns cancel at every pose: every answer on such a segment gives the same
+    velocities, here and nearby). Any other null vector (two contacts' coinciding friction columns, a limit surface's
+    column coinciding with a contact's) is a segment that a change of the inputs breaks: the dual numbers' test
+    (`forward._check_unique`) calls it non-unique, and the tangent gives way."""
+    pos = np.full(n, -1, np.int64)
+    ns = 0
+    for i in range(n):
+        if basic[o + i] or degenerate[o + i]:
+            pos[i] = ns
+            ns += 1
+    if ns == 0:
+        return True
+    a = np.empty((ns, ns))
+    for i in range(n):
+        if pos[i] < 0:
+            continue
+        for c in range(n):
+            if pos[c] >= 0:
+                a[pos[i], pos[c]] = afull[o + i, o + c]
+    big = 0.0
+    for i in range(ns):
+        for c in range(ns):
+            big = max(big, abs(a[i, c]))
+    if not big > 0.0:
+        return True
+    null = _nullity(a.copy(), NULL_RTOL * big)
+    rays = 0
+    for f in range(nf):
+        pa, pb = pos[nci + 2 * f], pos[nci + 2 * f + 1]
+        if pa < 0 or pb < 0:
+            continue
+        gap = 0.0
+        for r in range(ns):
+            gap = max(gap, abs(a[r, pa] + a[r, pb]))
+        if gap <= NULL_RTOL * big:
+            rays += 1
+    return null <= rays
+
+
+@njit(cache=True)
+def _match_contacts(w, ncon, pts, order, phi, nrm, pnt):
+    """At a moved pose with x's pairs in x's order, each contact put in the slot of x's contact of its pair nearest
+    to it: a pair's contacts come in an order that can swap between the two sides of a pose (a box flush on a
+    plane, its corners in order of depth), the same contacts in the step's answer, a jump where z is held. False
+    where the nearest are not one to one."""
+    for i in range(ncon):
+        order[i] = -1
+    for j in range(ncon):
+        best, slot = np.inf, -1
+        for i in range(ncon):
+            if w.con_pair[i] != w.con_pair[j]:
+                continue
+            d = (w.con_p[j, 0] - pts[i, 0]) ** 2 + (w.con_p[j, 1] - pts[i, 1]) ** 2
+            if d < best:
+                best, slot = d, i
+        if slot < 0 or order[slot] >= 0:
+            return False
+        order[slot] = j
+    for i in range(ncon):
+        if order[i] != i:
+            break
+    else:
+        return True
+    for i in range(ncon):
+        j = order[i]
+        phi[i] = w.con_phi[j]
+        for c in range(2):
+            nrm[i, c] = w.con_n[j, c]
+            pnt[i, c] = w.con_p[j, c]
+    for i in range(ncon):
+        w.con_phi[i] = phi[i]
+        for c in range(2):
+            w.con_n[i, c] = nrm[i, c]
+            w.con_p[i, c] = pnt[i, c]
+    return True
 
 
 @njit(cache=True, inline='always')
@@ -254,6 +368,9 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     # x's contacts, islands and each island's LCP at the cold step's basis
     ncon, nisl = _contacts_at(m, h, cold_opt, w, x, nd, nk, qa, va, qka, vka, qk_out, scratch)
     pairs = w.con_pair[:ncon].copy()
+    points = w.con_p[:ncon].copy()
+    order = np.empty(ncon, np.int64)
+    phi_m, n_m, p_m = np.empty(ncon), np.empty((ncon, 2)), np.empty((ncon, 2))
     zoff = np.zeros(nisl + 1, np.int64)
     for isl in range(nisl):
         nci, nsi = island_members(m, w, isl, ncon)
@@ -272,6 +389,9 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     afull = np.zeros((N, N))         # each island's A
     basic = np.zeros(N, np.bool_)
     degenerate = np.zeros(N, np.bool_)
+    solve = np.zeros(N, np.bool_)      # the basis each island's LCP part solves with: basic, and the sticking rays
+    exempt = np.zeros(N, np.bool_)     # degenerate indices that may move: sticking and separating contacts' friction
+    k_sup = support_column_count(m)
     r0 = np.empty(N)
     res_tol = cold_opt.res_tol
     for isl in range(nisl):
@@ -286,7 +406,7 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
         for i in range(n):
             basic[o + i] = mbasic[isl, i]
             nb += basic[o + i]
-        idx = np.empty(nb, np.int64)
+        idx = np.empty(n, np.int64)
         c = 0
         for i in range(n):
             if basic[o + i]:
@@ -326,6 +446,55 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                 if wi < -res_tol * scale:
                     return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
                 degenerate[o + i] = wi <= res_tol * scale
+        # two kinds of frictional contact whose degenerate friction indices may move without a switch of the step:
+        # - at rest, loaded, its load inside the friction cone (c_n basic and positive, both friction rays at the
+        #   certificate's zero, its slack lambda nonbasic with a positive row): it sticks whichever way a change of
+        #   the inputs pushes it, its two rays one bilateral constraint t.v+ = 0 with beta = beta(+t) - beta(-t) of
+        #   either sign. The LCP's part solves with the +t ray in the basis (a negative rate is the -t ray's);
+        # - separating (c_n nonbasic, its row positive): its friction is held at zero (sum beta <= mu c_n = 0) and
+        #   its slack lambda = |t.v+|, kinked at t.v+ = 0, enters no other row: nothing the step returns moves.
+        # Their indices' rates need not stay at zero (`exempt`), provided the island's LCP answers form no segment
+        # but a contact's own pair of rays (`_segments_are_friction_rays`)
+        for i in range(n):
+            solve[o + i] = basic[o + i]
+        nf = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)[1]
+        f = 0
+        added = False
+        exempted = False
+        for a in range(nci):
+            if not m.pair_mu[w.con_pair[w.island_con[a]]] > 0.0:
+                continue
+            ray = o + nci + 2 * f
+            slack = o + nci + 2 * nf + k_sup * nsi + f
+            f += 1
+            if not (degenerate[ray] or degenerate[ray + 1] or degenerate[slack]):
+                continue
+            if not basic[o + a] and not degenerate[o + a]:
+                exempt[ray] = exempt[ray + 1] = exempt[slack] = True
+                exempted = True
+                continue
+            if (not (degenerate[ray] and degenerate[ray + 1]) or degenerate[o + a] or not basic[o + a]
+                    or degenerate[slack] or basic[slack]):
+                continue
+            exempt[ray] = exempt[ray + 1] = True
+            exempted = True
+            if not (solve[ray] or solve[ray + 1]):
+                solve[ray] = True
+                added = True
+        if exempted and not _segments_are_friction_rays(afull, basic, degenerate, o, n, nci, nf):
+            return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
+        if added:
+            nb = 0
+            for i in range(n):
+                if solve[o + i]:
+                    idx[nb] = i
+                    nb += 1
+            fac = lu[o:o + nb, o:o + nb]
+            for a in range(nb):
+                for c in range(nb):
+                    fac[a, c] = A[idx[a], idx[c]]
+            if not _lu_factor(fac, perm[o:o + nb]):
+                return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
     # the smooth part at x (its end-of-step check moves the body poses: put back for the velocities' columns)
     f0 = np.empty(nout)
     _smooth_part(m, h, w, vka, nisl, ncon, z, zoff, qa, qk_out, r0, f0, dv)
@@ -377,6 +546,8 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                     for j in range(ncon):
                         if w.con_pair[j] != pairs[j]:
                             code = TANGENT_CONTACTS
+                    if code == DIFF_OK and not _match_contacts(w, ncon, points, order, phi_m, n_m, p_m):
+                        code = TANGENT_CONTACTS
                 if code != DIFF_OK:
                     break
             else:
@@ -437,13 +608,13 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
         o, n = zoff[isl], zoff[isl + 1] - zoff[isl]
         nb = 0
         for i in range(n):
-            nb += basic[o + i]
+            nb += solve[o + i]
         if nb == 0:
             continue
         idx = np.empty(nb, np.int64)
         c = 0
         for i in range(n):
-            if basic[o + i]:
+            if solve[o + i]:
                 idx[c] = i
                 c += 1
         rhs = np.empty((nb, K))
@@ -455,8 +626,8 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
         for a in range(nb):
             for k in range(K):
                 dz[o + idx[a], k] = sol[a, k]
-    # a degenerate index holds its basis on both sides only where its w (z, if basic) stays at zero along every
-    # input: a sticking contact's unloaded friction ray, w = lambda + t.v = 0 with lambda and t.v both held at 0
+    # any other degenerate index holds its basis on both sides only where its w (z, if basic) stays at zero along
+    # every input: a sticking contact's unloaded friction ray, w = lambda + t.v = 0 with lambda and t.v both held at 0
     for isl in range(nisl):
         o, n = zoff[isl], zoff[isl + 1] - zoff[isl]
         for k in range(K):
@@ -464,7 +635,7 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
             for i in range(o, o + n):
                 size = max(size, abs(dr[i, k]), abs(dz[i, k]))
             for i in range(o, o + n):
-                if not degenerate[i]:
+                if not degenerate[i] or exempt[i]:
                     continue
                 if basic[i]:
                     rate = dz[i, k]
@@ -474,7 +645,6 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                         rate += afull[i, c] * dz[c, k]
                 if abs(rate) > DEGENERATE_RTOL * size:
                     return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
-    k_sup = support_column_count(m)
     zk = np.empty(N)
     for isl in range(nisl):
         o, n = zoff[isl], zoff[isl + 1] - zoff[isl]

@@ -10,7 +10,8 @@ import pytest
 from planar_lcp.derivatives import step_derivatives
 from planar_lcp.derivatives.differences import tangent_at_bases
 from planar_lcp.engine.rollout import DIFF_OK
-from planar_lcp.engine.tangent import TANGENT_NOT_COVERED, _lu_factor, _lu_solve, translation_free
+from planar_lcp.engine.tangent import (TANGENT_DEGENERATE, TANGENT_NOT_COVERED, _lu_factor, _lu_solve, _nullity,
+                                       translation_free)
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
 from planar_lcp.spec.scene import load_scene
@@ -21,7 +22,7 @@ from test_differences import relative_error
 pytestmark = pytest.mark.filterwarnings("ignore::RuntimeWarning")
 
 #: the tangent's largest difference from the dual numbers, relative to its row's or column's largest entry: the
-#: smooth part's central differences alone (2.1e-9 on derivative_methods.py's states; whole steps' differences: 1e-5)
+#: smooth part's central differences alone (5e-8 on derivative_methods.py's states; whole steps' differences: 1e-5)
 TANGENT_RTOL = 1e-7
 
 
@@ -86,6 +87,40 @@ def test_a_sticking_contact_is_answered_and_a_contact_without_load_is_not():
     assert not step_derivatives(sim, q, v, qk, still).exact
 
 
+def bench_state(name):
+    """A shipped scene's simulator (its own options) and the state `bench derivatives` differentiates it at."""
+    from planar_lcp.benchmarks.bench import derivative_state
+    sc = load_scene(name)
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, solver=sc.sim.solver, formulation=sc.sim.formulation))
+    q, v, qk, vk, _ = derivative_state(sim, sc)
+    return sim, (q, v, qk, vk)
+
+
+@pytest.mark.parametrize("name, why", [
+    ("four_disks", "disks at rest on each other and on the ground, loaded inside their friction cones: each contact's "
+                   "two friction rays at z = w = 0 move along the inputs, and it sticks whichever way it is pushed"),
+    ("bouncing_disk", "a disk near the ground, its contact without load: its friction held at zero, its slack's rate "
+                      "kinked, nothing the step returns moves"),
+    ("block_on_incline", "a block flush on the incline: its two corner contacts come in the other order on the other "
+                         "side of its angle"),
+])
+def test_degenerate_indices_that_move_without_a_switch_are_answered(name, why):
+    sim, state = bench_state(name)
+    code, jac = tangent(sim, *state)
+    ref = step_derivatives(sim, *state)
+    assert ref.exact and code == DIFF_OK, why
+    assert relative_error(type(ref)(**{**ref.__dict__, "jacobian": jac}), ref) <= TANGENT_RTOL
+
+
+def test_coinciding_friction_columns_give_way():
+    """push_t at 1.5 s: the pusher's two friction rays coincide with two of the T's limit-surface columns, a segment
+    of LCP answers that a change of the inputs breaks (the dual numbers call it non-unique): the tangent gives way,
+    though the pusher's contact sticks at rest."""
+    sim, state = bench_state("push_t")
+    assert tangent(sim, *state)[0] == TANGENT_DEGENERATE
+    assert any(d.kind == "non-unique" for d in step_derivatives(sim, *state).degenerate)
+
+
 def test_a_scene_without_static_shapes_takes_its_last_pose_columns_from_the_others():
     """Without a pair of a static shape the step's smooth part moves with every pose moved alike: box_push (a pusher
     and a box on a table) has its pusher's x and y columns from the box's (the agreement with the dual numbers above
@@ -111,3 +146,19 @@ def test_the_basis_solve_agrees_with_numpy_and_refuses_a_singular_basis():
         np.testing.assert_allclose(x, np.linalg.solve(A, B), rtol=1e-10, atol=1e-12)
     singular = np.array([[1.0, 2.0], [2.0, 4.0]])
     assert not _lu_factor(singular.copy(), np.zeros(2, np.int64))
+
+
+def test_the_nullity_is_numpys_rank_deficit():
+    """The null-space test of `_segments_are_friction_rays`: elimination with complete pivoting against numpy's SVD
+    rank, on seeded random matrices of every rank, and a contact's two friction columns (exact negatives)."""
+    rng = np.random.default_rng(3)
+    for n in range(1, 9):
+        for rank in range(n + 1):
+            a = rng.standard_normal((n, rank)) @ rng.standard_normal((rank, n))
+            big = np.max(np.abs(a), initial=0.0)
+            want = n - np.linalg.matrix_rank(a, tol=1e-9 * np.linalg.norm(a, 2)) if big > 0 else n
+            assert _nullity(a.copy(), 1e-9 * big) == want, (n, rank)
+    g = rng.standard_normal(3)
+    a = np.outer([1.0, -1.0, 0.5], g)[:, [0, 1, 2]]
+    a[:, 1] = -a[:, 0]
+    assert _nullity(a.copy(), 1e-9 * np.max(np.abs(a))) == 2

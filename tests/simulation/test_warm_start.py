@@ -193,6 +193,14 @@ def test_step_continues_only_from_its_own_last_output():
     sim.reset_warm_start()
     sim.step(*d[:3], vk)
     assert sim.stats[Stat.WARM_STARTS] == 0
+    # and so does forget_last_step(): the continuation starts cold, bitwise the other simulator's cold step
+    d = sim.step(*x, vk)
+    sim.forget_last_step()
+    e = sim.step(*d[:3], vk)
+    assert sim.stats[Stat.WARM_STARTS] == 0
+    fresh.reset_warm_start()
+    for u, w in zip(e[:3], fresh.step(*d[:3], vk)[:3]):
+        assert np.array_equal(u, w)
 
 
 def test_rollout_is_a_function_of_its_inputs_only():
