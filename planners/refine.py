@@ -137,12 +137,13 @@ def goal_weights(tm):
 class _Judge:
     """The plan's start, the task's bounds, a simulator for the derivatives and the replay that judges candidates."""
 
-    def __init__(self, plan):
+    def __init__(self, plan, max_change):
         from planar_lcp.sim import SimOptions, Simulator
         self.tm = tm = plan.model
         self.cm = float(tm.task.control_max)
         self.dt = float(tm.task.step_duration)
         self.x0 = np.asarray(plan.data["start"], float)
+        self.max_change = float(max_change)
         opts = tm.sim.options
         self.sim = Simulator(tm.model, SimOptions(h=opts.h, solver=opts.solver, formulation=opts.formulation))
         self.all_exact = True
@@ -165,7 +166,7 @@ class _Judge:
         return (final, G) if np.all(np.isfinite(G)) else (final, None)
 
     def cap(self, d):
-        """d scaled down so that no control moves by more than max_change of the bound (set by refine)."""
+        """d scaled down so that no control moves by more than max_change of the bound."""
         big = np.max(np.abs(d), initial=0.0)
         return d * (self.max_change * self.cm / big) if big > self.max_change * self.cm else d
 
@@ -184,9 +185,9 @@ def _one_step_fewer(tm, controls, steps, j):
     return np.delete(controls, j, axis=0), np.delete(steps, j)
 
 
-def _pull_into_goal(judge, controls, steps, repairs, halvings):
+def _pull_into_goal(judge, controls, steps, repairs, halvings, deadline):
     """Gauss-Newton steps on the controls towards the goal (module docstring): (controls, replay) whose replay
-    holds the goal, or None."""
+    holds the goal, None where it does not, or "time_limit" where the deadline passed before a derivative run."""
     tm = judge.tm
     run = judge.replay(controls, steps)
     if run is None:
@@ -197,6 +198,8 @@ def _pull_into_goal(judge, controls, steps, repairs, halvings):
     for _ in range(repairs):
         if distance <= 1.0:
             break
+        if deadline is not None and time.perf_counter() > deadline:
+            return "time_limit"
         final, G = judge.jacobian(controls, steps)
         if G is None:
             return None
@@ -225,7 +228,9 @@ def _shorter_duration(judge, controls, steps, run, iterations, deadline, repairs
             if fewer is None:
                 continue
             tried += 1
-            held = _pull_into_goal(judge, *fewer, repairs, halvings)
+            held = _pull_into_goal(judge, *fewer, repairs, halvings, deadline)
+            if isinstance(held, str):
+                return controls, steps, run, accepted, tried, held
             if held is not None:
                 controls, steps, run = held[0], fewer[1], held[1]
                 accepted += 1
@@ -297,7 +302,8 @@ def refine(plan, iterations=None, objective="path_duration", max_change=MAX_CHAN
     """A refined copy of an exact `plan` (a planners.Plan), the goal held (module docstring): shorter
     (`objective="path_duration"`: at most `iterations` propagation steps fewer) or with less pusher travel at the
     same steps (`"pusher_path_length"`: at most `iterations` gradient steps kept); None: until nothing more is kept.
-    `time_limit` (s of wall time) stops it between candidates. Its data's `refine` entry: the objective before and
+    `time_limit` (s of wall time) stops it before the next derivative run or candidate past it (a run under way
+    finishes: on a large task one takes minutes). Its data's `refine` entry: the objective before and
     after (s or m), the steps kept (`accepted`) and candidates tried, the replays, why it stopped (`stopped_by`),
     whether every derivative run was exact, the simulation steps differentiated and those the dual numbers gave, the
     time, and, for the path length, `last_miss`: for the last candidate replayed that missed the goal, its largest
@@ -311,8 +317,7 @@ def refine(plan, iterations=None, objective="path_duration", max_change=MAX_CHAN
         raise ValueError(f"refine: iterations must be >= 0 or None, got {iterations!r}")
     if not plan.exact:
         raise ValueError("refine: the plan is not exact (it does not reach the goal)")
-    judge = _Judge(plan)
-    judge.max_change = float(max_change)
+    judge = _Judge(plan, max_change)
     t0, c0 = time.perf_counter(), time.process_time()
     deadline = None if time_limit is None else t0 + float(time_limit)
     controls, steps = plan.controls.copy(), plan.steps.copy()

@@ -71,6 +71,16 @@ def test_refine_shortens_a_push_and_keeps_the_plan_exact(push_box_plan, tmp_path
     np.testing.assert_array_equal(again.steps, r.steps)
 
 
+def test_a_time_limit_stops_the_refinement_with_the_plan_so_far(push_box_plan):
+    import planners
+    for objective in ("path_duration", "pusher_path_length"):
+        r = planners.refine(push_box_plan, objective=objective, time_limit=0.0)
+        info = r.data["refine"]
+        assert info["stopped_by"] == "time_limit" and info["accepted"] == 0 and info["derivative_steps"] == 0
+        np.testing.assert_array_equal(r.controls, push_box_plan.controls)
+        np.testing.assert_array_equal(r.steps, push_box_plan.steps)
+
+
 def test_a_plan_that_gives_up_no_step_comes_back_as_it_was(tip_plan):
     """tip_box's tip is all or nothing, its box at rest at the end: no step fewer is pulled back into the goal, and
     the plan is returned unchanged, with why."""
