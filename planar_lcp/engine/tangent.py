@@ -451,8 +451,9 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
         #   certificate's zero, its slack lambda nonbasic with a positive row): it sticks whichever way a change of
         #   the inputs pushes it, its two rays one bilateral constraint t.v+ = 0 with beta = beta(+t) - beta(-t) of
         #   either sign. The LCP's part solves with the +t ray in the basis (a negative rate is the -t ray's);
-        # - separating (c_n nonbasic, its row positive): its friction is held at zero (sum beta <= mu c_n = 0) and
-        #   its slack lambda = |t.v+|, kinked at t.v+ = 0, enters no other row: nothing the step returns moves.
+        # - separating (c_n nonbasic, its row positive; its rays nonbasic): its friction is held at zero
+        #   (sum beta <= mu c_n = 0) and its slack lambda = |t.v+|, kinked at t.v+ = 0, enters no other row: nothing
+        #   the step returns moves.
         # Their indices' rates need not stay at zero (`exempt`), provided the island's LCP answers form no segment
         # but a contact's own pair of rays (`_segments_are_friction_rays`)
         for i in range(n):
@@ -470,8 +471,10 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
             if not (degenerate[ray] or degenerate[ray + 1] or degenerate[slack]):
                 continue
             if not basic[o + a] and not degenerate[o + a]:
-                exempt[ray] = exempt[ray + 1] = exempt[slack] = True
-                exempted = True
+                # its rays nonbasic (a basic ray at zero would be held to t.v+ = 0 by the basis solve)
+                if not (basic[ray] or basic[ray + 1]):
+                    exempt[ray] = exempt[ray + 1] = exempt[slack] = True
+                    exempted = True
                 continue
             if (not (degenerate[ray] and degenerate[ray + 1]) or degenerate[o + a] or not basic[o + a]
                     or degenerate[slack] or basic[slack]):
