@@ -40,6 +40,9 @@ HALVINGS = 6
 #: Gauss-Newton steps that pull a plan one propagation step shorter back into its goal before that shortening is
 #: given up
 REPAIRS = 10
+#: a goal whose errors the controls' whole range moves by at most this many tolerances (by the derivatives) is out
+#: of the controls' reach at this plan: no Gauss-Newton step is taken
+STILL_GOAL = 1e-9
 #: what refine can lower
 OBJECTIVES = ("path_duration", "pusher_path_length")
 
@@ -204,7 +207,12 @@ def _pull_into_goal(judge, controls, steps, repairs, halvings, deadline):
         if G is None:
             return None
         r = w * goal_error(tm, final)[named]
-        d = judge.cap(-(np.linalg.pinv(w[:, None] * G[named]) @ r)).reshape(controls.shape)
+        J = w[:, None] * G[named]
+        if not (np.all(np.isfinite(J)) and np.max(np.abs(J), initial=0.0) * judge.cm > STILL_GOAL):
+            # the controls' whole range moves the goal's errors by less than STILL_GOAL tolerances (a box at rest
+            # the pusher does not reach): no Gauss-Newton step pulls it (pinv would divide by round-off)
+            return None
+        d = judge.cap(-(np.linalg.pinv(J) @ r)).reshape(controls.shape)
         for k in range(halvings + 1):
             cand = np.clip(controls + d * 0.5 ** k, -judge.cm, judge.cm)
             got = judge.replay(cand, steps)

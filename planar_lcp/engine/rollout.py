@@ -307,8 +307,9 @@ def flat_inputs(q, v, qk, vk, x):
 
 
 @njit(cache=True, inline='always')
-def unflatten_inputs(x, nd, nk, q, v, qk, vk):
-    """`flat_inputs` undone: x into q, v (nd, 3) and qk, vk (nk, 3)."""
+def unflatten_state(x, nd, nk, q, v, qk):
+    """The first 6 nd + 3 nk entries of a flattened state or input (q, v, qk row-major: `flat_inputs`, a step's
+    flattened output) into q, v (nd, 3) and qk (nk, 3)."""
     for i in range(nd):
         for c in range(3):
             q[i, c] = x[3 * i + c]
@@ -316,6 +317,14 @@ def unflatten_inputs(x, nd, nk, q, v, qk, vk):
     for j in range(nk):
         for c in range(3):
             qk[j, c] = x[6 * nd + 3 * j + c]
+
+
+@njit(cache=True, inline='always')
+def unflatten_inputs(x, nd, nk, q, v, qk, vk):
+    """`flat_inputs` undone: x into q, v (nd, 3) and qk, vk (nk, 3)."""
+    unflatten_state(x, nd, nk, q, v, qk)
+    for j in range(nk):
+        for c in range(3):
             vk[j, c] = x[6 * nd + 3 * nk + 3 * j + c]
 
 
@@ -372,13 +381,7 @@ def mixed_direction_check(m, h, opt, w, rec, x, steps, jac, base, memory, tols, 
             code = DIFF_MOVES
     msize, mbasic, mmodes = memory
     _restore_memory(msize, mbasic, mmodes, w)
-    for i in range(nd):
-        for c in range(3):
-            q1[i, c] = base[3 * i + c]
-            v1[i, c] = base[3 * nd + 3 * i + c]
-    for j in range(nk):
-        for c in range(3):
-            qk1[j, c] = base[6 * nd + 3 * j + c]
+    unflatten_state(base, nd, nk, q1, v1, qk1)
     if code != DIFF_OK:
         return code
     worst = 0.0

@@ -7,7 +7,9 @@ dz_B = -A_BB^-1 d(A z + b)_B, z held. The step's other stages (contacts, the lim
 assembly of A and b, the impulses' velocity change M^-1 G z and the integration) are smooth functions of the inputs
 for the contacts and islands fixed; `step_tangent` takes their derivatives with z held by central differences of
 that smooth part alone (no LCP is solved there: two evaluations per input, along the smooth part's own inputs,
-SMOOTH_*, the velocities' without contact detection), and adds the LCP's through one solve with A_BB at the state.
+SMOOTH_*, the velocities' without contact detection; the velocities' in closed form where the smooth part is linear
+in them, without restitution or a limit surface in any island: `_velocity_columns`), and adds the LCP's through
+one solve with A_BB at the state.
 Only the rows of A and b that depend on the state enter: the Delassus part G^T M^-1 G z + b over the force unknowns
 (computed as G^T (M^-1 (G z)), linear in the unknowns), the friction and slack rows being constant.
 
@@ -23,9 +25,13 @@ re-solve. Everywhere else, and where its checks fail, it returns a code and the 
   closes. Two kinds of contact are exempt, their step smooth where their indices move: one at rest, loaded inside
   its friction cone, with both friction rays at zero (it sticks whichever way it is pushed: its rays are solved as
   one bilateral constraint, the +t ray in the basis with a rate of either sign), and a separating one's friction
-  (held at zero; its slack's kink enters no other row). Where either is present, the island's LCP answers must form
-  no segment but a contact's own two rays (A over the basic and degenerate unknowns has no other null vector: two
-  contacts' coinciding friction columns, say, give way, as the dual numbers call them non-unique);
+  (held at zero; its slack's kink enters no other row). Where either is present, every segment of the island's LCP
+  answers must leave the velocities where they are (A over the basic and degenerate unknowns has no null vector but
+  along normal impulses and sticking friction, whose rows hold the velocities, and a sliding contact's own two rays:
+  a sliding element's friction column coinciding with another's gives way, as the dual numbers call it non-unique).
+  Where the sticking rays added to the basis coincide (a box at rest on the two corners of a flat face), the LCP's
+  part solves with the basis's independent rows and columns (elimination with complete pivoting), and the rows left
+  out must hold by themselves along every input;
 - every evaluation at a moved pose has x's contacts (the same pairs, in the same order, hence the same islands; a
   pair's contacts, whose order can swap between the two sides of a pose, matched to x's by their points) and its
   end-of-step check adds no pair;
@@ -38,8 +44,8 @@ import numpy as np
 from numba import njit
 
 from planar_lcp.engine.assemble import (apply_impulses, assemble_columns, assemble_lcp, column_dot,
-                                        island_problem_size, island_servo, recentre_limit_surfaces,
-                                        support_column_count)
+                                        island_is_elastic, island_problem_size, island_servo,
+                                        kinematic_velocity_along, recentre_limit_surfaces, support_column_count)
 from planar_lcp.engine.constants import BODY_STATIC, SUPPORT_LIMIT_SURFACE
 from planar_lcp.engine.contacts import body_poses
 from planar_lcp.engine.islands import island_members
@@ -153,52 +159,92 @@ def _lu_solve(a, perm, b, x):
 
 
 @njit(cache=True)
-def _nullity(a, tol):
-    """The dimension of a's null space to tol: Gaussian elimination of a (in place) with complete pivoting, which
-    stops where every entry left is below tol (rank-revealing on these small, well-scaled matrices; no LAPACK)."""
-    n = a.shape[0]
-    for k in range(n):
+def _pivots(a, tol, rows, cols):
+    """The rank of a (r, c) to tol: Gaussian elimination of a (in place) with complete pivoting, which stops where
+    every entry left is below tol (rank-revealing on these small, well-scaled matrices; no LAPACK). rows and cols
+    (length r and c) come back as the row and column order it chose: the first `rank` of each index a nonsingular
+    square part of a (its independent rows and columns)."""
+    nr, nc = a.shape
+    for i in range(nr):
+        rows[i] = i
+    for j in range(nc):
+        cols[j] = j
+    for k in range(min(nr, nc)):
         p, q, best = k, k, 0.0
-        for i in range(k, n):
-            for j in range(k, n):
+        for i in range(k, nr):
+            for j in range(k, nc):
                 if abs(a[i, j]) > best:
                     p, q, best = i, j, abs(a[i, j])
         if best <= tol:
-            return n - k
-        for j in range(n):
+            return k
+        for j in range(nc):
             a[k, j], a[p, j] = a[p, j], a[k, j]
-        for i in range(n):
+        rows[k], rows[p] = rows[p], rows[k]
+        for i in range(nr):
             a[i, k], a[i, q] = a[i, q], a[i, k]
-        for i in range(k + 1, n):
+        cols[k], cols[q] = cols[q], cols[k]
+        for i in range(k + 1, nr):
             f = a[i, k] / a[k, k]
-            for j in range(k, n):
+            for j in range(k, nc):
                 a[i, j] -= f * a[k, j]
-    return 0
+    return min(nr, nc)
 
 
 @njit(cache=True)
-def _segments_are_friction_rays(afull, basic, degenerate, o, n, nci, nf):
-    """Whether every segment of the island's LCP answers is a contact's own pair of friction rays: A over the
-    unknowns that may be positive (the basic and the degenerate) has no null vector but the sums e_+t + e_-t of a
-    contact's two rays (whose force columns cancel at every pose: every answer on such a segment gives the same
-    velocities, here and nearby). Any other null vector (two contacts' coinciding friction columns, a limit surface's
-    column coinciding with a contact's) is a segment that a change of the inputs breaks: the dual numbers' test
-    (`forward._check_unique`) calls it non-unique, and the tangent gives way."""
+def _nullity(a, tol):
+    """The dimension of the null space of a (r, c) to tol (`_pivots`; a is overwritten)."""
+    return a.shape[1] - _pivots(a, tol, np.empty(a.shape[0], np.int64), np.empty(a.shape[1], np.int64))
+
+
+@njit(cache=True)
+def _unpinned(z, o, n, nci, nf, nsi, k):
+    """Per unknown of an island, whether a segment of LCP answers along it moves the velocities: the friction of a
+    sliding contact or support element (its lambda positive), whose split between coinciding columns changes how it
+    opposes the slip. A normal impulse's row holds its gap's velocity and a sticking element's rows hold its slip
+    at zero, whatever the split (the dual numbers' `forward._pinned`)."""
+    out = np.zeros(n, np.bool_)
+    o_lc = nci + 2 * nf + k * nsi
+    for f in range(nf):
+        if z[o + o_lc + f] > 0.0:
+            out[nci + 2 * f] = out[nci + 2 * f + 1] = True
+    for a in range(nsi):
+        if z[o + o_lc + nf + a] > 0.0:
+            for i in range(k):
+                out[nci + 2 * nf + k * a + i] = True
+    return out
+
+
+@njit(cache=True)
+def _segments_leave_velocities(afull, basic, degenerate, unpinned, o, n, nci, nf):
+    """Whether every segment of the island's LCP answers gives the same velocities: each null vector of A over the
+    unknowns that may be positive (the basic and the degenerate) lies in the span of the pinned unknowns
+    (`_unpinned`: a box's two sticking corners, whose friction columns coincide) and of the sums e_+t + e_-t of a
+    sliding contact's two rays (whose force columns cancel at every pose). Any other null vector (a sliding element's
+    friction column coinciding with another's: a limit surface's re-centred column with a contact's) is a segment
+    that a change of the inputs breaks: the dual numbers' test (`forward._check_unique`) calls it non-unique, and
+    the tangent gives way. By dimensions: the null space is the pinned columns' null space plus those ray sums."""
     pos = np.full(n, -1, np.int64)
     ns = 0
+    npin = 0
     for i in range(n):
         if basic[o + i] or degenerate[o + i]:
             pos[i] = ns
             ns += 1
+            npin += not unpinned[i]
     if ns == 0:
         return True
     a = np.empty((ns, ns))
+    pinned = np.empty((ns, npin))
     for i in range(n):
         if pos[i] < 0:
             continue
+        c2 = 0
         for c in range(n):
             if pos[c] >= 0:
                 a[pos[i], pos[c]] = afull[o + i, o + c]
+                if not unpinned[c]:
+                    pinned[pos[i], c2] = afull[o + i, o + c]
+                    c2 += 1
     big = 0.0
     for i in range(ns):
         for c in range(ns):
@@ -206,17 +252,18 @@ def _segments_are_friction_rays(afull, basic, degenerate, o, n, nci, nf):
     if not big > 0.0:
         return True
     null = _nullity(a.copy(), NULL_RTOL * big)
+    null_pinned = _nullity(pinned, NULL_RTOL * big) if npin > 0 else 0
     rays = 0
     for f in range(nf):
         pa, pb = pos[nci + 2 * f], pos[nci + 2 * f + 1]
-        if pa < 0 or pb < 0:
+        if pa < 0 or pb < 0 or not unpinned[nci + 2 * f]:
             continue
         gap = 0.0
         for r in range(ns):
             gap = max(gap, abs(a[r, pa] + a[r, pb]))
         if gap <= NULL_RTOL * big:
             rays += 1
-    return null <= rays
+    return null <= null_pinned + rays
 
 
 @njit(cache=True)
@@ -333,6 +380,52 @@ def _smooth_part(m, h, w, vk, nisl, ncon, z, zoff, q, qk_out, r, out, dv):
 
 
 @njit(cache=True)
+def _velocity_columns(m, h, w, nd, nk, nisl, ncon, zoff, rows, dr, jy):
+    """The smooth part's velocity columns where it is linear in the velocities (`step_tangent`: the position form,
+    no restitution, no limit surface), at x's contacts and poses, into dr and jy (the SMOOTH_VELOCITY and
+    SMOOTH_KIN_VELOCITY columns, in the state's layout): a body's velocity v_s moves v_tilde and the position form's
+    v_hat alike, so a normal row (phi/h + n.(v_tilde - v_hat)) stays and a friction or support row moves by its
+    column's entry (g_u . e); a kinematic body's velocity moves a friction row by its point velocity along the ray
+    (`kinematic_velocity_along`, linear in vk: taken at unit velocities); v+ = v_tilde + M^-1 G z moves by e and
+    q+ by h e. rows: scratch, an entry per LCP unknown."""
+    k_sup = support_column_count(m)
+    unit = np.zeros((nd, 3))
+    unit_k = np.zeros((nk, 3))
+    for isl in range(nisl):
+        o = zoff[isl]
+        nci, nsi = island_members(m, w, isl, ncon)
+        if nci == 0 and nsi == 0:
+            continue
+        n, nf = assemble_columns(m, w, unit_k, nci, nsi, h, False, rows[o:zoff[isl + 1]], np.bool_(True))
+        first, last = nci, nci + 2 * nf + k_sup * nsi           # the friction rays' and support elements' rows
+        for d in range(nd):
+            for c in range(3):
+                unit[d, c] = 1.0
+                for u in range(first, last):
+                    dr[o + u, 3 * nd + 3 * d + c] = column_dot(w.column_slot, w.column_g, u, unit)
+                unit[d, c] = 0.0
+        f = 0
+        for a in range(nci):
+            j = w.island_con[a]
+            if not m.pair_mu[w.con_pair[j]] > 0.0:
+                continue
+            u = o + nci + 2 * f
+            f += 1
+            for kk in range(nk):
+                for c in range(3):
+                    unit_k[kk, c] = 1.0
+                    vt = kinematic_velocity_along(m, w.body_pose, unit_k, w.con_pair, w.con_p, j, -w.con_n[j, 1],
+                                                  w.con_n[j, 0])
+                    unit_k[kk, c] = 0.0
+                    dr[u, 6 * nd + 3 * nk + 3 * kk + c] = vt
+                    dr[u + 1, 6 * nd + 3 * nk + 3 * kk + c] = -vt
+    for d in range(nd):
+        for c in range(3):
+            jy[3 * d + c, 3 * nd + 3 * d + c] = h
+            jy[3 * nd + 3 * d + c, 3 * nd + 3 * d + c] = 1.0
+
+
+@njit(cache=True)
 def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, qk1, stats):
     """The derivatives of the cold step at the state (q, v, qk, vk) at its certified bases (module docstring) into
     jac (6 nd + 3 nk, K), columns the K inputs (x: q, v, qk, vk flattened row-major), the smooth part's central
@@ -390,6 +483,8 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     basic = np.zeros(N, np.bool_)
     degenerate = np.zeros(N, np.bool_)
     solve = np.zeros(N, np.bool_)      # the basis each island's LCP part solves with: basic, and the sticking rays
+    solve_row = np.zeros(N, np.bool_)  # its rows (`solve` where its matrix is nonsingular)
+    held = np.zeros(N, np.bool_)       # the basis's rows left out of the solve: they hold by themselves, or it gives way
     exempt = np.zeros(N, np.bool_)     # degenerate indices that may move: sticking and separating contacts' friction
     k_sup = support_column_count(m)
     r0 = np.empty(N)
@@ -455,7 +550,7 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
         #   (sum beta <= mu c_n = 0) and its slack lambda = |t.v+|, kinked at t.v+ = 0, enters no other row: nothing
         #   the step returns moves.
         # Their indices' rates need not stay at zero (`exempt`), provided the island's LCP answers form no segment
-        # but a contact's own pair of rays (`_segments_are_friction_rays`)
+        # that moves the velocities (`_segments_leave_velocities`)
         for i in range(n):
             solve[o + i] = basic[o + i]
         nf = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)[1]
@@ -484,19 +579,40 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
             if not (solve[ray] or solve[ray + 1]):
                 solve[ray] = True
                 added = True
-        if exempted and not _segments_are_friction_rays(afull, basic, degenerate, o, n, nci, nf):
+        if exempted and not _segments_leave_velocities(afull, basic, degenerate,
+                                                       _unpinned(z, o, n, nci, nf, nsi, k_sup), o, n, nci, nf):
             return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
+        for i in range(n):
+            solve_row[o + i] = solve[o + i]
         if added:
             nb = 0
             for i in range(n):
                 if solve[o + i]:
                     idx[nb] = i
                     nb += 1
-            fac = lu[o:o + nb, o:o + nb]
+            # the sticking contacts' rays added to the basis can coincide (a box on two corners of a flat face: its
+            # two contacts' tangential rows are one): the part solves with a nonsingular square part of the
+            # basis's matrix, its independent rows and columns; the other unknowns' rates are zero (any answer on
+            # the segment gives the same velocities: `_segments_leave_velocities`) and the other rows must hold by
+            # themselves (`held`, checked with the degenerate indices' rates)
+            sub = np.empty((nb, nb))
+            big = 0.0
             for a in range(nb):
                 for c in range(nb):
-                    fac[a, c] = A[idx[a], idx[c]]
-            if not _lu_factor(fac, perm[o:o + nb]):
+                    sub[a, c] = A[idx[a], idx[c]]
+                    big = max(big, abs(sub[a, c]))
+            prow, pcol = np.empty(nb, np.int64), np.empty(nb, np.int64)
+            rank = _pivots(sub, NULL_RTOL * big, prow, pcol)
+            for a in range(rank, nb):
+                solve[o + idx[pcol[a]]] = False
+                solve_row[o + idx[prow[a]]] = False
+                held[o + idx[prow[a]]] = True
+            rsel, csel = np.sort(prow[:rank]), np.sort(pcol[:rank])
+            fac = lu[o:o + rank, o:o + rank]
+            for a in range(rank):
+                for c in range(rank):
+                    fac[a, c] = A[idx[rsel[a]], idx[csel[c]]]
+            if not _lu_factor(fac, perm[o:o + rank]):
                 return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
     # the smooth part at x (its end-of-step check moves the body poses: put back for the velocities' columns)
     f0 = np.empty(nout)
@@ -517,8 +633,18 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     derived = -1
     if translation_free(m):
         derived = 6 * nd + 3 * (nk - 1) if nk > 0 else 3 * (nd - 1)
+    # the velocities' columns in closed form where the smooth part is linear in them (`_velocity_columns`): no
+    # limit surface (its re-centred columns turn with the velocity), no restitution (its rows' max and min)
+    linear_velocities = True
+    for isl in range(nisl):
+        nci, nsi = island_members(m, w, isl, ncon)
+        if (island_is_elastic(m, w.island_con, nci, w.con_pair)
+                or (nsi > 0 and m.support_model == SUPPORT_LIMIT_SURFACE)):
+            linear_velocities = False
     code = DIFF_OK
     for t in range(K):
+        if linear_velocities and t < 3 * nk + 3 * nd:
+            continue
         if t < 3 * nk:
             k = 6 * nd + 3 * nk + t                                      # kinematic velocities
         elif t < 3 * nk + 3 * nd:
@@ -606,6 +732,8 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                     jy[r, kd] -= jy[r, k]
     # the LCP's part: dz_B = -A_BB^-1 dr_B per island, and its velocity change M^-1 G dz at x's columns
     _contacts_at(m, h, cold_opt, w, x, nd, nk, qa, va, qka, vka, qk_out, scratch)
+    if linear_velocities:
+        _velocity_columns(m, h, w, nd, nk, nisl, ncon, zoff, rp, dr, jy)
     dz = np.zeros((N, K))
     for isl in range(nisl):
         o, n = zoff[isl], zoff[isl + 1] - zoff[isl]
@@ -615,22 +743,28 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
         if nb == 0:
             continue
         idx = np.empty(nb, np.int64)
+        ridx = np.empty(nb, np.int64)
         c = 0
+        c2 = 0
         for i in range(n):
             if solve[o + i]:
                 idx[c] = i
                 c += 1
+            if solve_row[o + i]:
+                ridx[c2] = i
+                c2 += 1
         rhs = np.empty((nb, K))
         for a in range(nb):
             for k in range(K):
-                rhs[a, k] = -dr[o + idx[a], k]
+                rhs[a, k] = -dr[o + ridx[a], k]
         sol = np.empty((nb, K))
         _lu_solve(lu[o:o + nb, o:o + nb], perm[o:o + nb], rhs, sol)
         for a in range(nb):
             for k in range(K):
                 dz[o + idx[a], k] = sol[a, k]
     # any other degenerate index holds its basis on both sides only where its w (z, if basic) stays at zero along
-    # every input: a sticking contact's unloaded friction ray, w = lambda + t.v = 0 with lambda and t.v both held at 0
+    # every input: a sticking contact's unloaded friction ray, w = lambda + t.v = 0 with lambda and t.v both held at
+    # 0; the basis's rows left out of its solve (`held`) only where their w stays at zero
     for isl in range(nisl):
         o, n = zoff[isl], zoff[isl + 1] - zoff[isl]
         for k in range(K):
@@ -638,6 +772,12 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
             for i in range(o, o + n):
                 size = max(size, abs(dr[i, k]), abs(dz[i, k]))
             for i in range(o, o + n):
+                if held[i]:
+                    rate = dr[i, k]
+                    for c in range(o, o + n):
+                        rate += afull[i, c] * dz[c, k]
+                    if abs(rate) > DEGENERATE_RTOL * size:
+                        return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
                 if not degenerate[i] or exempt[i]:
                     continue
                 if basic[i]:

@@ -500,3 +500,22 @@ def test_the_step_stage_profile_runs_as_documented():
         assert int(row[2]) == 12                              # the pushed box's LCP: 4 contact + 8 table unknowns
         whole, *stages = (float(x) for x in row[3:])
         assert whole > 0 and all(0 < t for t in stages) and stages[-1] < whole
+
+
+@pytest.mark.slow    # compiles its two loops
+def test_the_derivative_cost_split_runs_as_documented():
+    """examples/measurements/derivative_cost_split.py (docs/performance.md) end to end on one scene with short
+    loops: a row of positive times and ratios, the tangent answering at the bench state."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[2] / "examples" / "measurements" / "derivative_cost_split.py"
+    r = subprocess.run([sys.executable, str(script), "--scenes", "falling_rod", "--rounds", "1", "--n", "20"],
+                       capture_output=True, text=True, timeout=1200)
+    assert r.returncode == 0, r.stderr
+    rows = [line.split("|")[1:-1] for line in r.stdout.splitlines() if line.startswith("| falling_rod")]
+    assert len(rows) == 1
+    row = [x.strip() for x in rows[0]]
+    assert row[1] == "6" and row[2] == "yes"
+    api_step, compiled_step, api_d, compiled_t, in_compiled, in_api = (float(x) for x in row[3:])
+    assert min(api_step, compiled_step, api_d, compiled_t, in_compiled, in_api) > 0

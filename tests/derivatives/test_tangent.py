@@ -11,7 +11,7 @@ from planar_lcp.derivatives import step_derivatives
 from planar_lcp.derivatives.differences import tangent_at_bases
 from planar_lcp.engine.rollout import DIFF_OK
 from planar_lcp.engine.tangent import (TANGENT_DEGENERATE, TANGENT_NOT_COVERED, _lu_factor, _lu_solve, _nullity,
-                                       translation_free)
+                                       _pivots, translation_free)
 from planar_lcp.model import compile_scene
 from planar_lcp.sim import SimOptions, Simulator
 from planar_lcp.spec.scene import load_scene
@@ -103,6 +103,9 @@ def bench_state(name):
                       "kinked, nothing the step returns moves"),
     ("block_on_incline", "a block flush on the incline: its two corner contacts come in the other order on the other "
                          "side of its angle"),
+    ("tip_box", "a box at rest on the two corners of its flat face: their friction rows coincide (the split of the "
+                "friction between them is a segment of answers, the same velocities), solved on the basis's "
+                "independent rows"),
 ])
 def test_degenerate_indices_that_move_without_a_switch_are_answered(name, why):
     sim, state = bench_state(name)
@@ -149,7 +152,7 @@ def test_the_basis_solve_agrees_with_numpy_and_refuses_a_singular_basis():
 
 
 def test_the_nullity_is_numpys_rank_deficit():
-    """The null-space test of `_segments_are_friction_rays`: elimination with complete pivoting against numpy's SVD
+    """The null-space test of `_segments_leave_velocities`: elimination with complete pivoting against numpy's SVD
     rank, on seeded random matrices of every rank, and a contact's two friction columns (exact negatives)."""
     rng = np.random.default_rng(3)
     for n in range(1, 9):
@@ -162,3 +165,36 @@ def test_the_nullity_is_numpys_rank_deficit():
     a = np.outer([1.0, -1.0, 0.5], g)[:, [0, 1, 2]]
     a[:, 1] = -a[:, 0]
     assert _nullity(a.copy(), 1e-9 * np.max(np.abs(a))) == 2
+
+
+def test_the_pivots_pick_a_nonsingular_part_of_the_rank():
+    """The basis's independent rows and columns (`_pivots`, the solve where sticking rays coincide): on seeded random
+    square and rectangular matrices of every rank, the rows and columns it puts first form a square part of full rank
+    (numpy's SVD rank) and the rank is numpy's."""
+    rng = np.random.default_rng(5)
+    for nr, nc in ((1, 1), (3, 3), (6, 6), (4, 7), (7, 4)):
+        for rank in range(min(nr, nc) + 1):
+            a = rng.standard_normal((nr, rank)) @ rng.standard_normal((rank, nc))
+            big = np.max(np.abs(a), initial=0.0)
+            rows, cols = np.empty(nr, np.int64), np.empty(nc, np.int64)
+            got = _pivots(a.copy(), 1e-9 * big, rows, cols)
+            want = np.linalg.matrix_rank(a, tol=1e-9 * np.linalg.norm(a, 2)) if big > 0 else 0
+            assert got == want, (nr, nc, rank)
+            assert sorted(rows) == list(range(nr)) and sorted(cols) == list(range(nc))
+            part = a[np.ix_(rows[:got], cols[:got])]
+            assert np.linalg.matrix_rank(part, tol=1e-9 * big) == got
+
+
+@pytest.mark.parametrize("name", ["falling_rod", "four_disks", "box_tip", "bouncing_disk", "box_push"])
+def test_the_velocity_columns_agree_with_the_dual_numbers_to_round_off(name):
+    """The velocities' columns (d/dv, d/dvk): in closed form where the smooth part is linear in the velocities
+    (`_velocity_columns`: falling_rod, four_disks, box_tip), by the smooth part's differences with restitution
+    (bouncing_disk) or a limit surface (box_push); within 1e-9 of the dual numbers' either way (the whole Jacobian's
+    tolerance is TANGENT_RTOL, the pose columns' differences)."""
+    sim, state = bench_state(name)
+    nd, nk = len(state[0]), len(state[2])
+    code, jac = tangent(sim, *state)
+    ref = step_derivatives(sim, *state)
+    assert code == DIFF_OK and ref.exact
+    cols = list(range(3 * nd, 6 * nd)) + list(range(6 * nd + 3 * nk, 6 * nd + 6 * nk))
+    assert np.max(np.abs(jac[:, cols] - ref.jacobian[:, cols])) <= 1e-9 * np.max(np.abs(ref.jacobian[:, cols]))
