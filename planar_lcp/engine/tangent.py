@@ -426,69 +426,91 @@ def _velocity_columns(m, h, w, nd, nk, nisl, ncon, zoff, rows, dr, jy):
 
 
 @njit(cache=True)
-def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, qk1, stats):
-    """The derivatives of the cold step at the state (q, v, qk, vk) at its certified bases (module docstring) into
-    jac (6 nd + 3 nk, K), columns the K inputs (x: q, v, qk, vk flattened row-major), the smooth part's central
-    differences over eps_k = tols[0] max(1, |x_k|); the cold step's state into q1, v1, qk1 and its stats into stats.
-    Returns DIFF_OK where every check holds, DIFF_MOVES where only the mixed direction's fails (jac written), else a
-    DIFF_* or TANGENT_* code. tols as step_differences takes them. The warm-start memory is left as the cold step
-    left it."""
-    nd, nk = q.shape[0], qk.shape[0]
-    K = 6 * nd + 6 * nk
-    x = np.empty(K)
-    if not flat_inputs(q, v, qk, vk, x):
-        return DIFF_NONFINITE
-    # the steps along each input and the mixed direction's, as step_differences takes them
-    steps = difference_steps(x, tols[0])
-    rtol_kink, floor = tols[1], tols[3]
-    nout = 6 * nd + 3 * nk
-    base = np.empty(nout)
-    rec = _compiled_recording(1, nd, nk)
-    st = _step_from_flat(m, x, nd, nk, h, cold_opt, w, rec, True, base)
-    for s in range(stats.shape[0]):
-        stats[s] = rec.stats[0, s]
-    if st == STEP_NEEDS_SPACE:
-        return DIFF_SPACE
-    if st != STEP_OK:
-        return DIFF_FAILED
-    if not _covered(cold_opt, stats):
-        return TANGENT_NOT_COVERED
-    msize, mbasic, mmodes = w.warm_size.copy(), w.warm_basic_z.copy(), w.sparse_pair_mode.copy()
-    qa, va, qka, vka = np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3)), np.empty((nk, 3))
-    qk_out = np.empty((nk, 3))
-    scratch = np.zeros(stats.shape[0])
-    dv = np.empty((nd, 3))
-    # x's contacts, islands and each island's LCP at the cold step's basis
-    ncon, nisl = _contacts_at(m, h, cold_opt, w, x, nd, nk, qa, va, qka, vka, qk_out, scratch)
-    pairs = w.con_pair[:ncon].copy()
-    points = w.con_p[:ncon].copy()
-    order = np.empty(ncon, np.int64)
-    phi_m, n_m, p_m = np.empty(ncon), np.empty((ncon, 2)), np.empty((ncon, 2))
-    zoff = np.zeros(nisl + 1, np.int64)
-    for isl in range(nisl):
-        nci, nsi = island_members(m, w, isl, ncon)
-        n = 0
-        if nci > 0 or nsi > 0:
-            n, nf, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
-            nsb, _ = island_servo(m, w, nci, nf)
-            if nsb > 0 or msize[isl] != n:
-                _restore_memory(msize, mbasic, mmodes, w)
-                return TANGENT_NOT_COVERED
-        zoff[isl + 1] = zoff[isl] + n
-    N = zoff[nisl]
-    z = np.zeros(N)
-    lu = np.zeros((N, N))            # each island's A_BB's LU factors, on its diagonal block
-    perm = np.zeros(N, np.int64)     # and their row order
-    afull = np.zeros((N, N))         # each island's A
-    basic = np.zeros(N, np.bool_)
-    degenerate = np.zeros(N, np.bool_)
-    solve = np.zeros(N, np.bool_)      # the basis each island's LCP part solves with: basic, and the sticking rays
-    solve_row = np.zeros(N, np.bool_)  # its rows (`solve` where its matrix is nonsingular)
-    held = np.zeros(N, np.bool_)       # the basis's rows left out of the solve: they hold by themselves, or it gives way
-    exempt = np.zeros(N, np.bool_)     # degenerate indices that may move: sticking and separating contacts' friction
+def _exempt_friction(m, w, o, nci, nsi, nf, k_sup, basic, degenerate, solve, exempt):
+    """Two kinds of frictional contact whose degenerate friction indices may move without a switch of the step
+    (island at o, its contacts in w.island_con):
+    - at rest, loaded, its load inside the friction cone (c_n basic and positive, both friction rays at the
+      certificate's zero, its slack lambda nonbasic with a positive row): it sticks whichever way a change of the
+      inputs pushes it, its two rays one bilateral constraint t.v+ = 0 with beta = beta(+t) - beta(-t) of either
+      sign. The LCP's part solves with the +t ray in the basis (`solve`; a negative rate is the -t ray's);
+    - separating (c_n nonbasic, its row positive; its rays nonbasic): its friction is held at zero
+      (sum beta <= mu c_n = 0) and its slack lambda = |t.v+|, kinked at t.v+ = 0, enters no other row: nothing the
+      step returns moves.
+    Their indices' rates need not stay at zero (`exempt`), provided the island's LCP answers form no segment that
+    moves the velocities (`_segments_leave_velocities`). Returns (a ray was added to the basis, an index was
+    exempted)."""
+    f = 0
+    added = False
+    exempted = False
+    for a in range(nci):
+        if not m.pair_mu[w.con_pair[w.island_con[a]]] > 0.0:
+            continue
+        ray = o + nci + 2 * f
+        slack = o + nci + 2 * nf + k_sup * nsi + f
+        f += 1
+        if not (degenerate[ray] or degenerate[ray + 1] or degenerate[slack]):
+            continue
+        if not basic[o + a] and not degenerate[o + a]:
+            # its rays nonbasic (a basic ray at zero would be held to t.v+ = 0 by the basis solve)
+            if not (basic[ray] or basic[ray + 1]):
+                exempt[ray] = exempt[ray + 1] = exempt[slack] = True
+                exempted = True
+            continue
+        if (not (degenerate[ray] and degenerate[ray + 1]) or degenerate[o + a] or not basic[o + a]
+                or degenerate[slack] or basic[slack]):
+            continue
+        exempt[ray] = exempt[ray + 1] = True
+        exempted = True
+        if not (solve[ray] or solve[ray + 1]):
+            solve[ray] = True
+            added = True
+    return added, exempted
+
+
+@njit(cache=True)
+def _factor_solve_part(A, o, n, lu, perm, solve, solve_row, held):
+    """The factors of the basis the island's LCP part solves with (island at o, size n, its matrix A), the sticking
+    rays added to it (`_exempt_friction`). Those rays can coincide (a box on two corners of a flat face: its two
+    contacts' tangential rows are one): the part solves with a nonsingular square part of the basis's matrix, its
+    independent rows and columns (`_pivots`); the other unknowns' rates are zero (any answer on the segment gives
+    the same velocities: `_segments_leave_velocities`) and the other rows must hold by themselves (`held`, checked
+    with the degenerate indices' rates). False where the part is singular to working precision."""
+    idx = np.empty(n, np.int64)
+    nb = 0
+    for i in range(n):
+        if solve[o + i]:
+            idx[nb] = i
+            nb += 1
+    sub = np.empty((nb, nb))
+    big = 0.0
+    for a in range(nb):
+        for c in range(nb):
+            sub[a, c] = A[idx[a], idx[c]]
+            big = max(big, abs(sub[a, c]))
+    prow, pcol = np.empty(nb, np.int64), np.empty(nb, np.int64)
+    rank = _pivots(sub, NULL_RTOL * big, prow, pcol)
+    for a in range(rank, nb):
+        solve[o + idx[pcol[a]]] = False
+        solve_row[o + idx[prow[a]]] = False
+        held[o + idx[prow[a]]] = True
+    rsel, csel = np.sort(prow[:rank]), np.sort(pcol[:rank])
+    fac = lu[o:o + rank, o:o + rank]
+    for a in range(rank):
+        for c in range(rank):
+            fac[a, c] = A[idx[rsel[a]], idx[csel[c]]]
+    return _lu_factor(fac, perm[o:o + rank])
+
+
+@njit(cache=True)
+def _island_bases(m, h, w, vk, nisl, ncon, zoff, mbasic, res_tol, z, lu, perm, afull, basic, degenerate, solve,
+                  solve_row, held, exempt):
+    """Each island's LCP at x (its contacts in w) at the cold step's bases mbasic: its answer z, its matrix A
+    (afull's diagonal block at zoff), the indices at the certificate's zero on both sides (`degenerate`), the
+    sticking and separating contacts' friction (`exempt`) and the factors the LCP's part solves with (lu, perm over
+    the columns `solve` and the rows `solve_row`; `held`, the basis's rows left out). False where the bases do not
+    hold: an index beyond the certificate's zero, a singular basis matrix, a segment of answers that moves the
+    velocities."""
     k_sup = support_column_count(m)
-    r0 = np.empty(N)
-    res_tol = cold_opt.res_tol
     for isl in range(nisl):
         o, n = zoff[isl], zoff[isl + 1] - zoff[isl]
         if n == 0:
@@ -496,7 +518,7 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
         nci, nsi = island_members(m, w, isl, ncon)
         A = np.empty((n, n))
         b = np.empty(n)
-        assemble_lcp(m, w, vka, nci, nsi, h, False, A, b, np.bool_(True))
+        assemble_lcp(m, w, vk, nci, nsi, h, False, A, b, np.bool_(True))
         nb = 0
         for i in range(n):
             basic[o + i] = mbasic[isl, i]
@@ -515,7 +537,7 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                 for c in range(nb):
                     fac[a, c] = A[idx[a], idx[c]]
             if not _lu_factor(fac, perm[o:o + nb]):
-                return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
+                return False
             zb = np.empty((nb, 1))
             _lu_solve(fac, perm[o:o + nb], rhs, zb)
             for a in range(nb):
@@ -535,113 +557,63 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                 wi += A[i, c] * z[o + c]
             if basic[o + i]:
                 if z[o + i] < -res_tol * zmax:
-                    return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
+                    return False
                 degenerate[o + i] = z[o + i] <= res_tol * zmax
             else:
                 if wi < -res_tol * scale:
-                    return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
+                    return False
                 degenerate[o + i] = wi <= res_tol * scale
-        # two kinds of frictional contact whose degenerate friction indices may move without a switch of the step:
-        # - at rest, loaded, its load inside the friction cone (c_n basic and positive, both friction rays at the
-        #   certificate's zero, its slack lambda nonbasic with a positive row): it sticks whichever way a change of
-        #   the inputs pushes it, its two rays one bilateral constraint t.v+ = 0 with beta = beta(+t) - beta(-t) of
-        #   either sign. The LCP's part solves with the +t ray in the basis (a negative rate is the -t ray's);
-        # - separating (c_n nonbasic, its row positive; its rays nonbasic): its friction is held at zero
-        #   (sum beta <= mu c_n = 0) and its slack lambda = |t.v+|, kinked at t.v+ = 0, enters no other row: nothing
-        #   the step returns moves.
-        # Their indices' rates need not stay at zero (`exempt`), provided the island's LCP answers form no segment
-        # that moves the velocities (`_segments_leave_velocities`)
         for i in range(n):
             solve[o + i] = basic[o + i]
         nf = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)[1]
-        f = 0
-        added = False
-        exempted = False
-        for a in range(nci):
-            if not m.pair_mu[w.con_pair[w.island_con[a]]] > 0.0:
-                continue
-            ray = o + nci + 2 * f
-            slack = o + nci + 2 * nf + k_sup * nsi + f
-            f += 1
-            if not (degenerate[ray] or degenerate[ray + 1] or degenerate[slack]):
-                continue
-            if not basic[o + a] and not degenerate[o + a]:
-                # its rays nonbasic (a basic ray at zero would be held to t.v+ = 0 by the basis solve)
-                if not (basic[ray] or basic[ray + 1]):
-                    exempt[ray] = exempt[ray + 1] = exempt[slack] = True
-                    exempted = True
-                continue
-            if (not (degenerate[ray] and degenerate[ray + 1]) or degenerate[o + a] or not basic[o + a]
-                    or degenerate[slack] or basic[slack]):
-                continue
-            exempt[ray] = exempt[ray + 1] = True
-            exempted = True
-            if not (solve[ray] or solve[ray + 1]):
-                solve[ray] = True
-                added = True
+        added, exempted = _exempt_friction(m, w, o, nci, nsi, nf, k_sup, basic, degenerate, solve, exempt)
         if exempted and not _segments_leave_velocities(afull, basic, degenerate,
                                                        _unpinned(z, o, n, nci, nf, nsi, k_sup), o, n, nci, nf):
-            return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
+            return False
         for i in range(n):
             solve_row[o + i] = solve[o + i]
-        if added:
-            nb = 0
-            for i in range(n):
-                if solve[o + i]:
-                    idx[nb] = i
-                    nb += 1
-            # the sticking contacts' rays added to the basis can coincide (a box on two corners of a flat face: its
-            # two contacts' tangential rows are one): the part solves with a nonsingular square part of the
-            # basis's matrix, its independent rows and columns; the other unknowns' rates are zero (any answer on
-            # the segment gives the same velocities: `_segments_leave_velocities`) and the other rows must hold by
-            # themselves (`held`, checked with the degenerate indices' rates)
-            sub = np.empty((nb, nb))
-            big = 0.0
-            for a in range(nb):
-                for c in range(nb):
-                    sub[a, c] = A[idx[a], idx[c]]
-                    big = max(big, abs(sub[a, c]))
-            prow, pcol = np.empty(nb, np.int64), np.empty(nb, np.int64)
-            rank = _pivots(sub, NULL_RTOL * big, prow, pcol)
-            for a in range(rank, nb):
-                solve[o + idx[pcol[a]]] = False
-                solve_row[o + idx[prow[a]]] = False
-                held[o + idx[prow[a]]] = True
-            rsel, csel = np.sort(prow[:rank]), np.sort(pcol[:rank])
-            fac = lu[o:o + rank, o:o + rank]
-            for a in range(rank):
-                for c in range(rank):
-                    fac[a, c] = A[idx[rsel[a]], idx[csel[c]]]
-            if not _lu_factor(fac, perm[o:o + rank]):
-                return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
-    # the smooth part at x (its end-of-step check moves the body poses: put back for the velocities' columns)
-    f0 = np.empty(nout)
-    _smooth_part(m, h, w, vka, nisl, ncon, z, zoff, qa, qk_out, r0, f0, dv)
-    if check_end_configuration(m, w, cold_opt, qk_out, scratch) != 0:
-        return _give_way(msize, mbasic, mmodes, w, TANGENT_CONTACTS)
-    body_poses(m, w.q_hat, w.qk_hat, w.body_pose)
-    # then along each of the smooth part's inputs, +- eps_k: the velocities' first (on x's contacts and poses),
-    # the kinematic ones before the dynamic ones' (which move the limit surfaces' re-centred columns), then the poses'
-    # (each with its contacts and the end-of-step check, the re-centred columns where they move)
-    rp, rm = np.empty(N), np.empty(N)
-    fp, fm = np.empty(nout), np.empty(nout)
-    dr = np.zeros((N, K))
-    jy = np.zeros((nout, K))           # d(q+, v+, qk+) along the smooth part's inputs
-    kinv = np.empty((nk, 3))
-    at_x = True                        # w.sup_recentred holds x's re-centred columns
-    # the last body's x and y pose columns, where they follow from the others' (`translation_free`); -1: none
-    derived = -1
-    if translation_free(m):
-        derived = 6 * nd + 3 * (nk - 1) if nk > 0 else 3 * (nd - 1)
-    # the velocities' columns in closed form where the smooth part is linear in them (`_velocity_columns`): no
-    # limit surface (its re-centred columns turn with the velocity), no restitution (its rows' max and min)
-    linear_velocities = True
+        if added and not _factor_solve_part(A, o, n, lu, perm, solve, solve_row, held):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _linear_in_velocities(m, w, nisl, ncon):
+    """Whether the smooth part is linear in the velocities (`_velocity_columns`): no island with restitution (its
+    rows' max and min) or on a limit surface (its re-centred columns turn with the velocity)."""
     for isl in range(nisl):
         nci, nsi = island_members(m, w, isl, ncon)
         if (island_is_elastic(m, w.island_con, nci, w.con_pair)
                 or (nsi > 0 and m.support_model == SUPPORT_LIMIT_SURFACE)):
-            linear_velocities = False
-    code = DIFF_OK
+            return False
+    return True
+
+
+@njit(cache=True)
+def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, nisl, ncon, z, zoff, r0, f0, derived,
+                    linear_velocities, dr, jy):
+    """The smooth part's columns (z held) into dr (its rows) and jy (its outputs), by central differences along
+    each of its inputs, +- eps_k (steps[0]), from x's (q, v, qk, vk; its contacts' pairs and points in w, the rows
+    r0 and outputs f0 there): the velocities' first (on x's contacts and poses; none where `linear_velocities`,
+    `_velocity_columns` gives them), the kinematic ones before the dynamic ones' (which move the limit surfaces'
+    re-centred columns), then the poses' (each with its contacts and the end-of-step check, the re-centred columns
+    where they move); none for the `derived` pose columns. Returns DIFF_OK, TANGENT_CONTACTS (an evaluation with
+    other contacts, or whose end-of-step check adds a pair) or TANGENT_KINK (one-sided differences that differ by
+    more than tols[1] of their scale, at least tols[3])."""
+    nd, nk = q.shape[0], qk.shape[0]
+    K = steps.shape[1]
+    N = zoff[nisl]
+    nout = f0.shape[0]
+    rtol_kink, floor = tols[1], tols[3]
+    pairs = w.con_pair[:ncon].copy()
+    points = w.con_p[:ncon].copy()
+    order = np.empty(ncon, np.int64)
+    phi_m, n_m, p_m = np.empty(ncon), np.empty((ncon, 2)), np.empty((ncon, 2))
+    rp, rm = np.empty(N), np.empty(N)
+    fp, fm = np.empty(nout), np.empty(nout)
+    kinv = np.empty((nk, 3))
+    dv = np.empty((nd, 3))
+    at_x = True                        # w.sup_recentred holds x's re-centred columns
     for t in range(K):
         if linear_velocities and t < 3 * nk + 3 * nd:
             continue
@@ -661,24 +633,21 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
             continue
         e = steps[0, k]
         for sgn in range(2):
-            _moved_start(m, h, cold_opt, w, qa, va, qka, vka, kinv, qk_out, scratch, kind, i, c, e if sgn == 0 else -e)
+            _moved_start(m, h, opt, w, q, v, qk, vk, kinv, qk_out, scratch, kind, i, c, e if sgn == 0 else -e)
             pose = kind == SMOOTH_POSE or kind == SMOOTH_KIN_POSE
             if pose:
                 # the re-centred columns depend on a dynamic body's angle and velocity only: an evaluation that
                 # moves neither keeps them, once they are x's again (at_x)
                 turns = kind == SMOOTH_POSE and c == 2
-                nc, ni = prepare_contacts(m, w, cold_opt, w.qk_hat, scratch, turns or not at_x)
+                nc, ni = prepare_contacts(m, w, opt, w.qk_hat, scratch, turns or not at_x)
                 at_x = not turns
                 if nc != ncon or ni != nisl:
-                    code = TANGENT_CONTACTS
-                else:
-                    for j in range(ncon):
-                        if w.con_pair[j] != pairs[j]:
-                            code = TANGENT_CONTACTS
-                    if code == DIFF_OK and not _match_contacts(w, ncon, points, order, phi_m, n_m, p_m):
-                        code = TANGENT_CONTACTS
-                if code != DIFF_OK:
-                    break
+                    return TANGENT_CONTACTS
+                for j in range(ncon):
+                    if w.con_pair[j] != pairs[j]:
+                        return TANGENT_CONTACTS
+                if not _match_contacts(w, ncon, points, order, phi_m, n_m, p_m):
+                    return TANGENT_CONTACTS
             else:
                 if kind == SMOOTH_VELOCITY and m.support_model == SUPPORT_LIMIT_SURFACE:
                     recentre_limit_surfaces(m, w)
@@ -686,14 +655,12 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                 for d in range(nd):
                     for a in range(3):
                         w.v_new[d, a] = w.v_tilde[d, a]
-            _smooth_part(m, h, w, kinv, nisl, ncon, z, zoff, qa, qk_out, rp if sgn == 0 else rm,
+            _smooth_part(m, h, w, kinv, nisl, ncon, z, zoff, q, qk_out, rp if sgn == 0 else rm,
                          fp if sgn == 0 else fm, dv)
-            if pose and check_end_configuration(m, w, cold_opt, qk_out, scratch) != 0:
-                code = TANGENT_CONTACTS
-                break
-        if code != DIFF_OK:
-            break
+            if pose and check_end_configuration(m, w, opt, qk_out, scratch) != 0:
+                return TANGENT_CONTACTS
         # one-sided differences of the smooth part, its rows and its outputs each against their own scale
+        code = DIFF_OK
         for part in range(2):
             big = 0.0
             gap = 0.0
@@ -711,29 +678,41 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
             if gap > rtol_kink * max(big, floor):
                 code = TANGENT_KINK
         if code != DIFF_OK:
-            break
-    if code != DIFF_OK:
-        return _give_way(msize, mbasic, mmodes, w, code)
-    if derived >= 0:
-        for a in range(2):
-            kd = derived + a
+            return code
+    return DIFF_OK
+
+
+@njit(cache=True)
+def _derived_columns(derived, nd, nk, dr, jy):
+    """The last body's x and y pose columns (from `derived`), where they follow from the others' (`translation_free`):
+    moving every pose alike moves nothing but the kinematic bodies' qk+, so each is that less the other pose
+    columns along its axis."""
+    N, nout = dr.shape[0], jy.shape[0]
+    for a in range(2):
+        kd = derived + a
+        for r in range(N):
+            dr[r, kd] = 0.0
+        for r in range(nout):
+            jy[r, kd] = 0.0
+        for j in range(nk):
+            jy[6 * nd + 3 * j + a, kd] = 1.0
+        for k in range(6 * nd + 3 * nk):
+            if k % 3 != a or (k >= 3 * nd and k < 6 * nd) or k == kd:
+                continue
             for r in range(N):
-                dr[r, kd] = 0.0
+                dr[r, kd] -= dr[r, k]
             for r in range(nout):
-                jy[r, kd] = 0.0
-            for j in range(nk):
-                jy[6 * nd + 3 * j + a, kd] = 1.0
-            for k in range(6 * nd + 3 * nk):
-                if k % 3 != a or (k >= 3 * nd and k < 6 * nd) or k == kd:
-                    continue
-                for r in range(N):
-                    dr[r, kd] -= dr[r, k]
-                for r in range(nout):
-                    jy[r, kd] -= jy[r, k]
-    # the LCP's part: dz_B = -A_BB^-1 dr_B per island, and its velocity change M^-1 G dz at x's columns
-    _contacts_at(m, h, cold_opt, w, x, nd, nk, qa, va, qka, vka, qk_out, scratch)
-    if linear_velocities:
-        _velocity_columns(m, h, w, nd, nk, nisl, ncon, zoff, rp, dr, jy)
+                jy[r, kd] -= jy[r, k]
+
+
+@njit(cache=True)
+def _lcp_columns(m, h, w, vk, nd, nisl, ncon, zoff, lu, perm, solve, solve_row, held, basic, degenerate, exempt,
+                 afull, dr, jy):
+    """The LCP's part, at x's contacts (in w): dz_B = -A_BB^-1 dr_B per island (`_island_bases`' factors), the
+    degenerate indices' and the held rows' rates checked, and its velocity change M^-1 G dz (q+ moves by h times it)
+    added to jy. False where a degenerate index or a held row moves."""
+    N, K = dr.shape
+    k_sup = support_column_count(m)
     dz = np.zeros((N, K))
     for isl in range(nisl):
         o, n = zoff[isl], zoff[isl + 1] - zoff[isl]
@@ -777,7 +756,7 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                     for c in range(o, o + n):
                         rate += afull[i, c] * dz[c, k]
                     if abs(rate) > DEGENERATE_RTOL * size:
-                        return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
+                        return False
                 if not degenerate[i] or exempt[i]:
                     continue
                 if basic[i]:
@@ -787,14 +766,16 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                     for c in range(o, o + n):
                         rate += afull[i, c] * dz[c, k]
                 if abs(rate) > DEGENERATE_RTOL * size:
-                    return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
+                    return False
     zk = np.empty(N)
+    rows = np.empty(N)
+    dv = np.empty((nd, 3))
     for isl in range(nisl):
         o, n = zoff[isl], zoff[isl + 1] - zoff[isl]
         if n == 0:
             continue
         nci, nsi = island_members(m, w, isl, ncon)
-        n, nf = assemble_columns(m, w, vka, nci, nsi, h, False, rp[o:zoff[isl + 1]], np.bool_(True))
+        n, nf = assemble_columns(m, w, vk, nci, nsi, h, False, rows[o:zoff[isl + 1]], np.bool_(True))
         nforce = nci + 2 * nf + k_sup * nsi
         for k in range(K):
             for d in range(nd):
@@ -807,9 +788,14 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                 for c in range(3):
                     jy[3 * d + c, k] += h * dv[d, c]
                     jy[3 * nd + 3 * d + c, k] += dv[d, c]
-    # the state's columns from the smooth part's (SMOOTH_POSE's comment)
+    return True
+
+
+@njit(cache=True)
+def _state_columns(m, h, nd, nk, jy, jac):
+    """The state's columns from the smooth part's (SMOOTH_POSE's comment)."""
     keep = 1.0 if m.damping == 1.0 else m.damping ** h
-    for r in range(nout):
+    for r in range(jy.shape[0]):
         for d in range(nd):
             for c in range(3):
                 kq, kv = 3 * d + c, 3 * nd + 3 * d + c
@@ -820,5 +806,92 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                 kq, kv = 6 * nd + 3 * j + c, 6 * nd + 3 * nk + 3 * j + c
                 jac[r, kq] = jy[r, kq]
                 jac[r, kv] = h * jy[r, kq] + jy[r, kv]
-    return mixed_direction_check(m, h, warm_opt, w, rec, x, steps, jac, base, (msize, mbasic, mmodes), tols, fp, fm,
-                                 q1, v1, qk1)
+
+
+@njit(cache=True)
+def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, qk1, stats):
+    """The derivatives of the cold step at the state (q, v, qk, vk) at its certified bases (module docstring) into
+    jac (6 nd + 3 nk, K), columns the K inputs (x: q, v, qk, vk flattened row-major), the smooth part's central
+    differences over eps_k = tols[0] max(1, |x_k|); the cold step's state into q1, v1, qk1 and its stats into stats.
+    Returns DIFF_OK where every check holds, DIFF_MOVES where only the mixed direction's fails (jac written), else a
+    DIFF_* or TANGENT_* code. tols as step_differences takes them. The warm-start memory is left as the cold step
+    left it."""
+    nd, nk = q.shape[0], qk.shape[0]
+    K = 6 * nd + 6 * nk
+    x = np.empty(K)
+    if not flat_inputs(q, v, qk, vk, x):
+        return DIFF_NONFINITE
+    # the steps along each input and the mixed direction's, as step_differences takes them
+    steps = difference_steps(x, tols[0])
+    nout = 6 * nd + 3 * nk
+    base = np.empty(nout)
+    rec = _compiled_recording(1, nd, nk)
+    st = _step_from_flat(m, x, nd, nk, h, cold_opt, w, rec, True, base)
+    for s in range(stats.shape[0]):
+        stats[s] = rec.stats[0, s]
+    if st == STEP_NEEDS_SPACE:
+        return DIFF_SPACE
+    if st != STEP_OK:
+        return DIFF_FAILED
+    if not _covered(cold_opt, stats):
+        return TANGENT_NOT_COVERED
+    msize, mbasic, mmodes = w.warm_size.copy(), w.warm_basic_z.copy(), w.sparse_pair_mode.copy()
+    qa, va, qka, vka = np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3)), np.empty((nk, 3))
+    qk_out = np.empty((nk, 3))
+    scratch = np.zeros(stats.shape[0])
+    # x's contacts, islands and each island's LCP at the cold step's basis
+    ncon, nisl = _contacts_at(m, h, cold_opt, w, x, nd, nk, qa, va, qka, vka, qk_out, scratch)
+    zoff = np.zeros(nisl + 1, np.int64)
+    for isl in range(nisl):
+        nci, nsi = island_members(m, w, isl, ncon)
+        n = 0
+        if nci > 0 or nsi > 0:
+            n, nf, _ = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)
+            nsb, _ = island_servo(m, w, nci, nf)
+            if nsb > 0 or msize[isl] != n:
+                return _give_way(msize, mbasic, mmodes, w, TANGENT_NOT_COVERED)
+        zoff[isl + 1] = zoff[isl] + n
+    N = zoff[nisl]
+    z = np.zeros(N)
+    lu = np.zeros((N, N))            # each island's A_BB's LU factors, on its diagonal block
+    perm = np.zeros(N, np.int64)     # and their row order
+    afull = np.zeros((N, N))         # each island's A
+    basic = np.zeros(N, np.bool_)
+    degenerate = np.zeros(N, np.bool_)
+    solve = np.zeros(N, np.bool_)      # the basis each island's LCP part solves with: basic, and the sticking rays
+    solve_row = np.zeros(N, np.bool_)  # its rows (`solve` where its matrix is nonsingular)
+    held = np.zeros(N, np.bool_)       # the basis's rows left out of the solve: they hold by themselves, or it gives way
+    exempt = np.zeros(N, np.bool_)     # degenerate indices that may move: sticking and separating contacts' friction
+    if not _island_bases(m, h, w, vka, nisl, ncon, zoff, mbasic, cold_opt.res_tol, z, lu, perm, afull, basic,
+                         degenerate, solve, solve_row, held, exempt):
+        return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
+    # the smooth part at x (its end-of-step check moves the body poses: put back for the velocities' columns)
+    r0, f0 = np.empty(N), np.empty(nout)
+    _smooth_part(m, h, w, vka, nisl, ncon, z, zoff, qa, qk_out, r0, f0, np.empty((nd, 3)))
+    if check_end_configuration(m, w, cold_opt, qk_out, scratch) != 0:
+        return _give_way(msize, mbasic, mmodes, w, TANGENT_CONTACTS)
+    body_poses(m, w.q_hat, w.qk_hat, w.body_pose)
+    # then its columns along each of its inputs
+    dr = np.zeros((N, K))              # d(A z + b) over the force unknowns, z held
+    jy = np.zeros((nout, K))           # d(q+, v+, qk+) along the smooth part's inputs
+    # the last body's x and y pose columns, where they follow from the others' (`translation_free`); -1: none
+    derived = -1
+    if translation_free(m):
+        derived = 6 * nd + 3 * (nk - 1) if nk > 0 else 3 * (nd - 1)
+    linear_velocities = _linear_in_velocities(m, w, nisl, ncon)
+    code = _smooth_columns(m, h, cold_opt, w, qa, va, qka, vka, qk_out, scratch, steps, tols, nisl, ncon, z, zoff, r0,
+                           f0, derived, linear_velocities, dr, jy)
+    if code != DIFF_OK:
+        return _give_way(msize, mbasic, mmodes, w, code)
+    if derived >= 0:
+        _derived_columns(derived, nd, nk, dr, jy)
+    # the LCP's part at x's contacts, and the velocities' columns where they are in closed form
+    _contacts_at(m, h, cold_opt, w, x, nd, nk, qa, va, qka, vka, qk_out, scratch)
+    if linear_velocities:
+        _velocity_columns(m, h, w, nd, nk, nisl, ncon, zoff, np.empty(N), dr, jy)
+    if not _lcp_columns(m, h, w, vka, nd, nisl, ncon, zoff, lu, perm, solve, solve_row, held, basic, degenerate, exempt,
+                        afull, dr, jy):
+        return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
+    _state_columns(m, h, nd, nk, jy, jac)
+    return mixed_direction_check(m, h, warm_opt, w, rec, x, steps, jac, base, (msize, mbasic, mmodes), tols,
+                                 np.empty(nout), np.empty(nout), q1, v1, qk1)
