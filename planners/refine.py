@@ -152,6 +152,7 @@ class _Judge:
         self.all_exact = True
         self.derivative_steps = self.dual_steps = 0
         self.replays = 0
+        self.no_derivatives = ""
 
     def replay(self, controls, steps):
         """(states at the controls' ends, dense states), or None where a propagation step fails or a state is not
@@ -161,12 +162,22 @@ class _Judge:
         return (bound, dense) if ok and len(bound) == len(controls) + 1 else None
 
     def jacobian(self, controls, steps):
-        """object_jacobian's final coordinates and G (None where G is not finite), counting the derivatives."""
-        final, G, exact, (n_steps, n_dual) = object_jacobian(self.tm, self.sim, self.x0, controls, steps)
+        """object_jacobian's final coordinates and G, counting the derivatives; (None, None) where G is not finite
+        or a cold step of the derivatives' run fails (the replay's steps are warm-started: a cold one at the same
+        state may fail), why in `no_derivatives`."""
+        from planar_lcp.sim import SimulationError
+        try:
+            final, G, exact, (n_steps, n_dual) = object_jacobian(self.tm, self.sim, self.x0, controls, steps)
+        except SimulationError as e:
+            self.no_derivatives = str(e)
+            return None, None
         self.all_exact &= bool(exact)
         self.derivative_steps += n_steps
         self.dual_steps += n_dual
-        return (final, G) if np.all(np.isfinite(G)) else (final, None)
+        if not np.all(np.isfinite(G)):
+            self.no_derivatives = "derivatives not finite"
+            return None, None
+        return final, G
 
     def cap(self, d):
         """d scaled down so that no control moves by more than max_change of the bound."""
@@ -263,7 +274,7 @@ def _shorter_pusher_path(judge, controls, steps, run, iterations, deadline, halv
             return controls, run, accepted, tried, "time_limit", last_miss
         final, G = judge.jacobian(controls, steps)
         if G is None:
-            return controls, run, accepted, tried, "derivatives not finite", last_miss
+            return controls, run, accepted, tried, judge.no_derivatives, last_miss
         e = goal_error(tm, final)
         Gp = np.linalg.pinv(G[named]) if named.any() else np.zeros((2 * len(controls), 0))
         speed = np.hypot(controls[:, 0], controls[:, 1])

@@ -81,6 +81,28 @@ def test_a_time_limit_stops_the_refinement_with_the_plan_so_far(push_box_plan):
         np.testing.assert_array_equal(r.steps, push_box_plan.steps)
 
 
+def test_a_failed_derivatives_run_gives_up_the_candidate_not_the_refinement(push_box_plan, monkeypatch):
+    """The derivatives' steps are cold, the replay's warm-started: where a cold step of the run fails
+    (rollout_derivatives' SimulationError), that candidate has no derivatives and the refinement goes on without it
+    (the duration: no step pulled back, the plan as it was; the pusher's path: it stops, saying why)."""
+    import importlib
+
+    import planners
+    from planar_lcp.sim import SimulationError
+    refine_module = importlib.import_module("planners.refine")     # the module (planners.refine is the function)
+
+    def failing(*args):
+        raise SimulationError("rollout_derivatives: step 3 (t = 0.03 s) failed: no certified LCP answer")
+
+    monkeypatch.setattr(refine_module, "object_jacobian", failing)
+    r = planners.refine(push_box_plan, objective="pusher_path_length")
+    assert r.data["refine"]["stopped_by"] == "rollout_derivatives: step 3 (t = 0.03 s) failed: no certified LCP answer"
+    np.testing.assert_array_equal(r.controls, push_box_plan.controls)
+    r = planners.refine(push_box_plan, iterations=1)
+    assert r.data["refine"]["derivative_steps"] == 0
+    assert r.steps.sum() <= push_box_plan.steps.sum() and r.replay()["report"]["goal_holds"]
+
+
 def test_a_plan_that_gives_up_no_step_comes_back_as_it_was(tip_plan):
     """tip_box's tip is all or nothing, its box at rest at the end: no step fewer is pulled back into the goal, and
     the plan is returned unchanged, with why."""

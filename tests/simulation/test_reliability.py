@@ -232,3 +232,18 @@ def test_every_jam_scene_runs_to_its_end_with_a_force_limited_pusher(max_force):
             assert tr.stats["pgs_uncertified"].sum() == 0
             limited += tr.stats["servo_limited"].sum() > 0
     assert limited >= 30, limited
+
+
+def test_a_rollouts_derivatives_stop_at_the_jam_naming_the_step():
+    """rollout_derivatives over the jam: the step the box reaches the wall has no certified LCP answer, and the chain
+    stops there with a SimulationError (a RuntimeError) naming the step and its time, by either method."""
+    from planar_lcp.model import compile_scene
+    from planar_lcp.sim import SimOptions, Simulator
+    sc = parse_scene(JAM, "<jam>")
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h))
+    q, v, qk, _ = sim.initial_state()
+    vk = np.array([[[0.2, 0.0, 0.0]]])
+    for method in ("differences", "dual"):
+        with pytest.raises(SimulationError, match=r"rollout_derivatives: step 5 \(t = 0\.05 s\) failed: no certified "
+                                                  r"LCP answer"):
+            sim.rollout_derivatives(q, v, qk, vk, 10, method=method)
