@@ -24,6 +24,7 @@ from planar_lcp.engine.layout import (INT_STATS, NSTAT, STATS, Stat, StepOptions
 from planar_lcp.engine.rollout import RUN_ROWS, Recording, RolloutRun, make_recording, rollout_lemke, rollout_pgs
 from planar_lcp.engine.solvers.certificate import STATUS_NAMES
 from planar_lcp.engine.step import STEP_LCP_FAILED, STEP_NEEDS_SPACE, STEP_NONFINITE, STEP_OK
+from planar_lcp.errors import NoRigidSolution, SimulationError
 from planar_lcp.model import Model, compile_scene
 from planar_lcp.spec.path import kinematic_velocities
 from planar_lcp.spec.scene import FORMULATIONS as FORMULATION_NAMES
@@ -37,19 +38,6 @@ from planar_lcp.trajectory import Trajectory
 
 #: formulation name (the scene format's list) -> the kernels' FORM_* code, which is its index in that list
 FORMULATIONS = {name: code for code, name in enumerate(FORMULATION_NAMES)}
-
-
-class SimulationError(RuntimeError):
-    """A step failed (LCP not solved, or a non-finite state); the message names the step, the time and the cause."""
-
-
-class NoRigidSolution(SimulationError):
-    """A step failed because its contact problem has no solution, certified (a jam: `infeasibility`); `diagnosis`
-    holds the certificate's StepDiagnosis."""
-
-    def __init__(self, message, diagnosis):
-        super().__init__(message)
-        self.diagnosis = diagnosis
 
 
 @dataclass(frozen=True)

@@ -35,6 +35,7 @@ from planar_lcp.derivatives.dual import Dual, grads, values, with_derivatives
 from planar_lcp.engine.layout import Stat
 from planar_lcp.engine.rollout import DIFF_NONFINITE, DIFF_REASONS
 from planar_lcp.engine.step import FORM_VELOCITY, STEP_LCP_FAILED, STEP_NONFINITE, STEP_OK
+from planar_lcp.errors import SimulationError
 
 __all__ = ["Degenerate", "StepDerivatives", "RolloutDerivatives", "step_derivatives", "rollout_derivatives",
            "scene_with_param", "scene_param"]
@@ -668,7 +669,7 @@ class RolloutDerivatives:
 def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=(), method="dual"):
     """`nsteps` steps from (q, v, qk), step i with vk_seq[min(i, len - 1)] ((nvk, nkin, 3)), and the chain rule over
     their `step_derivatives` (by `method`): the final state's Jacobians (a `RolloutDerivatives`). Stops with a
-    `planar_lcp.sim.SimulationError` (a RuntimeError) naming the step that fails: the steps are cold, and a cold
+    `SimulationError` (planar_lcp.errors, a RuntimeError) naming the step that fails: the steps are cold, and a cold
     step can fail where a warm-started run of the same controls went through."""
     vk_seq = np.asarray(vk_seq, dtype=np.float64)
     m = sim.model
@@ -692,7 +693,6 @@ def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=(), method="dual")
         if d.fallback:
             fallbacks.append((i, d.fallback))
         if d.status != STEP_OK:
-            from planar_lcp.sim import SimulationError
             why = {STEP_LCP_FAILED: "no certified LCP answer", STEP_NONFINITE: "the new state is not finite"}
             raise SimulationError(f"rollout_derivatives: step {i} (t = {i * sim.h:.6g} s) failed: "
                                   f"{why.get(int(d.status), f'status {int(d.status)}')}")
