@@ -112,6 +112,11 @@ def close_cluster(client, cluster, futures=(), quiet=False):
         if client is not None:
             if futures:
                 client.cancel(list(futures), force=True)
+            if cluster is not None and not quiet:
+                try:
+                    client.run(_quiet_heartbeat_at_close)
+                except Exception:  # noqa: BLE001 - a worker lost: the others still close, maybe less quietly
+                    pass
             client.close()
     except Exception:  # noqa: BLE001 - closing after a lost scheduler: nothing is left to close
         if not quiet:
@@ -127,6 +132,27 @@ def close_cluster(client, cluster, futures=(), quiet=False):
             except Exception:  # noqa: BLE001 - cluster.close() below stops whatever is left
                 pass
             cluster.close()
+
+
+#: the message of a worker whose heartbeat was in flight as it closed (distributed.worker.Worker.heartbeat)
+_HEARTBEAT_FAILED = "Failed to communicate with scheduler during heartbeat"
+
+
+def _drop_heartbeat_failure(record):
+    """False for the closing worker's failed heartbeat (a logging filter); every other record passes."""
+    return not str(record.msg).startswith(_HEARTBEAT_FAILED)
+
+
+def _quiet_heartbeat_at_close():
+    """Run in each local worker process before its nanny closes it: a worker that closes stops its periodic
+    heartbeat, then closes its connections, and a heartbeat still awaiting the scheduler's answer then fails and
+    logs the error with a traceback on the command's stderr (a race inside distributed, met on a loaded machine).
+    The runs are done; that one message is dropped, every other of distributed's errors still shows."""
+    import logging
+
+    logger = logging.getLogger("distributed.worker")
+    if _drop_heartbeat_failure not in logger.filters:
+        logger.addFilter(_drop_heartbeat_failure)
 
 
 def _silence_distributed():

@@ -414,3 +414,40 @@ def test_an_unreachable_scheduler_is_named_and_nothing_else_is_blamed_on_it():
     with pytest.raises(SchedulerUnreachable, match=r"^--scheduler tcp://127\.0\.0\.1:1: "):
         open_cluster("tcp://127.0.0.1:1", timeout=2)
     assert local_jobs(None, 3) == min(os.cpu_count(), 3) and local_jobs(5, 2) == 2 and local_jobs(0) >= 1
+
+
+CLOSE_DURING_HEARTBEATS = """
+import asyncio, logging, sys
+from planar_lcp.parallel.cluster import _quiet_heartbeat_at_close, close_cluster, open_cluster
+
+async def heartbeat_back_to_back(dask_worker):
+    from distributed.core import Status
+    async def beat():
+        while dask_worker.status == Status.running:
+            await dask_worker.heartbeat()
+    dask_worker.beating = asyncio.ensure_future(beat())
+    return True
+
+def log_another_error():
+    _quiet_heartbeat_at_close()
+    logging.getLogger("distributed.worker").error("another worker error")
+
+client, cluster = open_cluster(jobs=2)
+client.run(log_another_error)
+assert all(client.run(heartbeat_back_to_back).values())
+close_cluster(client, cluster)
+print("closed", file=sys.stderr)
+"""
+
+
+def test_a_local_cluster_closes_quietly_while_its_workers_heartbeat():
+    """A worker closing stops its heartbeat, then closes its connections: a heartbeat still awaiting the scheduler
+    then fails and distributed logs it with a traceback (met at the end of `tradeoff` on a loaded machine). Each
+    worker here heartbeats back to back, so that one is in flight when close_cluster closes it: nothing of it reaches
+    stderr, while the workers' other errors still do."""
+    r = subprocess.run([sys.executable, "-c", CLOSE_DURING_HEARTBEATS], capture_output=True, text=True, timeout=300,
+                       cwd=ROOT)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "Traceback" not in r.stderr and "heartbeat" not in r.stderr, r.stderr[-3000:]
+    assert r.stderr.count("distributed.worker - ERROR - another worker error") == 2, r.stderr[-3000:]
+    assert r.stderr.rstrip().endswith("closed")
