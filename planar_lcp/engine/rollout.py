@@ -396,6 +396,29 @@ def mixed_direction_check(m, h, opt, w, rec, x, steps, jac, base, memory, tols, 
 
 
 @njit(cache=True)
+def cold_step_at(m, h, cold_opt, w, q, v, qk, vk, step, stats):
+    """The first stage of the step's derivatives, shared by step_differences and engine/tangent.py's step_tangent:
+    the inputs flattened (x: q, v, qk, vk row-major), the differences' steps along each input and the mixed
+    direction's (`difference_steps`, step max(1, |x_k|)), and the cold step at x: its state flattened (base), its
+    stats into stats, its recording (rec) and the warm-start memory it left (msize, mbasic, mmodes). Returns (code,
+    x, steps, base, rec, memory), code DIFF_OK, DIFF_NONFINITE (an input not finite: no step taken), DIFF_SPACE or
+    DIFF_FAILED."""
+    nd, nk = q.shape[0], qk.shape[0]
+    x = np.empty(6 * nd + 6 * nk)
+    finite = flat_inputs(q, v, qk, vk, x)
+    steps = difference_steps(x, step)
+    base = np.empty(6 * nd + 3 * nk)
+    rec = _compiled_recording(1, nd, nk)
+    code = DIFF_NONFINITE
+    if finite:
+        st = _step_from_flat(m, x, nd, nk, h, cold_opt, w, rec, True, base)
+        for s in range(stats.shape[0]):
+            stats[s] = rec.stats[0, s]
+        code = DIFF_SPACE if st == STEP_NEEDS_SPACE else (DIFF_FAILED if st != STEP_OK else DIFF_OK)
+    return code, x, steps, base, rec, (w.warm_size.copy(), w.warm_basic_z.copy(), w.sparse_pair_mode.copy())
+
+
+@njit(cache=True)
 def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, qk1, stats):
     """The central differences of the step at the state (q, v, qk, vk) along +- eps_k e_k for each of its K inputs
     (x: q, v, qk, vk flattened row-major; eps_k = tols[0] max(1, |x_k|)), each step warm-started (warm_opt) on the
@@ -405,23 +428,12 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
     kink, mixed, floor, whether the fixed-point iteration count may differ) of differences.py. The warm-start memory
     is left as the cold step left it."""
     nd, nk = q.shape[0], qk.shape[0]
-    K = 6 * nd + 6 * nk
-    x = np.empty(K)
-    if not flat_inputs(q, v, qk, vk, x):
-        return DIFF_NONFINITE
-    steps = difference_steps(x, tols[0])
-    base = np.empty(6 * nd + 3 * nk)
-    nout = base.shape[0]
-    rec = _compiled_recording(1, nd, nk)
-    st = _step_from_flat(m, x, nd, nk, h, cold_opt, w, rec, True, base)
-    for s in range(stats.shape[0]):
-        stats[s] = rec.stats[0, s]
-    if st == STEP_NEEDS_SPACE:
-        return DIFF_SPACE
-    if st != STEP_OK:
-        return DIFF_FAILED
+    code, x, steps, base, rec, memory = cold_step_at(m, h, cold_opt, w, q, v, qk, vk, tols[0], stats)
+    if code != DIFF_OK:
+        return code
+    K, nout = x.shape[0], base.shape[0]
     # the cold step's final bases (and the sparse solver's modes), which every perturbed step starts from
-    msize, mbasic, mmodes = w.warm_size.copy(), w.warm_basic_z.copy(), w.sparse_pair_mode.copy()
+    msize, mbasic, mmodes = memory
     xx = x.copy()
     fp, fm = np.empty(nout), np.empty(nout)
     rtol_kink, floor = tols[1], tols[3]

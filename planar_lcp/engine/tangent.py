@@ -50,11 +50,10 @@ from planar_lcp.engine.constants import BODY_STATIC, SUPPORT_LIMIT_SURFACE
 from planar_lcp.engine.contacts import body_poses
 from planar_lcp.engine.islands import island_members
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.rollout import (DIFF_FAILED, DIFF_NONFINITE, DIFF_OK, DIFF_SPACE, _compiled_recording,
-                                       _restore_memory, _step_from_flat, difference_steps, flat_inputs,
-                                       mixed_direction_check, unflatten_inputs)
-from planar_lcp.engine.step import (FORM_POSITION, STEP_NEEDS_SPACE, STEP_OK, begin_step, check_end_configuration,
-                                    kinematic_linearization, prepare_contacts)
+from planar_lcp.engine.rollout import (DIFF_OK, _restore_memory, cold_step_at, mixed_direction_check,
+                                       unflatten_inputs)
+from planar_lcp.engine.step import (FORM_POSITION, begin_step, check_end_configuration, kinematic_linearization,
+                                    prepare_contacts)
 
 #: step_tangent's answers besides the DIFF_* codes it shares with step_differences: the step is not one it covers
 #: (`_covered`), an island's basis does not hold on both sides, an evaluation nearby has other contacts or a re-solve,
@@ -194,6 +193,21 @@ def _pivots(a, tol, rows, cols):
 def _nullity(a, tol):
     """The dimension of the null space of a (r, c) to tol (`_pivots`; a is overwritten)."""
     return a.shape[1] - _pivots(a, tol, np.empty(a.shape[0], np.int64), np.empty(a.shape[1], np.int64))
+
+
+@njit(cache=True, inline='always')
+def _indices(mask, o, n):
+    """The positions i in 0 .. n - 1 (within an island at o) where mask[o + i] holds, in order."""
+    count = 0
+    for i in range(n):
+        count += mask[o + i]
+    idx = np.empty(count, np.int64)
+    c = 0
+    for i in range(n):
+        if mask[o + i]:
+            idx[c] = i
+            c += 1
+    return idx
 
 
 @njit(cache=True)
@@ -475,12 +489,8 @@ def _factor_solve_part(A, o, n, lu, perm, solve, solve_row, held):
     independent rows and columns (`_pivots`); the other unknowns' rates are zero (any answer on the segment gives
     the same velocities: `_segments_leave_velocities`) and the other rows must hold by themselves (`held`, checked
     with the degenerate indices' rates). False where the part is singular to working precision."""
-    idx = np.empty(n, np.int64)
-    nb = 0
-    for i in range(n):
-        if solve[o + i]:
-            idx[nb] = i
-            nb += 1
+    idx = _indices(solve, o, n)
+    nb = idx.shape[0]
     sub = np.empty((nb, nb))
     big = 0.0
     for a in range(nb):
@@ -519,16 +529,10 @@ def _island_bases(m, h, w, vk, nisl, ncon, zoff, mbasic, res_tol, z, lu, perm, a
         A = np.empty((n, n))
         b = np.empty(n)
         assemble_lcp(m, w, vk, nci, nsi, h, False, A, b, np.bool_(True))
-        nb = 0
         for i in range(n):
             basic[o + i] = mbasic[isl, i]
-            nb += basic[o + i]
-        idx = np.empty(n, np.int64)
-        c = 0
-        for i in range(n):
-            if basic[o + i]:
-                idx[c] = i
-                c += 1
+        idx = _indices(basic, o, n)
+        nb = idx.shape[0]
         if nb > 0:
             fac = lu[o:o + nb, o:o + nb]
             rhs = np.empty((nb, 1))
@@ -716,22 +720,10 @@ def _lcp_columns(m, h, w, vk, nd, nisl, ncon, zoff, lu, perm, solve, solve_row, 
     dz = np.zeros((N, K))
     for isl in range(nisl):
         o, n = zoff[isl], zoff[isl + 1] - zoff[isl]
-        nb = 0
-        for i in range(n):
-            nb += solve[o + i]
+        idx, ridx = _indices(solve, o, n), _indices(solve_row, o, n)
+        nb = idx.shape[0]
         if nb == 0:
             continue
-        idx = np.empty(nb, np.int64)
-        ridx = np.empty(nb, np.int64)
-        c = 0
-        c2 = 0
-        for i in range(n):
-            if solve[o + i]:
-                idx[c] = i
-                c += 1
-            if solve_row[o + i]:
-                ridx[c2] = i
-                c2 += 1
         rhs = np.empty((nb, K))
         for a in range(nb):
             for k in range(K):
@@ -817,25 +809,14 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     DIFF_* or TANGENT_* code. tols as step_differences takes them. The warm-start memory is left as the cold step
     left it."""
     nd, nk = q.shape[0], qk.shape[0]
-    K = 6 * nd + 6 * nk
-    x = np.empty(K)
-    if not flat_inputs(q, v, qk, vk, x):
-        return DIFF_NONFINITE
-    # the steps along each input and the mixed direction's, as step_differences takes them
-    steps = difference_steps(x, tols[0])
-    nout = 6 * nd + 3 * nk
-    base = np.empty(nout)
-    rec = _compiled_recording(1, nd, nk)
-    st = _step_from_flat(m, x, nd, nk, h, cold_opt, w, rec, True, base)
-    for s in range(stats.shape[0]):
-        stats[s] = rec.stats[0, s]
-    if st == STEP_NEEDS_SPACE:
-        return DIFF_SPACE
-    if st != STEP_OK:
-        return DIFF_FAILED
+    # the cold step, and the steps along each input and the mixed direction's, as step_differences takes them
+    code, x, steps, base, rec, memory = cold_step_at(m, h, cold_opt, w, q, v, qk, vk, tols[0], stats)
+    if code != DIFF_OK:
+        return code
     if not _covered(cold_opt, stats):
         return TANGENT_NOT_COVERED
-    msize, mbasic, mmodes = w.warm_size.copy(), w.warm_basic_z.copy(), w.sparse_pair_mode.copy()
+    K, nout = x.shape[0], base.shape[0]
+    msize, mbasic, mmodes = memory
     qa, va, qka, vka = np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3)), np.empty((nk, 3))
     qk_out = np.empty((nk, 3))
     scratch = np.zeros(stats.shape[0])
