@@ -670,7 +670,8 @@ def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=(), method="dual")
     """`nsteps` steps from (q, v, qk), step i with vk_seq[min(i, len - 1)] ((nvk, nkin, 3)), and the chain rule over
     their `step_derivatives` (by `method`): the final state's Jacobians (a `RolloutDerivatives`). Stops with a
     `SimulationError` (planar_lcp.errors, a RuntimeError) naming the step that fails: the steps are cold, and a cold
-    step can fail where a warm-started run of the same controls went through."""
+    step can fail where a warm-started run of the same controls went through. Every step's Jacobian is kept until
+    the end (nsteps (6 ndyn + 3 nkin)^2 floats), for the kinematic velocities' backward sweep."""
     vk_seq = np.asarray(vk_seq, dtype=np.float64)
     m = sim.model
     if vk_seq.ndim != 3 or vk_seq.shape[1:] != (m.nkin, 3) or len(vk_seq) < 1:
@@ -682,7 +683,7 @@ def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=(), method="dual")
     nx = 6 * m.ndyn + 3 * m.nkin
     nvk = 3 * m.nkin
     dx = np.eye(nx)
-    dvk = np.zeros((nsteps, nx, nvk))
+    state_jacobians, vk_jacobians = [], []
     dp = np.zeros((nx, len(params)))
     dp_steps = np.zeros((nsteps + 1, nx, len(params)))
     qs, vs, qks = [np.asarray(q, float)], [np.asarray(v, float)], [np.asarray(qk, float)]
@@ -697,16 +698,23 @@ def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=(), method="dual")
             raise SimulationError(f"rollout_derivatives: step {i} (t = {i * sim.h:.6g} s) failed: "
                                   f"{why.get(int(d.status), f'status {int(d.status)}')}")
         J = d.state_jacobian
-        Jvk = d.jacobian[:, nx:nx + nvk]
         Jp = d.jacobian[:, nx + nvk:]
         dx = J @ dx
-        dvk[:i] = np.einsum("ab,ibc->iac", J, dvk[:i])
-        dvk[i] = Jvk
+        state_jacobians.append(J)
+        vk_jacobians.append(d.jacobian[:, nx:nx + nvk])
         dp = dp_steps[i + 1] = J @ dp + Jp
         degenerate += [(i, g) for g in d.degenerate]
         qs.append(d.q)
         vs.append(d.v)
         qks.append(d.qk)
+    # step i's kinematic velocities reach the final state through the later steps: J_(n-1) ... J_(i+1) Jvk_i, by one
+    # backward sweep, linear in the steps (carrying every earlier step's columns forward at each step is quadratic)
+    dvk = np.empty((nsteps, nx, nvk))
+    later = np.eye(nx)
+    for i in range(nsteps - 1, -1, -1):
+        dvk[i] = later @ vk_jacobians[i]
+        if i > 0:
+            later = later @ state_jacobians[i]
     return RolloutDerivatives(q=np.array(qs), v=np.array(vs), qk=np.array(qks), dx_dx0=dx, dx_dvk=dvk, dx_dp=dp,
                               params=params, exact=not degenerate, degenerate=tuple(degenerate),
                               dx_dp_steps=dp_steps, fallbacks=tuple(fallbacks))
