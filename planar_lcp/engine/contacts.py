@@ -76,6 +76,27 @@ def _aabb_overlap(vw, a0, na, ra, b0, nb, rb, margin):
     return not (axmin > bxmax + pad or bxmin > axmax + pad or aymin > bymax + pad or bymin > aymax + pad)
 
 
+@njit(cache=True, _nrt=False, inline='always')
+def pair_contacts(m, vw, p, margin, forced, out_phi, out_n, out_p):
+    """The contacts of shape pair p with gap < margin (any gap where forced) at the core vertices vw, into out_*
+    (capacity 2): their gap, unit normal from shape B to shape A, and world point. Returns their number."""
+    sa = m.pair_a[p]
+    sb = m.pair_b[p]
+    mg = np.inf if forced else margin
+    a0 = m.shape_vert_adr[sa]
+    na = m.shape_vert_num[sa]
+    ra = m.shape_radius[sa]
+    if m.shape_kind[sb] == SHAPE_HALFPLANE:
+        return contact_core_halfplane(vw[a0:a0 + na], na, ra, m.hp_point_w[sb], m.hp_normal_w[sb], mg,
+                                      out_phi, out_n, out_p)
+    b0 = m.shape_vert_adr[sb]
+    nb = m.shape_vert_num[sb]
+    rb = m.shape_radius[sb]
+    if not forced and not _aabb_overlap(vw, a0, na, ra, b0, nb, rb, margin):
+        return 0
+    return contact_core_core(vw[a0:a0 + na], na, ra, vw[b0:b0 + nb], nb, rb, mg, out_phi, out_n, out_p)
+
+
 @njit(cache=True, _nrt=False)
 def find_contacts(m, vw, margin, force_pair, con_pair, con_phi, con_n, con_p, tmp_phi, tmp_n, tmp_p):
     """All contacts with gap < margin (any gap for pairs with force_pair[p] true).
@@ -85,22 +106,7 @@ def find_contacts(m, vw, margin, force_pair, con_pair, con_phi, con_n, con_p, tm
     """
     nc = 0
     for p in range(m.pair_a.shape[0]):
-        sa = m.pair_a[p]
-        sb = m.pair_b[p]
-        mg = np.inf if force_pair[p] else margin
-        a0 = m.shape_vert_adr[sa]
-        na = m.shape_vert_num[sa]
-        ra = m.shape_radius[sa]
-        if m.shape_kind[sb] == SHAPE_HALFPLANE:
-            cnt = contact_core_halfplane(vw[a0:a0 + na], na, ra, m.hp_point_w[sb], m.hp_normal_w[sb], mg,
-                                         tmp_phi, tmp_n, tmp_p)
-        else:
-            b0 = m.shape_vert_adr[sb]
-            nb = m.shape_vert_num[sb]
-            rb = m.shape_radius[sb]
-            if not force_pair[p] and not _aabb_overlap(vw, a0, na, ra, b0, nb, rb, margin):
-                continue
-            cnt = contact_core_core(vw[a0:a0 + na], na, ra, vw[b0:b0 + nb], nb, rb, mg, tmp_phi, tmp_n, tmp_p)
+        cnt = pair_contacts(m, vw, p, margin, force_pair[p], tmp_phi, tmp_n, tmp_p)
         for k in range(cnt):
             con_pair[nc] = p
             con_phi[nc] = tmp_phi[k]

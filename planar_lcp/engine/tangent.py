@@ -8,8 +8,9 @@ assembly of A and b, the impulses' velocity change M^-1 G z and the integration)
 for the contacts and islands fixed; `step_tangent` takes their derivatives with z held by central differences of
 that smooth part alone (no LCP is solved there: two evaluations per input, along the smooth part's own inputs,
 SMOOTH_*, the velocities' without contact detection; the velocities' in closed form where the smooth part is linear
-in them, without restitution or a limit surface in any island: `_velocity_columns`), and adds the LCP's through
-one solve with A_BB at the state.
+in them, without restitution or a limit surface in any island: `_velocity_columns`; none for the pose of a body
+in no contact and clear of every shape pair, which moves nothing there but its own end pose: `_untouched_bodies`,
+`_clear_of_pairs`), and adds the LCP's through one solve with A_BB at the state.
 Only the rows of A and b that depend on the state enter: the Delassus part G^T M^-1 G z + b over the force unknowns
 (computed as G^T (M^-1 (G z)), linear in the unknowns), the friction and slack rows being constant.
 
@@ -46,8 +47,9 @@ from numba import njit
 from planar_lcp.engine.assemble import (apply_impulses, assemble_columns, assemble_lcp, column_dot,
                                         island_is_elastic, island_problem_size, island_servo,
                                         kinematic_velocity_along, recentre_limit_surfaces, support_column_count)
-from planar_lcp.engine.constants import BODY_STATIC, SUPPORT_LIMIT_SURFACE
-from planar_lcp.engine.contacts import body_poses
+from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC, SHAPE_HALFPLANE,
+                                        SUPPORT_LIMIT_SURFACE)
+from planar_lcp.engine.contacts import body_poses, pair_contacts
 from planar_lcp.engine.islands import island_members
 from planar_lcp.engine.layout import Stat
 from planar_lcp.engine.rollout import (DIFF_OK, _restore_memory, cold_step_at, mixed_direction_check,
@@ -80,6 +82,11 @@ DEGENERATE_RTOL = 1e-6
 #: a pivot of an island's A (over the unknowns that may be positive) below this fraction of its largest entry marks
 #: a null vector: a segment of LCP answers (the dual numbers' threshold on singular values, forward._check_unique)
 NULL_RTOL = 1e-9
+#: a body without contacts keeps its pose columns in closed form where every shape pair of its stays this many times
+#: its differences' largest motion of a point beyond the contact margin (`_clear_of_pairs`): the evaluations at
+#: +- eps would meet the same pairs, none (the narrow phase's gaps move by at most a point's motion on the features
+#: that give them; the factor covers the separating axes' gaps, whose features can lie farther out)
+CLEARANCE_FACTOR = 4.0
 #: the stats of a cold step a tangent does not cover where nonzero: another try, solver or re-solve than Lemke's
 #: first from scratch
 _UNCOVERED = np.array([Stat.LEMKE_RETRIES, Stat.WARM_STARTS, Stat.SOLVED_SPARSE, Stat.SOLVED_BLOCK,
@@ -594,14 +601,102 @@ def _linear_in_velocities(m, w, nisl, ncon):
 
 
 @njit(cache=True)
+def _untouched_bodies(m, w, ncon, untouched_dyn, untouched_kin):
+    """Which dynamic and kinematic bodies (by slot) are in no contact at x (w.con_*), have no support element, no
+    half-plane shape and no forced pair: their poses reach the smooth part only through contacts they do not have."""
+    for d in range(untouched_dyn.shape[0]):
+        untouched_dyn[d] = True
+    for d in range(m.sup_dyn.shape[0]):
+        untouched_dyn[m.sup_dyn[d]] = False
+    for kk in range(untouched_kin.shape[0]):
+        untouched_kin[kk] = True
+    for s in range(m.shape_body.shape[0]):
+        if m.shape_kind[s] == SHAPE_HALFPLANE:
+            _mark_touched(m, m.shape_body[s], untouched_dyn, untouched_kin)
+    for p in range(m.pair_a.shape[0]):
+        if w.pair_forced[p]:
+            _mark_touched(m, m.shape_body[m.pair_a[p]], untouched_dyn, untouched_kin)
+            _mark_touched(m, m.shape_body[m.pair_b[p]], untouched_dyn, untouched_kin)
+    for j in range(ncon):
+        p = w.con_pair[j]
+        _mark_touched(m, m.shape_body[m.pair_a[p]], untouched_dyn, untouched_kin)
+        _mark_touched(m, m.shape_body[m.pair_b[p]], untouched_dyn, untouched_kin)
+
+
+@njit(cache=True, inline='always')
+def _mark_touched(m, b, untouched_dyn, untouched_kin):
+    if m.body_kind[b] == BODY_DYNAMIC:
+        untouched_dyn[m.body_slot[b]] = False
+    elif m.body_kind[b] == BODY_KINEMATIC:
+        untouched_kin[m.body_slot[b]] = False
+
+
+@njit(cache=True, inline='always')
+def _reach(m, w, s, b):
+    """The farthest point of shape s (its core vertices in w.vert_world, plus its radius) from body b's origin."""
+    far = 0.0
+    a0 = m.shape_vert_adr[s]
+    for k in range(a0, a0 + m.shape_vert_num[s]):
+        far = max(far, np.hypot(w.vert_world[k, 0] - w.body_pose[b, 0], w.vert_world[k, 1] - w.body_pose[b, 1]))
+    return far + m.shape_radius[s]
+
+
+@njit(cache=True, inline='always')
+def _pose_motion(m, w, steps, nd, b, sa, sb):
+    """The largest motion of a point of shape pair (sa, sb) when one pose coordinate of body b (an untouched
+    candidate) moves by its difference step: eps along x or y, eps_angle times the pair's reach from b's origin."""
+    k0 = 3 * m.body_slot[b] if m.body_kind[b] == BODY_DYNAMIC else 6 * nd + 3 * m.body_slot[b]
+    reach = max(_reach(m, w, sa, b), _reach(m, w, sb, b))
+    return max(steps[0, k0], steps[0, k0 + 1], steps[0, k0 + 2] * reach)
+
+
+@njit(cache=True, inline='always')
+def _is_untouched(m, b, untouched_dyn, untouched_kin):
+    k = m.body_kind[b]
+    if k == BODY_DYNAMIC:
+        return untouched_dyn[m.body_slot[b]]
+    if k == BODY_KINEMATIC:
+        return untouched_kin[m.body_slot[b]]
+    return False
+
+
+@njit(cache=True)
+def _clear_of_pairs(m, w, nd, steps, margin, kinematic_only, untouched_dyn, untouched_kin):
+    """Keeps a body untouched (`_untouched_bodies`) only where none of its shape pairs has a contact within margin
+    plus CLEARANCE_FACTOR times its differences' largest point motion (`_pose_motion`) at the poses in
+    w.body_pose and w.vert_world; kinematic_only: the dynamic bodies' flags stay as they are."""
+    for p in range(m.pair_a.shape[0]):
+        sa, sb = m.pair_a[p], m.pair_b[p]
+        ba, bb = m.shape_body[sa], m.shape_body[sb]
+        ua = _is_untouched(m, ba, untouched_dyn, untouched_kin) and not (
+            kinematic_only and m.body_kind[ba] == BODY_DYNAMIC)
+        ub = _is_untouched(m, bb, untouched_dyn, untouched_kin) and not (
+            kinematic_only and m.body_kind[bb] == BODY_DYNAMIC)
+        if not ua and not ub:
+            continue
+        room = margin
+        if ua:
+            room += CLEARANCE_FACTOR * _pose_motion(m, w, steps, nd, ba, sa, sb)
+        if ub:
+            room += CLEARANCE_FACTOR * _pose_motion(m, w, steps, nd, bb, sa, sb)
+        if pair_contacts(m, w.vert_world, p, room, False, w.pair_phi, w.pair_n, w.pair_p) > 0:
+            if ua:
+                _mark_touched(m, ba, untouched_dyn, untouched_kin)
+            if ub:
+                _mark_touched(m, bb, untouched_dyn, untouched_kin)
+
+
+@njit(cache=True)
 def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, nisl, ncon, z, zoff, r0, f0, derived,
-                    linear_velocities, dr, jy):
+                    linear_velocities, untouched_dyn, untouched_kin, dr, jy):
     """The smooth part's columns (z held) into dr (its rows) and jy (its outputs), by central differences along
     each of its inputs, +- eps_k (steps[0]), from x's (q, v, qk, vk; its contacts' pairs and points in w, the rows
     r0 and outputs f0 there): the velocities' first (on x's contacts and poses; none where `linear_velocities`,
     `_velocity_columns` gives them), the kinematic ones before the dynamic ones' (which move the limit surfaces'
     re-centred columns), then the poses' (each with its contacts and the end-of-step check, the re-centred columns
-    where they move); none for the `derived` pose columns. Returns DIFF_OK, TANGENT_CONTACTS (an evaluation with
+    where they move); none for the `derived` pose columns, nor for an untouched body's (no contact, clear of every
+    pair: `_untouched_bodies`, `_clear_of_pairs`), whose pose moves none of the rows nor the outputs but a kinematic
+    body's own qk+. Returns DIFF_OK, TANGENT_CONTACTS (an evaluation with
     other contacts, or whose end-of-step check adds a pair) or TANGENT_KINK (one-sided differences that differ by
     more than tols[1] of their scale, at least tols[3])."""
     nd, nk = q.shape[0], qk.shape[0]
@@ -634,6 +729,10 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
         i = (k % (3 * nd)) // 3 if k < 6 * nd else ((k - 6 * nd) % (3 * nk)) // 3
         c = k % 3
         if derived >= 0 and (k == derived or k == derived + 1):
+            continue
+        if (kind == SMOOTH_POSE and untouched_dyn[i]) or (kind == SMOOTH_KIN_POSE and untouched_kin[i]):
+            if kind == SMOOTH_KIN_POSE:
+                jy[6 * nd + 3 * i + c, k] = 1.0
             continue
         e = steps[0, k]
         for sgn in range(2):
@@ -820,8 +919,11 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     qa, va, qka, vka = np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3)), np.empty((nk, 3))
     qk_out = np.empty((nk, 3))
     scratch = np.zeros(stats.shape[0])
-    # x's contacts, islands and each island's LCP at the cold step's basis
+    # x's contacts, islands and each island's LCP at the cold step's basis; the bodies clear of every pair there
     ncon, nisl = _contacts_at(m, h, cold_opt, w, x, nd, nk, qa, va, qka, vka, qk_out, scratch)
+    untouched_dyn, untouched_kin = np.empty(nd, np.bool_), np.empty(nk, np.bool_)
+    _untouched_bodies(m, w, ncon, untouched_dyn, untouched_kin)
+    _clear_of_pairs(m, w, nd, steps, cold_opt.margin, False, untouched_dyn, untouched_kin)
     zoff = np.zeros(nisl + 1, np.int64)
     for isl in range(nisl):
         nci, nsi = island_members(m, w, isl, ncon)
@@ -851,6 +953,9 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     _smooth_part(m, h, w, vka, nisl, ncon, z, zoff, qa, qk_out, r0, f0, np.empty((nd, 3)))
     if check_end_configuration(m, w, cold_opt, qk_out, scratch) != 0:
         return _give_way(msize, mbasic, mmodes, w, TANGENT_CONTACTS)
+    # a kinematic body's pose moves its end pose qk+ (a dynamic one's, q_hat only: q+ = q + h v+ stays): clear of
+    # every pair there too, as the end-of-step check would find it
+    _clear_of_pairs(m, w, nd, steps, 0.0, True, untouched_dyn, untouched_kin)
     body_poses(m, w.q_hat, w.qk_hat, w.body_pose)
     # then its columns along each of its inputs
     dr = np.zeros((N, K))              # d(A z + b) over the force unknowns, z held
@@ -861,7 +966,7 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
         derived = 6 * nd + 3 * (nk - 1) if nk > 0 else 3 * (nd - 1)
     linear_velocities = _linear_in_velocities(m, w, nisl, ncon)
     code = _smooth_columns(m, h, cold_opt, w, qa, va, qka, vka, qk_out, scratch, steps, tols, nisl, ncon, z, zoff, r0,
-                           f0, derived, linear_velocities, dr, jy)
+                           f0, derived, linear_velocities, untouched_dyn, untouched_kin, dr, jy)
     if code != DIFF_OK:
         return _give_way(msize, mbasic, mmodes, w, code)
     if derived >= 0:

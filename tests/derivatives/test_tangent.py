@@ -198,3 +198,75 @@ def test_the_velocity_columns_agree_with_the_dual_numbers_to_round_off(name):
     assert code == DIFF_OK and ref.exact
     cols = list(range(3 * nd, 6 * nd)) + list(range(6 * nd + 3 * nk, 6 * nd + 6 * nk))
     assert np.max(np.abs(jac[:, cols] - ref.jacobian[:, cols])) <= 1e-9 * np.max(np.abs(ref.jacobian[:, cols]))
+
+
+def untouched_flags(sim, q, v, qk, vk):
+    """The tangent's verdict at the linearization pose: (dynamic bodies, kinematic bodies) in no contact and clear
+    of every pair there, as `step_tangent` reaches it before its check at the end configuration (where tip_box's
+    finger, at rest, and its box, at rest on the table, stand as at the linearization pose)."""
+    from planar_lcp.derivatives.differences import DIFF_STEP
+    from planar_lcp.engine.layout import NSTAT
+    from planar_lcp.engine.rollout import difference_steps
+    from planar_lcp.engine.tangent import _clear_of_pairs, _contacts_at, _untouched_bodies
+    m, w, opt, h = sim.kmodel, sim.kwork, sim.kopt, sim.h
+    nd, nk = len(q), len(qk)
+    x = np.concatenate([np.ravel(a) for a in (q, v, qk, vk)]).astype(float)
+    steps = difference_steps(x, DIFF_STEP)
+    parts = [np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3)), np.empty((nk, 3))]
+    sim.reset_warm_start()
+    ncon, _ = _contacts_at(m, h, opt, w, x, nd, nk, *parts, np.empty((nk, 3)), np.zeros(NSTAT))
+    dyn, kin = np.empty(nd, np.bool_), np.empty(nk, np.bool_)
+    _untouched_bodies(m, w, ncon, dyn, kin)
+    _clear_of_pairs(m, w, nd, steps, opt.margin, False, dyn, kin)
+    sim.reset_warm_start()
+    return dyn, kin
+
+
+def finger_gap(sim, q, v, qk, vk):
+    """tip_box's gap between the box and the finger at the step's linearization pose."""
+    from planar_lcp.engine.constants import BODY_KINEMATIC
+    from planar_lcp.engine.contacts import contacts_at
+    a = sim.model.arrays
+    pair, phi, _, _ = contacts_at(a, q + sim.h * v, qk + sim.h * vk, 0.0, all_pairs=True)
+    finger = sim.model.kin_names.index("finger")
+    rows = [i for i, p in enumerate(pair) if a.body_kind[a.shape_body[a.pair_b[p]]] == BODY_KINEMATIC
+            and a.body_slot[a.shape_body[a.pair_b[p]]] == finger]
+    return min(phi[i] for i in rows)
+
+
+def test_an_untouched_body_has_its_pose_columns_in_closed_form():
+    """tip_box half-way: the finger 3 cm from the box touches nothing, so its pose moves nothing in the step but its
+    own end pose: its columns are zero but qk+'s, without an evaluation of the smooth part; the same as the dual
+    numbers' to the bit, and the whole Jacobian within the tangent's tolerance."""
+    sim, state = bench_state("tip_box")
+    q, v, qk, vk = state
+    dyn, kin = untouched_flags(sim, *state)
+    assert kin.tolist() == [True] and dyn.tolist() == [False]
+    nd, nk = len(q), len(qk)
+    code, jac = tangent(sim, *state)
+    ref = step_derivatives(sim, *state)
+    assert code == DIFF_OK and ref.exact
+    cols = slice(6 * nd, 6 * nd + 3 * nk)
+    expected = np.zeros((6 * nd + 3 * nk, 3 * nk))
+    expected[6 * nd:, :] = np.eye(3 * nk)
+    assert np.array_equal(jac[:, cols], expected) and np.array_equal(ref.jacobian[:, cols], expected)
+    assert relative_error(type(ref)(**{**ref.__dict__, "jacobian": jac}), ref) <= TANGENT_RTOL
+
+
+@pytest.mark.parametrize("room, untouched", [(1e-3, True), (1e-7, False), (-1e-4, False)])
+def test_a_body_near_a_pair_has_its_pose_columns_evaluated(room, untouched):
+    """The finger moved to a gap of the contact margin plus `room` from the box: beyond its differences' reach (1e-3
+    m) it stays in closed form; within it (1e-7 m: the evaluations at +- eps could meet the pair) or inside the
+    margin (a contact) its columns are evaluated, and the Jacobian still agrees with the dual numbers."""
+    sim, (q, v, qk, vk) = bench_state("tip_box")
+    qk = qk.copy()
+    qk[0, 0] -= finger_gap(sim, q, v, qk, vk) - (sim.kopt.margin + room)
+    assert abs(finger_gap(sim, q, v, qk, vk) - (sim.kopt.margin + room)) < 1e-12
+    dyn, kin = untouched_flags(sim, q, v, qk, vk)
+    assert kin.tolist() == [untouched] and dyn.tolist() == [False]
+    code, jac = tangent(sim, q, v, qk, vk)
+    ref = step_derivatives(sim, q, v, qk, vk)
+    if code == DIFF_OK:
+        assert ref.exact
+        assert relative_error(type(ref)(**{**ref.__dict__, "jacobian": jac}), ref) <= TANGENT_RTOL
+    assert untouched is False or code == DIFF_OK
