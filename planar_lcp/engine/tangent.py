@@ -694,9 +694,9 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
     r0 and outputs f0 there): the velocities' first (on x's contacts and poses; none where `linear_velocities`,
     `_velocity_columns` gives them), the kinematic ones before the dynamic ones' (which move the limit surfaces'
     re-centred columns), then the poses' (each with its contacts and the end-of-step check, the re-centred columns
-    where they move); none for the `derived` pose columns, nor for an untouched body's (no contact, clear of every
-    pair: `_untouched_bodies`, `_clear_of_pairs`), whose pose moves none of the rows nor the outputs but a kinematic
-    body's own qk+. Returns DIFF_OK, TANGENT_CONTACTS (an evaluation with
+    where they move); none for the `derived` pose columns, nor for an untouched body's pose (no contact, clear of
+    every pair: `_untouched_bodies`, `_clear_of_pairs`), which moves none of the rows nor the outputs but a kinematic
+    body's own qk+, nor for an untouched kinematic body's velocity in the rows (in no row: zero). Returns DIFF_OK, TANGENT_CONTACTS (an evaluation with
     other contacts, or whose end-of-step check adds a pair) or TANGENT_KINK (one-sided differences that differ by
     more than tols[1] of their scale, at least tols[3])."""
     nd, nk = q.shape[0], qk.shape[0]
@@ -730,7 +730,8 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
         c = k % 3
         if derived >= 0 and (k == derived or k == derived + 1):
             continue
-        if (kind == SMOOTH_POSE and untouched_dyn[i]) or (kind == SMOOTH_KIN_POSE and untouched_kin[i]):
+        if (kind == SMOOTH_POSE and untouched_dyn[i]) or (
+                (kind == SMOOTH_KIN_POSE or kind == SMOOTH_KIN_VELOCITY) and untouched_kin[i]):
             if kind == SMOOTH_KIN_POSE:
                 jy[6 * nd + 3 * i + c, k] = 1.0
             continue
