@@ -25,6 +25,7 @@ from planar_lcp.derivatives import dual
 from planar_lcp.derivatives.dual import MATH, NP, Dual, dual_max, dual_min
 from planar_lcp.engine import assemble as _assemble
 from planar_lcp.engine import step as _step
+from planar_lcp.engine.assemble import REST_SPEED
 from planar_lcp.engine.constants import SUPPORT_POINTS
 from planar_lcp.engine.solvers import lemke as _lemke
 
@@ -359,11 +360,6 @@ def _hook_needs_another_solve(inner):
             return True, it
         return again, it
     return needs_another_solve
-
-
-#: m/s (and rad/s): a body whose free-motion velocity is below this in every component is at rest up to round-off
-#: (the velocities a resting body decays to: 1e-20 and less) for the derivative of its table's re-centred column
-REST_SPEED = 1e-12
 
 
 def _hook_recentre(inner):

@@ -146,6 +146,13 @@ def support_columns(m, w, s, u0):
         table_column_at(d, rx, ry, c * wx - sn * wy, sn * wx + c * wy, wt, w.column_slot, w.column_g, u0 + i)
 
 
+#: m/s (and rad/s): a body whose free-motion velocity is below this in every component is at rest up to round-off
+#: (the velocities a resting body decays to: 1e-20 and less): the derivatives take its table's re-centred column as
+#: fixed in the body frame (derivatives/forward.py), and the step's first try takes such a body, touching nothing,
+#: as held by its table (engine/tangent.py)
+REST_SPEED = 1e-12
+
+
 @njit(cache=True, _nrt=False)
 def recentre_limit_surfaces(m, w):
     """The re-centred column of every limit-surface element: -L(t) for the body's free-motion twist t = v_tilde

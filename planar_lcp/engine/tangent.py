@@ -26,10 +26,11 @@ re-solve. Everywhere else, and where its checks fail, it returns a code and the 
   closes. Two kinds of contact are exempt, their step smooth where their indices move: one at rest, loaded inside
   its friction cone, with both friction rays at zero (it sticks whichever way it is pushed: its rays are solved as
   one bilateral constraint, the +t ray in the basis with a rate of either sign), and a separating one's friction
-  (held at zero; its slack's kink enters no other row). Where either is present, every segment of the island's LCP
-  answers must leave the velocities where they are (A over the basic and degenerate unknowns has no null vector but
-  along normal impulses and sticking friction, whose rows hold the velocities, and a sliding contact's own two rays:
-  a sliding element's friction column coinciding with another's gives way, as the dual numbers call it non-unique).
+  (held at zero; its slack's kink enters no other row). Where either is present, or a sliding element's friction
+  may be positive, every segment of the island's LCP answers must leave the velocities where they are (A over the
+  basic and degenerate unknowns has no null vector but along normal impulses and sticking friction, whose rows hold
+  the velocities, and a sliding contact's own two rays: a sliding element's friction column coinciding with
+  another's gives way, as the dual numbers call it non-unique).
   Where the sticking rays added to the basis coincide (a box at rest on the two corners of a flat face), the LCP's
   part solves with the basis's independent rows and columns (elimination with complete pivoting), and the rows left
   out must hold by themselves along every input;
@@ -39,12 +40,18 @@ re-solve. Everywhere else, and where its checks fail, it returns a code and the 
 - the one-sided differences of the smooth part agree (a kink of the contact geometry, of max and min in the rows,
   or a body at rest on its limit surface, whose re-centred column jumps);
 - the cold steps at x +- d move as J d predicts (d the mixed direction of `step_differences`).
+
+A body touching nothing that rests on its table (`_untouched_bodies`: its free-motion velocity below REST_SPEED in
+every component, each support element able to hold it) is held there whichever way the state moves: no evaluation
+along its pose or velocity, its island's rows and outputs move with no input, q+ one on its q (`_hold_resting`: the
+dual numbers hold its re-centred column fixed there, derivatives/forward.py). Where the cold steps at x +- d do not
+move as that predicts, it gives way to the differences of whole steps.
 """
 
 import numpy as np
 from numba import njit
 
-from planar_lcp.engine.assemble import (apply_impulses, assemble_columns, assemble_lcp, column_dot,
+from planar_lcp.engine.assemble import (REST_SPEED, apply_impulses, assemble_columns, assemble_lcp, column_dot,
                                         island_is_elastic, island_problem_size, island_servo,
                                         kinematic_velocity_along, recentre_limit_surfaces, support_column_count)
 from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC, SHAPE_HALFPLANE,
@@ -52,7 +59,7 @@ from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STAT
 from planar_lcp.engine.contacts import body_poses, pair_contacts
 from planar_lcp.engine.islands import island_members
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.rollout import (DIFF_OK, _restore_memory, cold_step_at, mixed_direction_check,
+from planar_lcp.engine.rollout import (DIFF_MOVES, DIFF_OK, _restore_memory, cold_step_at, mixed_direction_check,
                                        unflatten_inputs)
 from planar_lcp.engine.step import (FORM_POSITION, begin_step, check_end_configuration, kinematic_linearization,
                                     prepare_contacts)
@@ -578,8 +585,14 @@ def _island_bases(m, h, w, vk, nisl, ncon, zoff, mbasic, res_tol, z, lu, perm, a
             solve[o + i] = basic[o + i]
         nf = island_problem_size(m, w.island_con, nci, nsi, w.con_pair)[1]
         added, exempted = _exempt_friction(m, w, o, nci, nsi, nf, k_sup, basic, degenerate, solve, exempt)
-        if exempted and not _segments_leave_velocities(afull, basic, degenerate,
-                                                       _unpinned(z, o, n, nci, nf, nsi, k_sup), o, n, nci, nf):
+        # a segment of answers can move the velocities only along a sliding element's friction (`_unpinned`): where
+        # one may be positive, or sticking rays were added to the basis, every segment must leave them
+        unpinned = _unpinned(z, o, n, nci, nf, nsi, k_sup)
+        sliding = False
+        for i in range(n):
+            sliding = sliding or (unpinned[i] and (basic[o + i] or degenerate[o + i]))
+        if (exempted or sliding) and not _segments_leave_velocities(afull, basic, degenerate, unpinned, o, n, nci,
+                                                                    nf):
             return False
         for i in range(n):
             solve_row[o + i] = solve[o + i]
@@ -601,13 +614,27 @@ def _linear_in_velocities(m, w, nisl, ncon):
 
 
 @njit(cache=True)
-def _untouched_bodies(m, w, ncon, untouched_dyn, untouched_kin):
-    """Which dynamic and kinematic bodies (by slot) are in no contact at x (w.con_*), have no support element, no
-    half-plane shape and no forced pair: their poses reach the smooth part only through contacts they do not have."""
+def _untouched_bodies(m, w, ncon, untouched_dyn, untouched_kin, resting_dyn):
+    """Which dynamic and kinematic bodies (by slot) are in no contact at x (w.con_*), have no half-plane shape and
+    no forced pair: their poses reach the smooth part only through contacts they do not have. A dynamic body on a
+    table (support elements) is untouched only where it rests there (resting_dyn): its free-motion velocity below
+    REST_SPEED in every component and every support element able to hold it (friction and load positive), so that
+    the table holds it at rest whichever way its state moves: its q+ is its q, its v+ zero, and nothing else
+    depends on it."""
     for d in range(untouched_dyn.shape[0]):
         untouched_dyn[d] = True
-    for d in range(m.sup_dyn.shape[0]):
-        untouched_dyn[m.sup_dyn[d]] = False
+        resting_dyn[d] = False
+    for s in range(m.sup_dyn.shape[0]):
+        d = m.sup_dyn[s]
+        resting_dyn[d] = True
+    for s in range(m.sup_dyn.shape[0]):
+        d = m.sup_dyn[s]
+        held = m.sup_mu[s] * m.sup_load[s] > 0.0
+        for c in range(3):
+            held = held and abs(w.v_tilde[d, c]) < REST_SPEED
+        if not held:
+            untouched_dyn[d] = False
+            resting_dyn[d] = False
     for kk in range(untouched_kin.shape[0]):
         untouched_kin[kk] = True
     for s in range(m.shape_body.shape[0]):
@@ -621,6 +648,8 @@ def _untouched_bodies(m, w, ncon, untouched_dyn, untouched_kin):
         p = w.con_pair[j]
         _mark_touched(m, m.shape_body[m.pair_a[p]], untouched_dyn, untouched_kin)
         _mark_touched(m, m.shape_body[m.pair_b[p]], untouched_dyn, untouched_kin)
+    for d in range(untouched_dyn.shape[0]):
+        resting_dyn[d] = resting_dyn[d] and untouched_dyn[d]
 
 
 @njit(cache=True, inline='always')
@@ -688,7 +717,7 @@ def _clear_of_pairs(m, w, nd, steps, margin, kinematic_only, untouched_dyn, unto
 
 @njit(cache=True)
 def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, nisl, ncon, z, zoff, r0, f0, derived,
-                    linear_velocities, untouched_dyn, untouched_kin, dr, jy):
+                    linear_velocities, untouched_dyn, untouched_kin, resting_dyn, dr, jy):
     """The smooth part's columns (z held) into dr (its rows) and jy (its outputs), by central differences along
     each of its inputs, +- eps_k (steps[0]), from x's (q, v, qk, vk; its contacts' pairs and points in w, the rows
     r0 and outputs f0 there): the velocities' first (on x's contacts and poses; none where `linear_velocities`,
@@ -696,7 +725,8 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
     re-centred columns), then the poses' (each with its contacts and the end-of-step check, the re-centred columns
     where they move); none for the `derived` pose columns, nor for an untouched body's pose (no contact, clear of
     every pair: `_untouched_bodies`, `_clear_of_pairs`), which moves none of the rows nor the outputs but a kinematic
-    body's own qk+, nor for an untouched kinematic body's velocity in the rows (in no row: zero). Returns DIFF_OK, TANGENT_CONTACTS (an evaluation with
+    body's own qk+, nor for an untouched kinematic body's velocity in the rows (in no row: zero), nor for a resting
+    body's velocity (`_hold_resting` writes its columns). Returns DIFF_OK, TANGENT_CONTACTS (an evaluation with
     other contacts, or whose end-of-step check adds a pair) or TANGENT_KINK (one-sided differences that differ by
     more than tols[1] of their scale, at least tols[3])."""
     nd, nk = q.shape[0], qk.shape[0]
@@ -730,8 +760,8 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
         c = k % 3
         if derived >= 0 and (k == derived or k == derived + 1):
             continue
-        if (kind == SMOOTH_POSE and untouched_dyn[i]) or (
-                (kind == SMOOTH_KIN_POSE or kind == SMOOTH_KIN_VELOCITY) and untouched_kin[i]):
+        if ((kind == SMOOTH_POSE and untouched_dyn[i]) or (kind == SMOOTH_VELOCITY and resting_dyn[i]) or (
+                (kind == SMOOTH_KIN_POSE or kind == SMOOTH_KIN_VELOCITY) and untouched_kin[i])):
             if kind == SMOOTH_KIN_POSE:
                 jy[6 * nd + 3 * i + c, k] = 1.0
             continue
@@ -784,6 +814,33 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
         if code != DIFF_OK:
             return code
     return DIFF_OK
+
+
+@njit(cache=True)
+def _hold_resting(m, w, nd, zoff, resting_dyn, dr, jy):
+    """A resting body's part of the columns (`_untouched_bodies`): its table holds it at rest whichever way the
+    state moves, and it touches nothing, so its island's rows and its outputs q+, v+ move with no input (the
+    smooth part's rates there are cancelled by its table's impulses: `_state_columns` adds q+'s one on q) and its
+    inputs move nothing else."""
+    N, K = dr.shape
+    nout = jy.shape[0]
+    for d in range(nd):
+        if not resting_dyn[d]:
+            continue
+        isl = w.body_island[d]
+        for r in range(zoff[isl], zoff[isl + 1]):
+            for k in range(K):
+                dr[r, k] = 0.0
+        for c in range(3):
+            for k in range(K):
+                jy[3 * d + c, k] = 0.0
+                jy[3 * nd + 3 * d + c, k] = 0.0
+            for r in range(nout):
+                jy[r, 3 * d + c] = 0.0
+                jy[r, 3 * nd + 3 * d + c] = 0.0
+            for r in range(N):
+                dr[r, 3 * d + c] = 0.0
+                dr[r, 3 * nd + 3 * d + c] = 0.0
 
 
 @njit(cache=True)
@@ -922,8 +979,8 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     scratch = np.zeros(stats.shape[0])
     # x's contacts, islands and each island's LCP at the cold step's basis; the bodies clear of every pair there
     ncon, nisl = _contacts_at(m, h, cold_opt, w, x, nd, nk, qa, va, qka, vka, qk_out, scratch)
-    untouched_dyn, untouched_kin = np.empty(nd, np.bool_), np.empty(nk, np.bool_)
-    _untouched_bodies(m, w, ncon, untouched_dyn, untouched_kin)
+    untouched_dyn, untouched_kin, resting_dyn = np.empty(nd, np.bool_), np.empty(nk, np.bool_), np.empty(nd, np.bool_)
+    _untouched_bodies(m, w, ncon, untouched_dyn, untouched_kin, resting_dyn)
     _clear_of_pairs(m, w, nd, steps, cold_opt.margin, False, untouched_dyn, untouched_kin)
     zoff = np.zeros(nisl + 1, np.int64)
     for isl in range(nisl):
@@ -957,6 +1014,10 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     # a kinematic body's pose moves its end pose qk+ (a dynamic one's, q_hat only: q+ = q + h v+ stays): clear of
     # every pair there too, as the end-of-step check would find it
     _clear_of_pairs(m, w, nd, steps, 0.0, True, untouched_dyn, untouched_kin)
+    any_resting = False
+    for d in range(nd):
+        resting_dyn[d] = resting_dyn[d] and untouched_dyn[d]
+        any_resting = any_resting or resting_dyn[d]
     body_poses(m, w.q_hat, w.qk_hat, w.body_pose)
     # then its columns along each of its inputs
     dr = np.zeros((N, K))              # d(A z + b) over the force unknowns, z held
@@ -967,7 +1028,7 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
         derived = 6 * nd + 3 * (nk - 1) if nk > 0 else 3 * (nd - 1)
     linear_velocities = _linear_in_velocities(m, w, nisl, ncon)
     code = _smooth_columns(m, h, cold_opt, w, qa, va, qka, vka, qk_out, scratch, steps, tols, nisl, ncon, z, zoff, r0,
-                           f0, derived, linear_velocities, untouched_dyn, untouched_kin, dr, jy)
+                           f0, derived, linear_velocities, untouched_dyn, untouched_kin, resting_dyn, dr, jy)
     if code != DIFF_OK:
         return _give_way(msize, mbasic, mmodes, w, code)
     if derived >= 0:
@@ -976,9 +1037,14 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     _contacts_at(m, h, cold_opt, w, x, nd, nk, qa, va, qka, vka, qk_out, scratch)
     if linear_velocities:
         _velocity_columns(m, h, w, nd, nk, nisl, ncon, zoff, np.empty(N), dr, jy)
+    if any_resting:
+        _hold_resting(m, w, nd, zoff, resting_dyn, dr, jy)
     if not _lcp_columns(m, h, w, vka, nd, nisl, ncon, zoff, lu, perm, solve, solve_row, held, basic, degenerate, exempt,
                         afull, dr, jy):
         return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
     _state_columns(m, h, nd, nk, jy, jac)
-    return mixed_direction_check(m, h, warm_opt, w, rec, x, steps, jac, base, (msize, mbasic, mmodes), tols,
+    code = mixed_direction_check(m, h, warm_opt, w, rec, x, steps, jac, base, (msize, mbasic, mmodes), tols,
                                  np.empty(nout), np.empty(nout), q1, v1, qk1)
+    # a resting body taken as held by its table that the steps along the mixed direction do not leave at rest: the
+    # differences of whole steps say what the step does there
+    return TANGENT_KINK if code == DIFF_MOVES and any_resting else code

@@ -202,8 +202,9 @@ def test_the_velocity_columns_agree_with_the_dual_numbers_to_round_off(name):
 
 def untouched_flags(sim, q, v, qk, vk):
     """The tangent's verdict at the linearization pose: (dynamic bodies, kinematic bodies) in no contact and clear
-    of every pair there, as `step_tangent` reaches it before its check at the end configuration (where tip_box's
-    finger, at rest, and its box, at rest on the table, stand as at the linearization pose)."""
+    of every pair there, and the dynamic ones among them held at rest by their table, as `step_tangent` reaches it
+    before its check at the end configuration (where the kinematic bodies of tip_box and push_box, at rest, stand
+    as at the linearization pose)."""
     from planar_lcp.derivatives.differences import DIFF_STEP
     from planar_lcp.engine.layout import NSTAT
     from planar_lcp.engine.rollout import difference_steps
@@ -215,11 +216,11 @@ def untouched_flags(sim, q, v, qk, vk):
     parts = [np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3)), np.empty((nk, 3))]
     sim.reset_warm_start()
     ncon, _ = _contacts_at(m, h, opt, w, x, nd, nk, *parts, np.empty((nk, 3)), np.zeros(NSTAT))
-    dyn, kin = np.empty(nd, np.bool_), np.empty(nk, np.bool_)
-    _untouched_bodies(m, w, ncon, dyn, kin)
+    dyn, kin, resting = np.empty(nd, np.bool_), np.empty(nk, np.bool_), np.empty(nd, np.bool_)
+    _untouched_bodies(m, w, ncon, dyn, kin, resting)
     _clear_of_pairs(m, w, nd, steps, opt.margin, False, dyn, kin)
     sim.reset_warm_start()
-    return dyn, kin
+    return dyn, kin, resting & dyn
 
 
 def finger_gap(sim, q, v, qk, vk):
@@ -240,7 +241,7 @@ def test_an_untouched_body_has_its_pose_columns_in_closed_form():
     numbers' to the bit, and the whole Jacobian within the tangent's tolerance."""
     sim, state = bench_state("tip_box")
     q, v, qk, vk = state
-    dyn, kin = untouched_flags(sim, *state)
+    dyn, kin, _ = untouched_flags(sim, *state)
     assert kin.tolist() == [True] and dyn.tolist() == [False]
     nd, nk = len(q), len(qk)
     code, jac = tangent(sim, *state)
@@ -262,7 +263,7 @@ def test_a_body_near_a_pair_has_its_pose_columns_evaluated(room, untouched):
     qk = qk.copy()
     qk[0, 0] -= finger_gap(sim, q, v, qk, vk) - (sim.kopt.margin + room)
     assert abs(finger_gap(sim, q, v, qk, vk) - (sim.kopt.margin + room)) < 1e-12
-    dyn, kin = untouched_flags(sim, q, v, qk, vk)
+    dyn, kin, _ = untouched_flags(sim, q, v, qk, vk)
     assert kin.tolist() == [untouched] and dyn.tolist() == [False]
     code, jac = tangent(sim, q, v, qk, vk)
     ref = step_derivatives(sim, q, v, qk, vk)
@@ -270,3 +271,47 @@ def test_a_body_near_a_pair_has_its_pose_columns_evaluated(room, untouched):
         assert ref.exact
         assert relative_error(type(ref)(**{**ref.__dict__, "jacobian": jac}), ref) <= TANGENT_RTOL
     assert untouched is False or code == DIFF_OK
+
+
+@pytest.mark.parametrize("speed, resting", [(0.0, True), (1e-13, True), (0.2, False)])
+def test_a_body_at_rest_on_its_table_is_held_there(speed, resting):
+    """push_box's start: the box at rest on its table, the pusher away. Below REST_SPEED in every component the
+    first try takes the box as held by its table (its support able to hold it: friction and load positive), whichever
+    way its state moves: its v+ rows are zero and its q+ rows one on its q, without an evaluation (the dual numbers,
+    which hold its re-centred column as fixed there, give the same); sliding at 0.2 m/s it is not held, and its
+    columns are evaluated (where they answer, they agree with the dual numbers)."""
+    sc = load_scene("push_box")
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, solver=sc.sim.solver, formulation=sc.sim.formulation))
+    q, v, qk = (np.array(a, dtype=float) for a in sim.initial_state()[:3])
+    v[0, 0] = speed
+    vk = np.zeros_like(qk)
+    dyn, kin, rest = untouched_flags(sim, q, v, qk, vk)
+    assert rest.tolist() == [resting] and dyn.tolist() == [resting] and kin.tolist() == [True]
+    code, jac = tangent(sim, q, v, qk, vk)
+    ref = step_derivatives(sim, q, v, qk, vk)
+    assert code == DIFF_OK or not resting
+    if code == DIFF_OK:
+        assert ref.exact
+        assert relative_error(type(ref)(**{**ref.__dict__, "jacobian": jac}), ref) <= TANGENT_RTOL
+    if resting:
+        expected = np.zeros((6, jac.shape[1]))
+        expected[:3, :3] = np.eye(3)
+        assert np.array_equal(jac[:6], expected)
+
+
+def test_a_box_sliding_straight_along_a_fixed_twist_gives_way():
+    """push_box's box sliding straight along x at 0.2 m/s: its limit surface's re-centred column coincides with the
+    fixed twist along x, a segment of answers along a sliding element's friction that a turn of its velocity breaks
+    (the dual numbers call it non-unique): the first try gives way; sliding at an angle it answers."""
+    sc = load_scene("push_box")
+    sim = Simulator(compile_scene(sc), SimOptions(h=sc.sim.h, solver=sc.sim.solver, formulation=sc.sim.formulation))
+    q, v, qk = (np.array(a, dtype=float) for a in sim.initial_state()[:3])
+    vk = np.zeros_like(qk)
+    v[0] = (0.2, 0.0, 0.0)
+    assert tangent(sim, q, v, qk, vk)[0] == TANGENT_DEGENERATE
+    assert any(d.kind == "non-unique" for d in step_derivatives(sim, q, v, qk, vk).degenerate)
+    v[0] = (0.2, 0.05, 0.0)
+    code, jac = tangent(sim, q, v, qk, vk)
+    ref = step_derivatives(sim, q, v, qk, vk)
+    assert code == DIFF_OK and ref.exact
+    assert relative_error(type(ref)(**{**ref.__dict__, "jacobian": jac}), ref) <= TANGENT_RTOL
