@@ -18,6 +18,7 @@ import numpy as np
 
 from planar_lcp.engine import copying_inlined_ir_once
 from planar_lcp.engine.constants import SPARSE_MIN_UNKNOWNS, SUPPORT_POINTS
+from planar_lcp.engine.entry import EntryPoints
 from planar_lcp.engine.interpreted import compiled, python_version
 from planar_lcp.engine.layout import (INT_STATS, NSTAT, STATS, Stat, StepOptions, make_step_work,
                                       work_struct)
@@ -154,6 +155,9 @@ class Simulator:
         self.kopt = options.kernel_options()
         self.work = make_step_work(model)
         self._kwork = None          # the kernels' view of the work buffers (`kwork`), made on first use
+        #: the derivatives' kernels called without numba's dispatch (engine/entry.py): their arguments are this
+        #: simulator's structs and options and float64 arrays, the same types at every call
+        self.kernel_calls = EntryPoints()
         self.stats = np.zeros(NSTAT)
         self._last_step_out = None  # (q, v, qk) returned by the last `step`, for its warm start
         self._kernel = rollout_kernel(options)
@@ -271,7 +275,8 @@ class Simulator:
         `planar_lcp.derivatives.StepDerivatives` (dq_dq, dq_dv, dq_dvk, dv_dq, dv_dv, dv_dvk, dv_dp, ..., `exact`,
         `degenerate`). docs/method.md, "Derivatives of the step". method: "dual" (the step on dual numbers, exact to
         round-off) or "differences" (checked central differences of the compiled step, about 1e-6 of the Jacobian's
-        scale and tens of times faster; the dual numbers where their checks fail, the reason in `fallback`). The
+        scale and tens of times faster; the dual numbers where their checks fail, the reason in `fallback`) or
+        "one_sided" (as "differences", but at a switch the compiled step's one-sided differences, not exact). The
         step differentiated is the cold one (no warm start), and the simulator's warm-start memory is reset as by
         `reset_warm_start()`."""
         from planar_lcp.derivatives import step_derivatives

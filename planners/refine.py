@@ -3,7 +3,9 @@
 
 A plan's controls are its segments' pusher velocities u_j, each held for its t_j = k_j propagation steps. Both
 objectives use the step's derivatives (`Simulator.rollout_derivatives` over the plan's whole run, by the checked
-differences of the compiled step, the dual numbers where their checks fail: docs/method.md) through G = d(object's
+differences of the compiled step, its one-sided differences where their checks find a switch at the state, the dual
+numbers where those fail too: method "one_sided", docs/method.md; every candidate is judged by its replay, so a
+gradient through a switch need not be exact) through G = d(object's
 final state)/d(u): the rows of the coordinates the goal names (the object frame's x, y, its angle, its velocities
 when the goal asks it at rest) with respect to every segment's pusher velocity, summed over the segment's simulation
 steps.
@@ -83,11 +85,12 @@ def object_jacobian(tm, sim, x0, controls, steps):
     """The object's final state and its Jacobian G with respect to every segment's pusher vx, vy, by
     `rollout_derivatives` over the plan's run: rows the body frame's x, y (the goal's position is the frame's), the
     angle, and the velocities vx, vy, omega of the centre of mass; whether every step's derivatives were exact; and
-    the run's steps and those whose derivatives the dual numbers gave (the checked differences gave way)."""
+    the run's steps, those whose derivatives the one-sided differences gave (a switch at the state) and those the
+    dual numbers gave (the one-sided differences failed too)."""
     from planar_lcp.derivatives import rollout_derivatives
     from planar_lcp.frames import frame_state
     q, v, qk, vk, segment = _run_inputs(tm, x0, controls, steps)
-    r = rollout_derivatives(sim, q, v, qk, vk, len(vk), method="differences")
+    r = rollout_derivatives(sim, q, v, qk, vk, len(vk), method="one_sided")
     nd = tm.model.ndyn
     d = int(tm.dyn_order[0])
     rows = [3 * d, 3 * d + 1, 3 * d + 2, 3 * nd + 3 * d, 3 * nd + 3 * d + 1, 3 * nd + 3 * d + 2]
@@ -99,7 +102,8 @@ def object_jacobian(tm, sim, x0, controls, steps):
     # the frame's origin is the COM less R(angle) com_local: a column's pose rates turn into the frame's as a velocity
     # does (planar_lcp.frames)
     G[:3] = frame_state(r.q[-1, d][None], G[:3].T[:, None, :], tm.com_local1)[1][:, 0, :].T
-    return _coords(tm, np.concatenate([r.q[-1, d], r.v[-1, d]])), G, r.exact, (len(vk), len(r.fallbacks))
+    return (_coords(tm, np.concatenate([r.q[-1, d], r.v[-1, d]])), G, r.exact,
+            (len(vk), len(r.one_sided), len(r.fallbacks)))
 
 
 def _coords(tm, x):
@@ -150,7 +154,7 @@ class _Judge:
         opts = tm.sim.options
         self.sim = Simulator(tm.model, SimOptions(h=opts.h, solver=opts.solver, formulation=opts.formulation))
         self.all_exact = True
-        self.derivative_steps = self.dual_steps = 0
+        self.derivative_steps = self.one_sided_steps = self.dual_steps = 0
         self.replays = 0
         self.no_derivatives = ""
 
@@ -167,12 +171,14 @@ class _Judge:
         state may fail), why in `no_derivatives`."""
         from planar_lcp.sim import SimulationError
         try:
-            final, G, exact, (n_steps, n_dual) = object_jacobian(self.tm, self.sim, self.x0, controls, steps)
+            final, G, exact, (n_steps, n_sided, n_dual) = object_jacobian(self.tm, self.sim, self.x0, controls,
+                                                                          steps)
         except SimulationError as e:
             self.no_derivatives = str(e)
             return None, None
         self.all_exact &= bool(exact)
         self.derivative_steps += n_steps
+        self.one_sided_steps += n_sided
         self.dual_steps += n_dual
         if not np.all(np.isfinite(G)):
             self.no_derivatives = "derivatives not finite"
@@ -324,7 +330,8 @@ def refine(plan, iterations=None, objective="path_duration", max_change=MAX_CHAN
     `time_limit` (s of wall time) stops it before the next derivative run or candidate past it (a run under way
     finishes: on a large task one takes minutes). Its data's `refine` entry: the objective before and
     after (s or m), the steps kept (`accepted`) and candidates tried, the replays, why it stopped (`stopped_by`),
-    whether every derivative run was exact, the simulation steps differentiated and those the dual numbers gave, the
+    whether every derivative run was exact, the simulation steps differentiated, those the one-sided differences
+    and those the dual numbers gave, the
     time, and, for the path length, `last_miss`: for the last candidate replayed that missed the goal, its largest
     control change and the goal's coordinates' change the derivatives predicted and the replay gave (None when every
     replay held it)."""
@@ -363,6 +370,7 @@ def refine(plan, iterations=None, objective="path_duration", max_change=MAX_CHAN
     data.update(costs(tm, steps, dense))
     data["refine"] = dict(objective=objective, before=before, after=after, accepted=accepted, tried=tried,
                           replays=judge.replays, stopped_by=stopped_by, exact_derivatives=judge.all_exact,
-                          derivative_steps=judge.derivative_steps, dual_steps=judge.dual_steps, last_miss=last_miss,
+                          derivative_steps=judge.derivative_steps, one_sided_steps=judge.one_sided_steps,
+                          dual_steps=judge.dual_steps, last_miss=last_miss,
                           time=time.perf_counter() - t0, cpu_time=time.process_time() - c0)
     return Plan(data, plan.task, tm=tm, task_file=plan.task_file)

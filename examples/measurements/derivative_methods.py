@@ -6,7 +6,10 @@ way or call the state not exact (the mixed direction's check), the kinds of dege
 the differences stood on a state they do not call exact, and the differences' largest difference from the dual
 numbers' derivatives, relative to the largest entry of its row or column (at least 1e-4), over the states both call
 exact; then the same for their first try alone, the derivatives at the cold step's bases (engine/tangent.py): the
-states it answered and why it left the others to the differences of whole steps.
+states it answered and why it left the others to the differences of whole steps; then, on the states where the
+checked differences gave way to the dual numbers, method "one_sided": the states it answered by the compiled step's
+one-sided differences, and how far those are from the dual numbers' one-sided derivatives (each side against its
+own, relative to the largest entry of its row or column in either, at least 1e-4).
 
     python examples/measurements/derivative_methods.py
 """
@@ -55,6 +58,7 @@ def main():
     worst, where = 0.0, ""
     tangent = collections.Counter()
     t_worst, t_where = 0.0, ""
+    sided = []
     for label, sim, states in runs():
         for s in states:
             ref = sim.step_derivatives(*s)
@@ -67,6 +71,8 @@ def main():
                 if err > t_worst:
                     t_worst, t_where = err, label
             d = sim.step_derivatives(*s, method="differences")
+            if d.method == "dual":
+                sided.append(_one_sided_error(sim, s, ref, label))
             why = d.fallback or "; ".join(g.kind for g in d.degenerate)
             counts[(ref.exact, d.method + ("" if d.exact else ", not exact"), why)] += 1
             if d.method != "differences" or not d.exact:
@@ -96,6 +102,33 @@ def main():
         print(f"| {'yes' if e else 'no'} | {why} | {n} |")
     print(f"their largest difference from the dual numbers where they answer: {t_worst:.2g} of the row's or column's "
           f"largest entry ({t_where})")
+    print("")
+    answered = sorted((err, label, kinds) for err, label, kinds in sided if err is not None)
+    print(f"one-sided differences: answered {len(answered)} of the {len(sided)} states the checked differences left "
+          "to the dual numbers")
+    for bound in (1e-6, 1e-4, 1e-2):
+        print(f"  within {bound:g} of the dual numbers' one-sided derivatives: "
+              f"{sum(err <= bound for err, _, _ in answered)}")
+    far = [kinds for err, _, kinds in answered if err > 1e-4]
+    print(f"  farther than 1e-4: {len(far)}, where the dual numbers name a switch within 1e-6 or a non-unique answer: "
+          f"{sum(bool({'switch', 'non-unique'} & kinds) for kinds in far)}")
+    if answered:
+        print(f"  farthest: {answered[-1][0]:.2g} ({answered[-1][1]})")
+
+
+def _one_sided_error(sim, state, ref, label):
+    """(the largest relative difference of method "one_sided"'s one-sided derivatives from the dual numbers' ref,
+    label, the kinds of degeneracy the dual numbers name), or (None, label, kinds) where it did not answer."""
+    kinds = {g.kind for g in ref.degenerate}
+    o = sim.step_derivatives(*state, method="one_sided")
+    if o.method != "one_sided":
+        return None, label, kinds
+    err = 0.0
+    for got, want in ((o.jacobian_right, ref.jacobian_right), (o.jacobian_left, ref.jacobian_left)):
+        A = np.maximum(np.abs(got), np.abs(want))
+        scale = np.maximum(np.maximum(A.max(axis=0)[None, :], A.max(axis=1)[:, None]), 1e-4)
+        err = max(err, float(np.max(np.abs(got - want) / scale)))
+    return err, label, kinds
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 with its documented seed and iteration budget (shortened by the default rule, as `planar-lcp plan` does), then
 refined from that plan by each objective; printed per objective, one table, a row per task: the objective after
 shortening and after refining, the refinement's kept and tried steps, why it stopped, whether every derivative run
-was exact, the steps the dual numbers differentiated, and its CPU time; for the path duration also the shortener
+was exact, the steps the one-sided differences and the dual numbers differentiated, and its CPU time; for the path duration also the shortener
 alone given as long again (its randomised shortcutting of the same plan, with no bound but the refinement's wall
 time); then, per task, the last candidate of the pusher-path refinement that missed the goal: the goal's
 coordinates' change its replay gave against the derivatives' prediction.
@@ -49,7 +49,8 @@ def _row(name, plan, r, seed):
         cells += [f"{shortener_for(plan, info['time'], seed + 1):.4f}", f"{plan.data['pusher_path_length']:.4f}",
                   f"{r.data['pusher_path_length']:.4f}"]
     cells += [f"{info['accepted']} / {info['tried']}", info["stopped_by"],
-              "yes" if info["exact_derivatives"] else "no", f"{info['dual_steps']} of {info['derivative_steps']}",
+              "yes" if info["exact_derivatives"] else "no",
+              f"{info['one_sided_steps']} and {info['dual_steps']} of {info['derivative_steps']}",
               f"{info['cpu_time']:.1f}"]
     return "| " + " | ".join(cells) + " |"
 
@@ -93,7 +94,7 @@ def main(argv=None):
     for objective in a.objectives:
         before, after, more, kept = HEADERS[objective]
         cols = ["task", "controls", "steps", before, after, "change", *more, kept, "stopped by", "derivatives exact",
-                "steps by dual numbers", "refine CPU s"]
+                "steps by one-sided differences and dual numbers", "refine CPU s"]
         print(f"\nobjective {objective}\n")
         print("| " + " | ".join(cols) + " |")
         print("|" + "---|" * len(cols))

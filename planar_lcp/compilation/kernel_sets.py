@@ -77,10 +77,14 @@ def compilation_stages(kernel_set="default"):
 
     stages = [("structs", structs), ("contacts", contacts), ("step (lemke)", run("lemke")), ("checks", checks)]
     def differences():
-        # the step's checked differences (step_derivatives(method="differences"): refine, fit by derivatives)
+        # the step's checked differences (step_derivatives(method="differences"): fit by derivatives) and its
+        # one-sided differences at a switch (method="one_sided": refine), which the state here need not reach
+        from planar_lcp.derivatives.differences import one_sided_differences
         model = state["model"]
         sim = Simulator(model, SimOptions(h=0.01))
         sim.step_derivatives(model.q0, model.v0, model.qk0, model.vk0, method="differences")
+        one_sided_differences(sim, *(np.ascontiguousarray(a, dtype=np.float64)
+                                     for a in (model.q0, model.v0, model.qk0, model.vk0)))
 
     if kernel_set == "all":
         stages.append(("step (pgs)", run("pgs")))

@@ -14,7 +14,10 @@ two sides and `degenerate` says where and why.
 
 With method="differences" the step's checked central differences answer instead, in one compiled call
 (differences.py: tens of times faster, about 1e-6 of the Jacobian's scale), where their checks say they stand for
-the derivatives; elsewhere the dual numbers do.
+the derivatives; elsewhere the dual numbers do. With method="one_sided" the same, but where the checked differences
+find a switch at the state the compiled step's one-sided differences answer (not exact, about 1e-6 of the one-sided
+derivatives; `degenerate` names the inputs, not the contact), the dual numbers only where those fail too: for
+gradients whose use checks its own outcome (planners.refine), at a tenth of the dual numbers' time or less.
 
 Scene parameters are named as `planar_lcp.fit` names them (`world.friction`, `world.restitution`,
 `bodies.NAME.mass`, `bodies.NAME.inertia`, `bodies.NAME.support_friction`, `friction_pairs.A.B`,
@@ -30,10 +33,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planar_lcp.derivatives import forward
-from planar_lcp.derivatives.differences import checked_differences, param_differences
+from planar_lcp.derivatives.differences import (DIFF_FLOOR, DIFF_KINK_RTOL, checked_differences, one_sided_differences,
+                                                param_differences)
 from planar_lcp.derivatives.dual import Dual, grads, values, with_derivatives
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.rollout import DIFF_NONFINITE, DIFF_REASONS
+from planar_lcp.engine.rollout import DIFF_NONFINITE, DIFF_REASONS, SIDES_BOTH
 from planar_lcp.engine.step import FORM_VELOCITY, STEP_LCP_FAILED, STEP_NONFINITE, STEP_OK
 from planar_lcp.errors import SimulationError
 
@@ -51,7 +55,8 @@ SWITCH_RTOL = 1e-3
 class Degenerate:
     """Why a step is not differentiable at the point (docs/method.md, "Derivatives of the step"): `kind`
     ("complementarity", "tie", "non-unique", "geometry", "switch", "unbounded", "failed", "uncertified", "solver",
-    "parameter", "mixed"), `where` (the contact, LCP unknown or input, by body names) and `detail`."""
+    "parameter", "mixed", "sides", "structure"), `where` (the contact, LCP unknown or input, by body names) and
+    `detail`."""
 
     kind: str
     where: str
@@ -85,8 +90,9 @@ class StepDerivatives:
     #: differences converge to; equal where `exact`
     jacobian_right: np.ndarray | None = None
     jacobian_left: np.ndarray | None = None
-    #: how they were computed: "dual" (the step on dual numbers) or "differences" (checked central differences of
-    #: the compiled step); `fallback`: why a "differences" request took the dual numbers ("" otherwise)
+    #: how they were computed: "dual" (the step on dual numbers), "differences" (checked central differences of
+    #: the compiled step) or "one_sided" (its one-sided differences, at a switch); `fallback`: why a "differences" or
+    #: "one_sided" request did not take the checked differences ("" otherwise)
     method: str = "dual"
     fallback: str = ""
 
@@ -267,9 +273,12 @@ def _model_with_param_derivatives(model, params, first, k, ncols):
 # --- the step ----------------------------------------------------------------------------------------------------
 
 def _check_state(sim, q, v, qk, vk):
-    """The state's arrays as C-contiguous float64 of the model's shapes (ValueError naming the one that is not);
-    their finiteness is `_check_finite`'s."""
-    q, v, qk, vk = (np.ascontiguousarray(a, dtype=np.float64) for a in (q, v, qk, vk))
+    """The state's arrays as aligned C-contiguous float64 of the model's shapes (ValueError naming the one that is
+    not): the types the compiled kernels' entry points take (engine/entry.py); their finiteness is
+    `_check_finite`'s."""
+    q, v, qk, vk = [a if a.flags.aligned else a.copy() for a in (np.ascontiguousarray(q, dtype=np.float64),
+                    np.ascontiguousarray(v, dtype=np.float64), np.ascontiguousarray(qk, dtype=np.float64),
+                    np.ascontiguousarray(vk, dtype=np.float64))]
     m = sim.model
     dyn, kin = (len(m.dyn_names), 3), (len(m.kin_names), 3)
     if q.shape != dyn or v.shape != dyn or qk.shape != kin or vk.shape != kin:
@@ -520,8 +529,40 @@ def _switches_nearby(sim, state, f0, right, left):
                        f"within {NEARBY_STEPS[0]:g} of it")]
 
 
+def _one_sided(sim, model, q, v, qk, vk, why):
+    """The step's derivatives by its one-sided differences (differences.py `one_sided_differences`) where the checked
+    differences found a switch at the state (`why`, their reason): not exact, the inputs whose two sides differ (the
+    checked differences' kink test) and those whose one side changes the step's structure (both its derivatives the
+    other side's) named in `degenerate`. None where they fail too."""
+    got, _ = one_sided_differences(sim, q, v, qk, vk)
+    if got is None:
+        return None
+    (q1, v1, qk1), right, left, sides = got
+    nd, nk = model.ndyn, model.nkin
+    names = _input_names(nd, nk, ())
+    big = np.maximum(np.max(np.abs(right), axis=0, initial=0.0), np.max(np.abs(left), axis=0, initial=0.0))
+    differ = np.max(np.abs(right - left), axis=0, initial=0.0) > DIFF_KINK_RTOL * np.maximum(big, DIFF_FLOOR)
+    degenerate = []
+    if differ.any():
+        degenerate.append(Degenerate("sides", ", ".join(names[k] for k in np.flatnonzero(differ)),
+                                     "the step's one-sided differences along these inputs differ: it is not "
+                                     "differentiable there (method=\"dual\" names the contact and gives its one-sided "
+                                     "derivatives exactly)"))
+    one = np.flatnonzero(sides != SIDES_BOTH)
+    if one.size:
+        degenerate.append(Degenerate("structure", ", ".join(names[k] for k in one),
+                                     "a step a difference's length away on one side of these inputs has other "
+                                     "contacts, islands, re-solves or LCP sizes (the step may jump there): both "
+                                     "one-sided derivatives are the other side's"))
+    if not degenerate:
+        degenerate.append(Degenerate("sides", "the step", why))
+    return StepDerivatives(q=q1, v=v1, qk=qk1, status=STEP_OK, jacobian=0.5 * (right + left), ndyn=nd, nkin=nk,
+                           exact=False, degenerate=tuple(degenerate), jacobian_right=right, jacobian_left=left,
+                           method="one_sided", fallback=why)
+
+
 #: step_derivatives' methods (module docstring)
-METHODS = ("dual", "differences")
+METHODS = ("dual", "differences", "one_sided")
 
 
 def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
@@ -529,7 +570,9 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
     docstring). The step is the cold one (no warm start: a function of its inputs alone). method "dual": the step on
     dual numbers (exact to round-off); "differences": checked central differences of the compiled step
     (differences.py: about 1e-6 of the Jacobian's scale, tens of times faster) where their checks hold, not exact
-    ("mixed") where only the mixed direction's fails, else the dual numbers', the reason in `fallback`."""
+    ("mixed") where only the mixed direction's fails, else the dual numbers', the reason in `fallback`; "one_sided":
+    as "differences", but where their checks find a switch at the state the compiled step's one-sided differences
+    (`_one_sided`), the dual numbers only where those fail too or with `params`."""
     if sim.options.solver == "osqp":
         raise ValueError("step_derivatives: solver 'osqp' is not differentiable here (its QP solver is a C library); "
                          "use solver 'lemke'")
@@ -540,7 +583,7 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
     model = sim.model
     sim = _dense_twin(sim)
     fallback = ""
-    if method == "differences":
+    if method != "dual":
         if sim.options.solver == "pgs":
             fallback = "PGS keeps no LCP basis"
         else:
@@ -562,6 +605,10 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
                 return StepDerivatives(q=q1, v=v1, qk=qk1, status=status, jacobian=J, ndyn=model.ndyn,
                                        nkin=model.nkin, params=params, exact=not degenerate, degenerate=degenerate,
                                        jacobian_right=J, jacobian_left=J, method="differences")
+            if method == "one_sided" and not params and fallback != DIFF_REASONS[DIFF_NONFINITE]:
+                sided = _one_sided(sim, model, q, v, qk, vk, fallback)
+                if sided is not None:
+                    return sided
     _check_finite(q, v, qk, vk)
     nd, nk = model.ndyn, model.nkin
     K = 6 * nd + 6 * nk + len(params)
@@ -662,8 +709,12 @@ class RolloutDerivatives:
     exact: bool = True
     degenerate: tuple = field(default_factory=tuple)
     dx_dp_steps: np.ndarray | None = None
-    #: with method "differences": the steps whose derivatives the dual numbers gave, and why ((step, reason) pairs)
+    #: with method "differences" or "one_sided": the steps whose derivatives the dual numbers gave, and why ((step,
+    #: reason) pairs)
     fallbacks: tuple = ()
+    #: with method "one_sided": the steps whose derivatives the one-sided differences gave, and why the checked
+    #: differences gave way there
+    one_sided: tuple = ()
 
 
 def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=(), method="dual"):
@@ -688,11 +739,11 @@ def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=(), method="dual")
     dp_steps = np.zeros((nsteps + 1, nx, len(params)))
     qs, vs, qks = [np.asarray(q, float)], [np.asarray(v, float)], [np.asarray(qk, float)]
     degenerate = []
-    fallbacks = []
+    fallbacks, one_sided = [], []
     for i in range(nsteps):
         d = step_derivatives(sim, qs[-1], vs[-1], qks[-1], vk_seq[min(i, len(vk_seq) - 1)], params, method)
         if d.fallback:
-            fallbacks.append((i, d.fallback))
+            (one_sided if d.method == "one_sided" else fallbacks).append((i, d.fallback))
         if d.status != STEP_OK:
             why = {STEP_LCP_FAILED: "no certified LCP answer", STEP_NONFINITE: "the new state is not finite"}
             raise SimulationError(f"rollout_derivatives: step {i} (t = {i * sim.h:.6g} s) failed: "
@@ -717,4 +768,4 @@ def rollout_derivatives(sim, q, v, qk, vk_seq, nsteps, params=(), method="dual")
             later = later @ state_jacobians[i]
     return RolloutDerivatives(q=np.array(qs), v=np.array(vs), qk=np.array(qks), dx_dx0=dx, dx_dvk=dvk, dx_dp=dp,
                               params=params, exact=not degenerate, degenerate=tuple(degenerate),
-                              dx_dp_steps=dp_steps, fallbacks=tuple(fallbacks))
+                              dx_dp_steps=dp_steps, fallbacks=tuple(fallbacks), one_sided=tuple(one_sided))

@@ -35,7 +35,7 @@ import numpy as np
 
 from planar_lcp.engine.layout import NSTAT
 from planar_lcp.engine.rollout import (DIFF_KINK, DIFF_MOVES, DIFF_NONFINITE, DIFF_OK, DIFF_REASONS, DIFF_SPACE,
-                                       DIFF_STRUCTURE, _same_structure, step_differences)
+                                       DIFF_STRUCTURE, _same_structure, step_differences, step_one_sided)
 from planar_lcp.engine.tangent import TANGENT_NOT_COVERED, step_tangent
 
 #: the differences' step along input k: DIFF_STEP * max(1, |x_k|) (m, rad, m/s, rad/s). Truncation (eps^2 times the
@@ -116,7 +116,8 @@ def checked_differences(sim, q, v, qk, vk):
         # the kernel's cold step forgets the warm-start memory itself (`reset_warm_start`'s work); the next `step`
         # starts cold, as after any cold step
         sim.forget_last_step()
-        return kernel(sim.kmodel, sim.h, sim.kopt, warm_opt, sim.kwork, q, v, qk, vk, tols, jac, q1, v1, qk1, stats)
+        return sim.kernel_calls.call(kernel, sim.kmodel, sim.h, sim.kopt, warm_opt, sim.kwork, q, v, qk, vk, tols, jac,
+                                     q1, v1, qk1, stats)
 
     # the derivatives at the cold step's bases first (engine/tangent.py), where they cover the step and its checks
     # hold; else the differences of whole steps
@@ -140,6 +141,32 @@ def checked_differences(sim, q, v, qk, vk):
     if code != DIFF_OK:
         return None, DIFF_REASONS[code]
     return ((q1, v1, qk1), 0, jac), ""
+
+
+def one_sided_differences(sim, q, v, qk, vk):
+    """((q+, v+, qk+), right, left, sides) of the cold step: its one-sided differences of whole steps along each
+    input (engine/rollout.py `step_one_sided`, its `sides`) over the retry's smaller step, DIFF_STEP /
+    DIFF_RETRY_SHRINK, where the checked differences find a switch at the state itself; (None, why) where the cold
+    step fails, a step needs larger dense buffers than the state's, or neither side of an input keeps the cold
+    step's structure. The state's arrays as `checked_differences` takes them."""
+    nd, nk = len(q), len(qk)
+    warm_opt, _, tols = kernel_settings(sim)
+    K = 6 * nd + 6 * nk
+    right, left = np.empty((6 * nd + 3 * nk, K)), np.empty((6 * nd + 3 * nk, K))
+    sides = np.empty(K, np.int64)
+    q1, v1, qk1 = np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3))
+    stats = np.empty(NSTAT)
+    sim.forget_last_step()
+    code = sim.kernel_calls.call(step_one_sided, sim.kmodel, sim.h, sim.kopt, warm_opt, sim.kwork, q, v, qk, vk, tols,
+                                 right, left, sides, q1, v1, qk1, stats)
+    if code == DIFF_SPACE:
+        return None, "a step nearby needs larger dense buffers than the state's"
+    if code == DIFF_STRUCTURE:
+        return None, "a step nearby on either side has other contacts, islands, re-solves or LCP sizes"
+    if code != DIFF_OK:
+        return None, DIFF_REASONS[code]
+    sim.stats[:] = stats
+    return ((q1, v1, qk1), right, left, sides), ""
 
 
 def param_differences(sim, q, v, qk, vk, compiles, base):

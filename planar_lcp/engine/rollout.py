@@ -475,6 +475,63 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
                                  q1, v1, qk1)
 
 
+#: which one-sided differences `step_one_sided` took along an input: both, or one side only (the step on the other
+#: has another structure than the cold step's: `_same_structure`)
+SIDES_BOTH = 0
+SIDE_RIGHT_ONLY = 1
+SIDE_LEFT_ONLY = 2
+
+
+@njit(cache=True)
+def step_one_sided(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, right, left, sides, q1, v1, qk1, stats):
+    """The one-sided differences of the step at the state (q, v, qk, vk) along +- eps_k e_k for each of its K inputs,
+    as `step_differences` takes its steps (warm-started on the cold step's final bases), without its checks: into
+    right and left (6 nd + 3 nk, K) the differences (f(x + eps_k e_k) - f(x)) / eps_k and (f(x) - f(x - eps_k e_k)) /
+    eps_k from the cold answer f(x). Where the step on one side fails or has another structure than the cold step's
+    (`_same_structure`: a contact that appears, an active-set re-solve: the step may jump there), both are the other
+    side's, and sides[k] says which were taken (SIDES_BOTH, SIDE_RIGHT_ONLY, SIDE_LEFT_ONLY). The cold step's state
+    into q1, v1, qk1 and its stats into stats. Returns DIFF_OK, or DIFF_FAILED, DIFF_NONFINITE, DIFF_SPACE, or
+    DIFF_STRUCTURE where neither side of an input keeps the cold step's structure. The warm-start memory is left as
+    the cold step left it."""
+    nd, nk = q.shape[0], qk.shape[0]
+    code, x, steps, base, rec, memory = cold_step_at(m, h, cold_opt, w, q, v, qk, vk, tols[0], stats)
+    if code != DIFF_OK:
+        return code
+    K, nout = x.shape[0], base.shape[0]
+    msize, mbasic, mmodes = memory
+    xx = x.copy()
+    fp, fm = np.empty(nout), np.empty(nout)
+    for k in range(K):
+        e = steps[0, k]
+        kept_p, kept_m = False, False
+        for sgn in range(2):
+            xx[k] = x[k] + e if sgn == 0 else x[k] - e
+            _restore_memory(msize, mbasic, mmodes, w)
+            st = _step_from_flat(m, xx, nd, nk, h, warm_opt, w, rec, False, fp if sgn == 0 else fm)
+            if st == STEP_NEEDS_SPACE:
+                code = DIFF_SPACE
+            kept = st == STEP_OK and _same_structure(stats, rec.stats[0], tols[4] > 0.0)
+            if sgn == 0:
+                kept_p = kept
+            else:
+                kept_m = kept
+        xx[k] = x[k]
+        if code == DIFF_OK and not (kept_p or kept_m):
+            code = DIFF_STRUCTURE
+        if code != DIFF_OK:
+            break
+        sides[k] = SIDES_BOTH if kept_p and kept_m else (SIDE_RIGHT_ONLY if kept_p else SIDE_LEFT_ONLY)
+        for r in range(nout):
+            rate_p = (fp[r] - base[r]) / e
+            rate_m = (base[r] - fm[r]) / e
+            right[r, k] = rate_p if kept_p else rate_m
+            left[r, k] = rate_m if kept_m else rate_p
+    # the memory as the cold step at x left it (what `Simulator.step` leaves)
+    _restore_memory(msize, mbasic, mmodes, w)
+    unflatten_state(base, nd, nk, q1, v1, qk1)
+    return code
+
+
 @njit(cache=True)
 def _compiled_recording(nsteps, ndyn, nkin):
     """`make_recording`'s Recording without contacts or rows, made in compiled code."""

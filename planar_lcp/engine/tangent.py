@@ -8,7 +8,8 @@ assembly of A and b, the impulses' velocity change M^-1 G z and the integration)
 for the contacts and islands fixed; `step_tangent` takes their derivatives with z held by central differences of
 that smooth part alone (no LCP is solved there: two evaluations per input, along the smooth part's own inputs,
 SMOOTH_*, the velocities' without contact detection; the velocities' in closed form where the smooth part is linear
-in them, without restitution or a limit surface in any island: `_velocity_columns`; none for the pose of a body
+in them: the dynamic bodies' without restitution or a limit surface in any island, `_dynamic_velocity_columns`, the
+kinematic bodies' without restitution, `_kinematic_velocity_columns`; none for the pose of a body
 in no contact and clear of every shape pair, which moves nothing there but its own end pose: `_untouched_bodies`,
 `_clear_of_pairs`), and adds the LCP's through one solve with A_BB at the state.
 Only the rows of A and b that depend on the state enter: the Delassus part G^T M^-1 G z + b over the force unknowns
@@ -408,14 +409,12 @@ def _smooth_part(m, h, w, vk, nisl, ncon, z, zoff, q, qk_out, r, out, dv):
 
 
 @njit(cache=True)
-def _velocity_columns(m, h, w, nd, nk, nisl, ncon, zoff, rows, dr, jy):
-    """The smooth part's velocity columns where it is linear in the velocities (`step_tangent`: the position form,
-    no restitution, no limit surface), at x's contacts and poses, into dr and jy (the SMOOTH_VELOCITY and
-    SMOOTH_KIN_VELOCITY columns, in the state's layout): a body's velocity v_s moves v_tilde and the position form's
-    v_hat alike, so a normal row (phi/h + n.(v_tilde - v_hat)) stays and a friction or support row moves by its
-    column's entry (g_u . e); a kinematic body's velocity moves a friction row by its point velocity along the ray
-    (`kinematic_velocity_along`, linear in vk: taken at unit velocities); v+ = v_tilde + M^-1 G z moves by e and
-    q+ by h e. rows: scratch, an entry per LCP unknown."""
+def _dynamic_velocity_columns(m, h, w, nd, nk, nisl, ncon, zoff, rows, dr, jy):
+    """The smooth part's dynamic velocity columns where it is linear in them (`step_tangent`: the position form, no
+    restitution, no limit surface), at x's contacts and poses, into dr and jy (the SMOOTH_VELOCITY columns, in the
+    state's layout): a body's velocity v_s moves v_tilde and the position form's v_hat alike, so a normal row
+    (phi/h + n.(v_tilde - v_hat)) stays and a friction or support row moves by its column's entry (g_u . e);
+    v+ = v_tilde + M^-1 G z moves by e and q+ by h e. rows: scratch, an entry per LCP unknown."""
     k_sup = support_column_count(m)
     unit = np.zeros((nd, 3))
     unit_k = np.zeros((nk, 3))
@@ -432,6 +431,23 @@ def _velocity_columns(m, h, w, nd, nk, nisl, ncon, zoff, rows, dr, jy):
                 for u in range(first, last):
                     dr[o + u, 3 * nd + 3 * d + c] = column_dot(w.column_slot, w.column_g, u, unit)
                 unit[d, c] = 0.0
+    for d in range(nd):
+        for c in range(3):
+            jy[3 * d + c, 3 * nd + 3 * d + c] = h
+            jy[3 * nd + 3 * d + c, 3 * nd + 3 * d + c] = 1.0
+
+
+@njit(cache=True)
+def _kinematic_velocity_columns(m, w, nd, nk, nisl, ncon, zoff, dr):
+    """The smooth part's kinematic velocity columns in the rows where it is linear in them (`step_tangent`: the
+    position form, no restitution), at x's contacts and poses (w.body_pose), into dr (the SMOOTH_KIN_VELOCITY
+    columns): a kinematic body's velocity moves a friction row by its point velocity along the ray
+    (`kinematic_velocity_along`, linear in vk: taken at unit velocities) and no other row; the outputs not at all
+    (its end pose qk+ = qk + h vk is SMOOTH_KIN_POSE's column, `_state_columns`)."""
+    unit_k = np.zeros((nk, 3))
+    for isl in range(nisl):
+        o = zoff[isl]
+        nci, nsi = island_members(m, w, isl, ncon)
         f = 0
         for a in range(nci):
             j = w.island_con[a]
@@ -447,10 +463,6 @@ def _velocity_columns(m, h, w, nd, nk, nisl, ncon, zoff, rows, dr, jy):
                     unit_k[kk, c] = 0.0
                     dr[u, 6 * nd + 3 * nk + 3 * kk + c] = vt
                     dr[u + 1, 6 * nd + 3 * nk + 3 * kk + c] = -vt
-    for d in range(nd):
-        for c in range(3):
-            jy[3 * d + c, 3 * nd + 3 * d + c] = h
-            jy[3 * nd + 3 * d + c, 3 * nd + 3 * d + c] = 1.0
 
 
 @njit(cache=True)
@@ -603,14 +615,18 @@ def _island_bases(m, h, w, vk, nisl, ncon, zoff, mbasic, res_tol, z, lu, perm, a
 
 @njit(cache=True)
 def _linear_in_velocities(m, w, nisl, ncon):
-    """Whether the smooth part is linear in the velocities (`_velocity_columns`): no island with restitution (its
-    rows' max and min) or on a limit surface (its re-centred columns turn with the velocity)."""
+    """Whether the smooth part is linear in the dynamic bodies' velocities (`_dynamic_velocity_columns`): no island
+    with restitution (its rows' max and min) or on a limit surface (its re-centred columns turn with the velocity);
+    and in the kinematic ones' (`_kinematic_velocity_columns`): no island with restitution (a kinematic body's
+    velocity enters only the friction rows otherwise, the limit surfaces holding dynamic bodies alone)."""
+    dynamic, kinematic = True, True
     for isl in range(nisl):
         nci, nsi = island_members(m, w, isl, ncon)
-        if (island_is_elastic(m, w.island_con, nci, w.con_pair)
-                or (nsi > 0 and m.support_model == SUPPORT_LIMIT_SURFACE)):
-            return False
-    return True
+        if island_is_elastic(m, w.island_con, nci, w.con_pair):
+            dynamic, kinematic = False, False
+        elif nsi > 0 and m.support_model == SUPPORT_LIMIT_SURFACE:
+            dynamic = False
+    return dynamic, kinematic
 
 
 @njit(cache=True)
@@ -717,11 +733,12 @@ def _clear_of_pairs(m, w, nd, steps, margin, kinematic_only, untouched_dyn, unto
 
 @njit(cache=True)
 def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, nisl, ncon, z, zoff, r0, f0, derived,
-                    linear_velocities, untouched_dyn, untouched_kin, resting_dyn, dr, jy):
+                    linear_dyn, linear_kin, untouched_dyn, untouched_kin, resting_dyn, dr, jy):
     """The smooth part's columns (z held) into dr (its rows) and jy (its outputs), by central differences along
     each of its inputs, +- eps_k (steps[0]), from x's (q, v, qk, vk; its contacts' pairs and points in w, the rows
-    r0 and outputs f0 there): the velocities' first (on x's contacts and poses; none where `linear_velocities`,
-    `_velocity_columns` gives them), the kinematic ones before the dynamic ones' (which move the limit surfaces'
+    r0 and outputs f0 there): the velocities' first (on x's contacts and poses; none where the smooth part is
+    linear in them, `linear_dyn` and `linear_kin`: `_dynamic_velocity_columns` and `_kinematic_velocity_columns`
+    give them), the kinematic ones before the dynamic ones' (which move the limit surfaces'
     re-centred columns), then the poses' (each with its contacts and the end-of-step check, the re-centred columns
     where they move); none for the `derived` pose columns, nor for an untouched body's pose (no contact, clear of
     every pair: `_untouched_bodies`, `_clear_of_pairs`), which moves none of the rows nor the outputs but a kinematic
@@ -744,7 +761,7 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
     dv = np.empty((nd, 3))
     at_x = True                        # w.sup_recentred holds x's re-centred columns
     for t in range(K):
-        if linear_velocities and t < 3 * nk + 3 * nd:
+        if (linear_kin and t < 3 * nk) or (linear_dyn and 3 * nk <= t < 3 * nk + 3 * nd):
             continue
         if t < 3 * nk:
             k = 6 * nd + 3 * nk + t                                      # kinematic velocities
@@ -1026,17 +1043,19 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     derived = -1
     if translation_free(m):
         derived = 6 * nd + 3 * (nk - 1) if nk > 0 else 3 * (nd - 1)
-    linear_velocities = _linear_in_velocities(m, w, nisl, ncon)
+    linear_dyn, linear_kin = _linear_in_velocities(m, w, nisl, ncon)
     code = _smooth_columns(m, h, cold_opt, w, qa, va, qka, vka, qk_out, scratch, steps, tols, nisl, ncon, z, zoff, r0,
-                           f0, derived, linear_velocities, untouched_dyn, untouched_kin, resting_dyn, dr, jy)
+                           f0, derived, linear_dyn, linear_kin, untouched_dyn, untouched_kin, resting_dyn, dr, jy)
     if code != DIFF_OK:
         return _give_way(msize, mbasic, mmodes, w, code)
     if derived >= 0:
         _derived_columns(derived, nd, nk, dr, jy)
     # the LCP's part at x's contacts, and the velocities' columns where they are in closed form
     _contacts_at(m, h, cold_opt, w, x, nd, nk, qa, va, qka, vka, qk_out, scratch)
-    if linear_velocities:
-        _velocity_columns(m, h, w, nd, nk, nisl, ncon, zoff, np.empty(N), dr, jy)
+    if linear_dyn:
+        _dynamic_velocity_columns(m, h, w, nd, nk, nisl, ncon, zoff, np.empty(N), dr, jy)
+    if linear_kin:
+        _kinematic_velocity_columns(m, w, nd, nk, nisl, ncon, zoff, dr)
     if any_resting:
         _hold_resting(m, w, nd, zoff, resting_dyn, dr, jy)
     if not _lcp_columns(m, h, w, vka, nd, nisl, ncon, zoff, lu, perm, solve, solve_row, held, basic, degenerate, exempt,

@@ -593,6 +593,8 @@ def test_warmup(tmp_path, cold_demo):
         from planar_lcp.spec.scene import load_scene
         sim = Simulator(compile_scene(load_scene("box_push")), SimOptions())
         sim.step_derivatives(*sim.initial_state(), method="differences")
+        from planar_lcp.derivatives.differences import one_sided_differences
+        one_sided_differences(sim, *(np.ascontiguousarray(a, dtype=float) for a in sim.initial_state()))
         print(json.dumps(compiled))
     """), cache)
     assert compiled == [], sorted(set(compiled))

@@ -18,8 +18,10 @@ def test_refine_shortens_the_pushers_path_and_keeps_the_plan_exact(tip_plan, tmp
     assert info["before"] == pytest.approx(pusher_path_length(plan.controls, plan.durations), rel=1e-12)
     assert info["after"] == pytest.approx(pusher_path_length(r.controls, r.durations), rel=1e-12)
     assert info["after"] < info["before"]
-    # every gradient a rollout's derivatives over the plan's steps, most of them by the checked differences
-    assert info["derivative_steps"] >= plan.steps.sum() and 0 <= info["dual_steps"] < info["derivative_steps"] / 2
+    # every gradient a rollout's derivatives over the plan's steps, most of them by the checked differences, the
+    # others by the one-sided differences (a switch at the state) before the dual numbers
+    assert info["derivative_steps"] >= plan.steps.sum()
+    assert 0 <= info["dual_steps"] <= info["one_sided_steps"] + info["dual_steps"] < info["derivative_steps"] / 2
     # the same steps and durations; every control within the task's bound
     np.testing.assert_array_equal(r.steps, plan.steps)
     assert np.max(np.abs(r.controls)) <= plan.task.control_max
