@@ -15,9 +15,10 @@ two sides and `degenerate` says where and why.
 With method="differences" the step's checked central differences answer instead, in one compiled call
 (differences.py: tens of times faster, about 1e-6 of the Jacobian's scale), where their checks say they stand for
 the derivatives; elsewhere the dual numbers do. With method="one_sided" the same, but where the checked differences
-find a switch at the state the compiled step's one-sided differences answer (not exact, about 1e-6 of the one-sided
-derivatives; `degenerate` names the inputs, not the contact), the dual numbers only where those fail too: for
-gradients whose use checks its own outcome (planners.refine), at a tenth of the dual numbers' time or less.
+find a switch at the state the compiled step's one-sided differences answer (not exact; near the one-sided
+derivatives where no second switch lies within their step, docs/method.md; `degenerate` names the inputs, not the
+contact), the dual numbers only where those fail too: compiled, two steps per input, for gradients whose use checks
+its own outcome (planners.refine).
 
 Scene parameters are named as `planar_lcp.fit` names them (`world.friction`, `world.restitution`,
 `bodies.NAME.mass`, `bodies.NAME.inertia`, `bodies.NAME.support_friction`, `friction_pairs.A.B`,

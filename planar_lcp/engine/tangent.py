@@ -260,7 +260,8 @@ def _segments_leave_velocities(afull, basic, degenerate, unpinned, o, n, nci, nf
             pos[i] = ns
             ns += 1
             npin += not unpinned[i]
-    if ns == 0:
+    if ns == 0 or npin == ns:
+        # no sliding element's friction among them: A's null space is the pinned columns' own (a box at rest)
         return True
     a = np.empty((ns, ns))
     pinned = np.empty((ns, npin))

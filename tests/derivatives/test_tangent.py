@@ -188,9 +188,10 @@ def test_the_pivots_pick_a_nonsingular_part_of_the_rank():
 @pytest.mark.parametrize("name", ["falling_rod", "four_disks", "box_tip", "bouncing_disk", "box_push"])
 def test_the_velocity_columns_agree_with_the_dual_numbers_to_round_off(name):
     """The velocities' columns (d/dv, d/dvk): in closed form where the smooth part is linear in the velocities
-    (`_velocity_columns`: falling_rod, four_disks, box_tip), by the smooth part's differences with restitution
-    (bouncing_disk) or a limit surface (box_push); within 1e-9 of the dual numbers' either way (the whole Jacobian's
-    tolerance is TANGENT_RTOL, the pose columns' differences)."""
+    (`_dynamic_velocity_columns`, `_kinematic_velocity_columns`: falling_rod, four_disks, box_tip; box_push's
+    pusher), by the smooth part's differences with restitution (bouncing_disk) or a limit surface (box_push's box);
+    within 1e-9 of the dual numbers' either way (the whole Jacobian's tolerance is TANGENT_RTOL, the pose columns'
+    differences)."""
     sim, state = bench_state(name)
     nd, nk = len(state[0]), len(state[2])
     code, jac = tangent(sim, *state)
