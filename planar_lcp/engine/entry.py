@@ -2,11 +2,12 @@
 
 numba's dispatcher types every argument of every call to choose the compiled overload: arrays and scalars in C, the
 kernels' options (namedtuples) and structs through Python, a part of a small scene's derivatives call that matters
-where their cost is counted in steps (docs/performance.md, "The step's derivatives"). `EntryPoints.call` calls a kernel through the dispatcher the first time, then through the entry
-point of the overload that call chose (numba's `overloads[signature].entry_point`, which converts the arguments by
-that signature without typing them). Its caller keeps the arguments' types: a simulator's own structs and options,
-float64 C-contiguous arrays of fixed dimensions and a float step. Where the kernels are not compiled
-(NUMBA_DISABLE_JIT=1: no overloads) every call goes to the kernel.
+where their cost is counted in steps (docs/performance.md, "The step's derivatives"). `EntryPoints.call` calls a
+kernel through the dispatcher the first time, then through the entry point of the overload that call chose
+(numba's `overloads[signature].entry_point`, which converts the arguments by that signature without typing them).
+Its caller keeps the arguments' types: a simulator's own structs and options, float64 C-contiguous arrays of fixed
+dimensions and a float step. Where the kernels are not compiled (NUMBA_DISABLE_JIT=1: no overloads) every call goes
+to the kernel.
 """
 
 
