@@ -34,11 +34,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planar_lcp.derivatives import forward
-from planar_lcp.derivatives.differences import (DIFF_FLOOR, DIFF_KINK_RTOL, checked_differences, one_sided_differences,
-                                                param_differences)
+from planar_lcp.derivatives.differences import checked_differences, one_sided_differences, param_differences
 from planar_lcp.derivatives.dual import Dual, grads, values, with_derivatives
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.rollout import DIFF_NONFINITE, DIFF_REASONS, SIDES_BOTH
+from planar_lcp.engine.rollout import DIFF_NONFINITE, DIFF_REASONS, SIDE_LEFT_ONLY, SIDE_RIGHT_ONLY, SIDES_DIFFER
 from planar_lcp.engine.step import FORM_VELOCITY, STEP_LCP_FAILED, STEP_NONFINITE, STEP_OK
 from planar_lcp.errors import SimulationError
 
@@ -541,15 +540,14 @@ def _one_sided(sim, model, q, v, qk, vk, why):
     (q1, v1, qk1), right, left, sides = got
     nd, nk = model.ndyn, model.nkin
     names = _input_names(nd, nk, ())
-    big = np.maximum(np.max(np.abs(right), axis=0, initial=0.0), np.max(np.abs(left), axis=0, initial=0.0))
-    differ = np.max(np.abs(right - left), axis=0, initial=0.0) > DIFF_KINK_RTOL * np.maximum(big, DIFF_FLOOR)
+    differ = sides == SIDES_DIFFER
     degenerate = []
     if differ.any():
         degenerate.append(Degenerate("sides", ", ".join(names[k] for k in np.flatnonzero(differ)),
                                      "the step's one-sided differences along these inputs differ: it is not "
                                      "differentiable there (method=\"dual\" names the contact and gives its one-sided "
                                      "derivatives exactly)"))
-    one = np.flatnonzero(sides != SIDES_BOTH)
+    one = np.flatnonzero((sides == SIDE_RIGHT_ONLY) | (sides == SIDE_LEFT_ONLY))
     if one.size:
         degenerate.append(Degenerate("structure", ", ".join(names[k] for k in one),
                                      "a step a difference's length away on one side of these inputs has other "
@@ -656,7 +654,8 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
                                      "no LCP (PGS after a failed solve): complementarity not checked"))
     if rec.unsolved:
         degenerate.append(Degenerate("complementarity", "the step", f"{rec.unsolved} derivative LCP(s) without a "
-                                     "solution: there the derivatives hold the positive impulses' rows, the degenerate ones at zero"))
+                                     "solution: there the derivatives hold the positive impulses' rows, the "
+                                     "degenerate ones at zero"))
     for A, b, z, beta, layout, nonunique in rec.solves:
         for idx in nonunique:
             degenerate.append(Degenerate("non-unique", ", ".join(_lcp_index_name(model, layout, i) for i in idx),

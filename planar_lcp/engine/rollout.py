@@ -419,6 +419,38 @@ def cold_step_at(m, h, cold_opt, w, q, v, qk, vk, step, stats):
 
 
 @njit(cache=True)
+def _perturbed_step(m, h, warm_opt, w, rec, xx, k, xk, memory, stats, tols, f):
+    """One of the differences' steps: the inputs xx with xx[k] = xk, warm-started (warm_opt) on the cold step's final
+    bases (memory: msize, mbasic, mmodes, put back into the work first), its (q+, v+, qk+) flattened into f.
+    Returns DIFF_OK where it keeps the cold step's structure (stats: `_same_structure`, the fixed-point iteration
+    count free where tols[4] > 0), DIFF_SPACE where it needs larger dense buffers, else DIFF_STRUCTURE."""
+    msize, mbasic, mmodes = memory
+    xx[k] = xk
+    _restore_memory(msize, mbasic, mmodes, w)
+    st = _step_from_flat(m, xx, rec.q.shape[1], rec.qk.shape[1], h, warm_opt, w, rec, False, f)
+    if st == STEP_NEEDS_SPACE:
+        return DIFF_SPACE
+    if st != STEP_OK or not _same_structure(stats, rec.stats[0], tols[4] > 0.0):
+        return DIFF_STRUCTURE
+    return DIFF_OK
+
+
+@njit(cache=True)
+def _sides_differ(fp, fm, base, e, tols):
+    """The differences' kink test along one input: its one-sided differences from the cold answer base,
+    (fp - base) / e and (base - fm) / e, differ by more than tols[1] (DIFF_KINK_RTOL) of their largest entry (at
+    least tols[3], DIFF_FLOOR). A kink, or warm-started answers that differ from the cold one at x (an offset), make
+    them differ."""
+    big = 0.0
+    gap = 0.0
+    for r in range(base.shape[0]):
+        right, left = (fp[r] - base[r]) / e, (base[r] - fm[r]) / e
+        big = max(big, abs(right), abs(left))
+        gap = max(gap, abs(right - left))
+    return gap > tols[1] * max(big, tols[3])
+
+
+@njit(cache=True)
 def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, qk1, stats):
     """The central differences of the step at the state (q, v, qk, vk) along +- eps_k e_k for each of its K inputs
     (x: q, v, qk, vk flattened row-major; eps_k = tols[0] max(1, |x_k|)), each step warm-started (warm_opt) on the
@@ -436,35 +468,18 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
     msize, mbasic, mmodes = memory
     xx = x.copy()
     fp, fm = np.empty(nout), np.empty(nout)
-    rtol_kink, floor = tols[1], tols[3]
     code = DIFF_OK
     for k in range(K):
         e = steps[0, k]
-        for sgn in range(2):
-            xx[k] = x[k] + e if sgn == 0 else x[k] - e
-            _restore_memory(msize, mbasic, mmodes, w)
-            st = _step_from_flat(m, xx, nd, nk, h, warm_opt, w, rec, False, fp if sgn == 0 else fm)
-            if st == STEP_NEEDS_SPACE:
-                code = DIFF_SPACE
-            elif st != STEP_OK:
-                code = DIFF_STRUCTURE
-            elif not _same_structure(stats, rec.stats[0], tols[4] > 0.0):
-                code = DIFF_STRUCTURE
-            if code != DIFF_OK:
-                break
+        code = _perturbed_step(m, h, warm_opt, w, rec, xx, k, x[k] + e, memory, stats, tols, fp)
+        if code == DIFF_OK:
+            code = _perturbed_step(m, h, warm_opt, w, rec, xx, k, x[k] - e, memory, stats, tols, fm)
         xx[k] = x[k]
         if code != DIFF_OK:
             break
-        big = 0.0
-        gap = 0.0
         for r in range(nout):
             jac[r, k] = (fp[r] - fm[r]) / (2.0 * e)
-            # one-sided differences from the cold answer: a kink, or warm-started answers that differ from the
-            # cold one at x (an offset), make them differ
-            right, left = (fp[r] - base[r]) / e, (base[r] - fm[r]) / e
-            big = max(big, abs(right), abs(left))
-            gap = max(gap, abs(right - left))
-        if gap > rtol_kink * max(big, floor):
+        if _sides_differ(fp, fm, base, e, tols):
             code = DIFF_KINK
             break
     # the memory as the cold step at x left it (what `Simulator.step` leaves)
@@ -475,11 +490,13 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
                                  q1, v1, qk1)
 
 
-#: which one-sided differences `step_one_sided` took along an input: both, or one side only (the step on the other
-#: has another structure than the cold step's: `_same_structure`)
+#: which one-sided differences `step_one_sided` took along an input: both, agreeing or differing (the kink test,
+#: `_sides_differ`), or one side only (the step on the other has another structure than the cold step's:
+#: `_same_structure`)
 SIDES_BOTH = 0
 SIDE_RIGHT_ONLY = 1
 SIDE_LEFT_ONLY = 2
+SIDES_DIFFER = 3
 
 
 @njit(cache=True)
@@ -489,7 +506,8 @@ def step_one_sided(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, right, left,
     right and left (6 nd + 3 nk, K) the differences (f(x + eps_k e_k) - f(x)) / eps_k and (f(x) - f(x - eps_k e_k)) /
     eps_k from the cold answer f(x). Where the step on one side fails or has another structure than the cold step's
     (`_same_structure`: a contact that appears, an active-set re-solve: the step may jump there), both are the other
-    side's, and sides[k] says which were taken (SIDES_BOTH, SIDE_RIGHT_ONLY, SIDE_LEFT_ONLY). The cold step's state
+    side's, and sides[k] says which were taken (SIDES_BOTH, SIDES_DIFFER where the two differ by the checked
+    differences' kink test, SIDE_RIGHT_ONLY, SIDE_LEFT_ONLY). The cold step's state
     into q1, v1, qk1 and its stats into stats. Returns DIFF_OK, or DIFF_FAILED, DIFF_NONFINITE, DIFF_SPACE, or
     DIFF_STRUCTURE where neither side of an input keeps the cold step's structure. The warm-start memory is left as
     the cold step left it."""
@@ -503,24 +521,20 @@ def step_one_sided(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, right, left,
     fp, fm = np.empty(nout), np.empty(nout)
     for k in range(K):
         e = steps[0, k]
-        kept_p, kept_m = False, False
-        for sgn in range(2):
-            xx[k] = x[k] + e if sgn == 0 else x[k] - e
-            _restore_memory(msize, mbasic, mmodes, w)
-            st = _step_from_flat(m, xx, nd, nk, h, warm_opt, w, rec, False, fp if sgn == 0 else fm)
-            if st == STEP_NEEDS_SPACE:
-                code = DIFF_SPACE
-            kept = st == STEP_OK and _same_structure(stats, rec.stats[0], tols[4] > 0.0)
-            if sgn == 0:
-                kept_p = kept
-            else:
-                kept_m = kept
+        got_p = _perturbed_step(m, h, warm_opt, w, rec, xx, k, x[k] + e, memory, stats, tols, fp)
+        got_m = _perturbed_step(m, h, warm_opt, w, rec, xx, k, x[k] - e, memory, stats, tols, fm)
         xx[k] = x[k]
-        if code == DIFF_OK and not (kept_p or kept_m):
+        kept_p, kept_m = got_p == DIFF_OK, got_m == DIFF_OK
+        if got_p == DIFF_SPACE or got_m == DIFF_SPACE:
+            code = DIFF_SPACE
+        elif not (kept_p or kept_m):
             code = DIFF_STRUCTURE
         if code != DIFF_OK:
             break
-        sides[k] = SIDES_BOTH if kept_p and kept_m else (SIDE_RIGHT_ONLY if kept_p else SIDE_LEFT_ONLY)
+        if kept_p and kept_m:
+            sides[k] = SIDES_DIFFER if _sides_differ(fp, fm, base, e, tols) else SIDES_BOTH
+        else:
+            sides[k] = SIDE_RIGHT_ONLY if kept_p else SIDE_LEFT_ONLY
         for r in range(nout):
             rate_p = (fp[r] - base[r]) / e
             rate_m = (base[r] - fm[r]) / e

@@ -60,8 +60,8 @@ from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STAT
 from planar_lcp.engine.contacts import body_poses, pair_contacts
 from planar_lcp.engine.islands import island_members
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.rollout import (DIFF_MOVES, DIFF_OK, _restore_memory, cold_step_at, mixed_direction_check,
-                                       unflatten_inputs)
+from planar_lcp.engine.rollout import (DIFF_MOVES, DIFF_OK, _restore_memory, _sides_differ, cold_step_at,
+                                       mixed_direction_check, unflatten_inputs)
 from planar_lcp.engine.step import (FORM_POSITION, begin_step, check_end_configuration, kinematic_linearization,
                                     prepare_contacts)
 
@@ -637,7 +637,8 @@ def _untouched_bodies(m, w, ncon, untouched_dyn, untouched_kin, resting_dyn):
     table (support elements) is untouched only where it rests there (resting_dyn): its free-motion velocity below
     REST_SPEED in every component and every support element able to hold it (friction and load positive), so that
     the table holds it at rest whichever way its state moves: its q+ is its q, its v+ zero, and nothing else
-    depends on it."""
+    depends on it. resting_dyn is the table's verdict alone: a resting body is one also left untouched here and by
+    `_clear_of_pairs` (step_tangent joins the two after both)."""
     for d in range(untouched_dyn.shape[0]):
         untouched_dyn[d] = True
         resting_dyn[d] = False
@@ -665,8 +666,6 @@ def _untouched_bodies(m, w, ncon, untouched_dyn, untouched_kin, resting_dyn):
         p = w.con_pair[j]
         _mark_touched(m, m.shape_body[m.pair_a[p]], untouched_dyn, untouched_kin)
         _mark_touched(m, m.shape_body[m.pair_b[p]], untouched_dyn, untouched_kin)
-    for d in range(untouched_dyn.shape[0]):
-        resting_dyn[d] = resting_dyn[d] and untouched_dyn[d]
 
 
 @njit(cache=True, inline='always')
@@ -746,12 +745,11 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
     body's own qk+, nor for an untouched kinematic body's velocity in the rows (in no row: zero), nor for a resting
     body's velocity (`_hold_resting` writes its columns). Returns DIFF_OK, TANGENT_CONTACTS (an evaluation with
     other contacts, or whose end-of-step check adds a pair) or TANGENT_KINK (one-sided differences that differ by
-    more than tols[1] of their scale, at least tols[3])."""
+    more than tols[1] of their scale, at least tols[3]: the checked differences' kink test, `_sides_differ`)."""
     nd, nk = q.shape[0], qk.shape[0]
     K = steps.shape[1]
     N = zoff[nisl]
     nout = f0.shape[0]
-    rtol_kink, floor = tols[1], tols[3]
     pairs = w.con_pair[:ncon].copy()
     points = w.con_p[:ncon].copy()
     order = np.empty(ncon, np.int64)
@@ -811,24 +809,13 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
                          fp if sgn == 0 else fm, dv)
             if pose and check_end_configuration(m, w, opt, qk_out, scratch) != 0:
                 return TANGENT_CONTACTS
-        # one-sided differences of the smooth part, its rows and its outputs each against their own scale
-        code = DIFF_OK
-        for part in range(2):
-            big = 0.0
-            gap = 0.0
-            for r in range(N if part == 0 else nout):
-                p0 = r0[r] if part == 0 else f0[r]
-                pp = rp[r] if part == 0 else fp[r]
-                pm = rm[r] if part == 0 else fm[r]
-                right, left = (pp - p0) / e, (p0 - pm) / e
-                big = max(big, abs(right), abs(left))
-                gap = max(gap, abs(right - left))
-                if part == 0:
-                    dr[r, k] = (pp - pm) / (2.0 * e)
-                else:
-                    jy[r, k] = (pp - pm) / (2.0 * e)
-            if gap > rtol_kink * max(big, floor):
-                code = TANGENT_KINK
+        for r in range(N):
+            dr[r, k] = (rp[r] - rm[r]) / (2.0 * e)
+        for r in range(nout):
+            jy[r, k] = (fp[r] - fm[r]) / (2.0 * e)
+        # the kink test on the smooth part's one-sided differences, its rows and its outputs each against their own
+        # scale
+        code = TANGENT_KINK if _sides_differ(rp, rm, r0, e, tols) or _sides_differ(fp, fm, f0, e, tols) else DIFF_OK
         if code != DIFF_OK:
             return code
     return DIFF_OK
@@ -1019,7 +1006,8 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     degenerate = np.zeros(N, np.bool_)
     solve = np.zeros(N, np.bool_)      # the basis each island's LCP part solves with: basic, and the sticking rays
     solve_row = np.zeros(N, np.bool_)  # its rows (`solve` where its matrix is nonsingular)
-    held = np.zeros(N, np.bool_)       # the basis's rows left out of the solve: they hold by themselves, or it gives way
+    # the basis's rows left out of the solve: they hold by themselves, or it gives way
+    held = np.zeros(N, np.bool_)
     exempt = np.zeros(N, np.bool_)     # degenerate indices that may move: sticking and separating contacts' friction
     if not _island_bases(m, h, w, vka, nisl, ncon, zoff, mbasic, cold_opt.res_tol, z, lu, perm, afull, basic,
                          degenerate, solve, solve_row, held, exempt):
