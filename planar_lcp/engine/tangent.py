@@ -11,7 +11,9 @@ SMOOTH_*, the velocities' without contact detection; the velocities' in closed f
 in them: the dynamic bodies' without restitution or a limit surface in any island, `_dynamic_velocity_columns`, the
 kinematic bodies' without restitution, `_kinematic_velocity_columns`; none for the pose of a body
 in no contact and clear of every shape pair, which moves nothing there but its own end pose: `_untouched_bodies`,
-`_clear_of_pairs`), and adds the LCP's through one solve with A_BB at the state.
+`_clear_of_pairs`, nor for the angle of a body whose shapes are disks about its centre of mass, whose geometry a
+turn leaves as it is: `_turn_free_bodies`, and one translation's for a body touching only half-planes of one normal,
+which it glides along: `_glide_columns`), and adds the LCP's through one solve with A_BB at the state.
 Only the rows of A and b that depend on the state enter: the Delassus part G^T M^-1 G z + b over the force unknowns
 (computed as G^T (M^-1 (G z)), linear in the unknowns), the friction and slack rows being constant.
 
@@ -124,6 +126,27 @@ def translation_free(m):
                 or m.body_kind[m.shape_body[m.pair_b[p]]] == BODY_STATIC):
             return False
     return True
+
+
+@njit(cache=True)
+def _turn_free_bodies(m, turn_free_dyn, turn_free_kin):
+    """Which dynamic and kinematic bodies (by slot) a turn moves nothing of but their own angle: every shape a disk
+    (a core of one vertex, inflated) centred on the body's origin, and no table support element (its support points
+    turn with it). Their contacts' points, normals and gaps, hence the rows and the impulses' arms, follow the
+    centre alone, so the smooth part's column along their angle is zero (a kinematic body's, one on its own qk+)."""
+    for d in range(turn_free_dyn.shape[0]):
+        turn_free_dyn[d] = True
+    for kk in range(turn_free_kin.shape[0]):
+        turn_free_kin[kk] = True
+    for s in range(m.shape_body.shape[0]):
+        if m.shape_kind[s] == SHAPE_HALFPLANE:
+            continue
+        a = m.shape_vert_adr[s]
+        disk = m.shape_vert_num[s] == 1 and m.vert_local[a, 0] == 0.0 and m.vert_local[a, 1] == 0.0
+        if not disk:
+            _mark_touched(m, m.shape_body[s], turn_free_dyn, turn_free_kin)
+    for e in range(m.sup_dyn.shape[0]):
+        turn_free_dyn[m.sup_dyn[e]] = False
 
 
 @njit(cache=True)
@@ -732,8 +755,81 @@ def _clear_of_pairs(m, w, nd, steps, margin, kinematic_only, untouched_dyn, unto
 
 
 @njit(cache=True)
+def _glide_axes(m, w, nd, ncon, steps, margin, glide_axis, glide_ratio):
+    """The dynamic bodies that glide: every contact of theirs at x (w.con_*) with a half-plane, all of one normal n,
+    no forced pair, and every pair of theirs with another shape clear (no contact within margin plus
+    CLEARANCE_FACTOR times the translations' difference step, at the poses in w.vert_world). Moving such a body
+    along the planes, t = (-n_y, n_x), moves none of its contacts' gaps, normals or arms, so the smooth part's rows
+    and outputs stay as they are: J_x t_x + J_y t_y = 0 for its pose columns. glide_axis[d]: the axis b whose
+    column follows from the other's, a (|t_b| the larger), J_b = glide_ratio[d] J_a with glide_ratio[d] = -t_a / t_b
+    (zero on a horizontal or vertical plane); -1 where the body does not glide."""
+    normal = np.zeros((nd, 2))
+    touches = np.zeros(nd, np.bool_)
+    glides = np.ones(nd, np.bool_)
+    for j in range(ncon):
+        p = w.con_pair[j]
+        sa, sb = m.pair_a[p], m.pair_b[p]
+        for side in range(2):
+            s_own, s_other = (sa, sb) if side == 0 else (sb, sa)
+            b = m.shape_body[s_own]
+            if m.body_kind[b] != BODY_DYNAMIC:
+                continue
+            d = m.body_slot[b]
+            if m.shape_kind[s_other] != SHAPE_HALFPLANE:
+                glides[d] = False
+            elif not touches[d]:
+                touches[d] = True
+                normal[d, 0], normal[d, 1] = m.hp_normal_w[s_other, 0], m.hp_normal_w[s_other, 1]
+            elif normal[d, 0] != m.hp_normal_w[s_other, 0] or normal[d, 1] != m.hp_normal_w[s_other, 1]:
+                glides[d] = False
+    for d in range(nd):
+        glides[d] = glides[d] and touches[d]
+    for p in range(m.pair_a.shape[0]):
+        sa, sb = m.pair_a[p], m.pair_b[p]
+        for side in range(2):
+            s_own, s_other = (sa, sb) if side == 0 else (sb, sa)
+            b = m.shape_body[s_own]
+            if m.body_kind[b] != BODY_DYNAMIC or not glides[m.body_slot[b]]:
+                continue
+            d = m.body_slot[b]
+            if w.pair_forced[p]:
+                glides[d] = False
+            elif m.shape_kind[s_other] == SHAPE_HALFPLANE and (
+                    m.hp_normal_w[s_other, 0] == normal[d, 0] and m.hp_normal_w[s_other, 1] == normal[d, 1]):
+                continue                                 # its gaps to a plane of the same normal stay as they are
+            else:
+                room = margin + CLEARANCE_FACTOR * max(steps[0, 3 * d], steps[0, 3 * d + 1])
+                if pair_contacts(m, w.vert_world, p, room, False, w.pair_phi, w.pair_n, w.pair_p) > 0:
+                    glides[d] = False
+    for d in range(nd):
+        glide_axis[d] = -1
+        glide_ratio[d] = 0.0
+        if glides[d]:
+            tx, ty = -normal[d, 1], normal[d, 0]
+            if abs(tx) >= abs(ty):
+                glide_axis[d], glide_ratio[d] = 0, -ty / tx
+            else:
+                glide_axis[d], glide_ratio[d] = 1, -tx / ty
+
+
+@njit(cache=True)
+def _glide_columns(nd, glide_axis, glide_ratio, dr, jy):
+    """A gliding body's derived pose column (`_glide_axes`) from its other translation's."""
+    for d in range(nd):
+        b = glide_axis[d]
+        if b < 0:
+            continue
+        kb, ka = 3 * d + b, 3 * d + 1 - b
+        for r in range(dr.shape[0]):
+            dr[r, kb] = glide_ratio[d] * dr[r, ka]
+        for r in range(jy.shape[0]):
+            jy[r, kb] = glide_ratio[d] * jy[r, ka]
+
+
+@njit(cache=True)
 def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, nisl, ncon, z, zoff, r0, f0, derived,
-                    linear_dyn, linear_kin, untouched_dyn, untouched_kin, resting_dyn, dr, jy):
+                    linear_dyn, linear_kin, untouched_dyn, untouched_kin, resting_dyn, turn_free_dyn, turn_free_kin,
+                    glide_axis, dr, jy):
     """The smooth part's columns (z held) into dr (its rows) and jy (its outputs), by central differences along
     each of its inputs, +- eps_k (steps[0]), from x's (q, v, qk, vk; its contacts' pairs and points in w, the rows
     r0 and outputs f0 there): the velocities' first (on x's contacts and poses; none where the smooth part is
@@ -742,7 +838,9 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
     re-centred columns), then the poses' (each with its contacts and the end-of-step check, the re-centred columns
     where they move); none for the `derived` pose columns, nor for an untouched body's pose (no contact, clear of
     every pair: `_untouched_bodies`, `_clear_of_pairs`), which moves none of the rows nor the outputs but a kinematic
-    body's own qk+, nor for an untouched kinematic body's velocity in the rows (in no row: zero), nor for a resting
+    body's own qk+, nor for the angle of a body a turn leaves alike (`_turn_free_bodies`: the same), nor for a
+    gliding body's derived translation (`_glide_axes`: `_glide_columns` writes it after), nor for an
+    untouched kinematic body's velocity in the rows (in no row: zero), nor for a resting
     body's velocity (`_hold_resting` writes its columns). Returns DIFF_OK, TANGENT_CONTACTS (an evaluation with
     other contacts, or whose end-of-step check adds a pair) or TANGENT_KINK (one-sided differences that differ by
     more than tols[1] of their scale, at least tols[3]: the checked differences' kink test, `_sides_differ`)."""
@@ -776,8 +874,12 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
         c = k % 3
         if derived >= 0 and (k == derived or k == derived + 1):
             continue
+        if kind == SMOOTH_POSE and c == glide_axis[i]:
+            continue
+        turn_free = c == 2 and ((kind == SMOOTH_POSE and turn_free_dyn[i]) or (
+            kind == SMOOTH_KIN_POSE and turn_free_kin[i]))
         if ((kind == SMOOTH_POSE and untouched_dyn[i]) or (kind == SMOOTH_VELOCITY and resting_dyn[i]) or (
-                (kind == SMOOTH_KIN_POSE or kind == SMOOTH_KIN_VELOCITY) and untouched_kin[i])):
+                (kind == SMOOTH_KIN_POSE or kind == SMOOTH_KIN_VELOCITY) and untouched_kin[i]) or turn_free):
             if kind == SMOOTH_KIN_POSE:
                 jy[6 * nd + 3 * i + c, k] = 1.0
             continue
@@ -987,6 +1089,8 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     untouched_dyn, untouched_kin, resting_dyn = np.empty(nd, np.bool_), np.empty(nk, np.bool_), np.empty(nd, np.bool_)
     _untouched_bodies(m, w, ncon, untouched_dyn, untouched_kin, resting_dyn)
     _clear_of_pairs(m, w, nd, steps, cold_opt.margin, False, untouched_dyn, untouched_kin)
+    glide_axis, glide_ratio = np.empty(nd, np.int64), np.empty(nd)
+    _glide_axes(m, w, nd, ncon, steps, cold_opt.margin, glide_axis, glide_ratio)
     zoff = np.zeros(nisl + 1, np.int64)
     for isl in range(nisl):
         nci, nsi = island_members(m, w, isl, ncon)
@@ -1033,10 +1137,14 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     if translation_free(m):
         derived = 6 * nd + 3 * (nk - 1) if nk > 0 else 3 * (nd - 1)
     linear_dyn, linear_kin = _linear_in_velocities(m, w, nisl, ncon)
+    turn_free_dyn, turn_free_kin = np.empty(nd, np.bool_), np.empty(nk, np.bool_)
+    _turn_free_bodies(m, turn_free_dyn, turn_free_kin)
     code = _smooth_columns(m, h, cold_opt, w, qa, va, qka, vka, qk_out, scratch, steps, tols, nisl, ncon, z, zoff, r0,
-                           f0, derived, linear_dyn, linear_kin, untouched_dyn, untouched_kin, resting_dyn, dr, jy)
+                           f0, derived, linear_dyn, linear_kin, untouched_dyn, untouched_kin, resting_dyn, turn_free_dyn,
+                           turn_free_kin, glide_axis, dr, jy)
     if code != DIFF_OK:
         return _give_way(msize, mbasic, mmodes, w, code)
+    _glide_columns(nd, glide_axis, glide_ratio, dr, jy)
     if derived >= 0:
         _derived_columns(derived, nd, nk, dr, jy)
     # the LCP's part at x's contacts, and the velocities' columns where they are in closed form

@@ -316,3 +316,81 @@ def test_a_box_sliding_straight_along_a_fixed_twist_gives_way():
     ref = step_derivatives(sim, q, v, qk, vk)
     assert code == DIFF_OK and ref.exact
     assert relative_error(type(ref)(**{**ref.__dict__, "jacobian": jac}), ref) <= TANGENT_RTOL
+
+
+def pose_shortcuts(sim, q, v, qk, vk):
+    """The tangent's two verdicts on the pose columns at the linearization pose: (turn-free dynamic bodies, turn-free
+    kinematic bodies, each dynamic body's glide axis and ratio), as `step_tangent` reaches them."""
+    from planar_lcp.derivatives.differences import DIFF_STEP
+    from planar_lcp.engine.layout import NSTAT
+    from planar_lcp.engine.rollout import difference_steps
+    from planar_lcp.engine.tangent import _contacts_at, _glide_axes, _turn_free_bodies
+    m, w, opt, h = sim.kmodel, sim.kwork, sim.kopt, sim.h
+    nd, nk = len(q), len(qk)
+    x = np.concatenate([np.ravel(a) for a in (q, v, qk, vk)]).astype(float)
+    steps = difference_steps(x, DIFF_STEP)
+    parts = [np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3)), np.empty((nk, 3))]
+    sim.reset_warm_start()
+    ncon, _ = _contacts_at(m, h, opt, w, x, nd, nk, *parts, np.empty((nk, 3)), np.zeros(NSTAT))
+    turn_dyn, turn_kin = np.empty(nd, np.bool_), np.empty(nk, np.bool_)
+    _turn_free_bodies(m, turn_dyn, turn_kin)
+    axis, ratio = np.empty(nd, np.int64), np.empty(nd)
+    _glide_axes(m, w, nd, ncon, steps, opt.margin, axis, ratio)
+    sim.reset_warm_start()
+    return turn_dyn, turn_kin, axis, ratio
+
+
+@pytest.mark.parametrize("name, turn_dyn, turn_kin", [
+    ("four_disks", [True] * 4, []), ("bouncing_disk", [True], []), ("box_push", [False], [True]),
+    ("falling_rod", [False], []), ("tip_box", [False], [True]),
+])
+def test_a_disk_turns_without_moving_the_step(name, turn_dyn, turn_kin):
+    """A body whose shapes are disks about its centre of mass (four_disks' and bouncing_disk's disks, box_push's and
+    tip_box's round fingers; not a box, a rod or a capsule's ends) has no evaluation along its angle: its contacts'
+    points, normals and gaps follow its centre alone, so its angle's column is one on its own angle (a dynamic body's
+    q+, a kinematic one's qk+) and zero elsewhere, as the dual numbers' is, and the Jacobian agrees with theirs."""
+    sim, state = bench_state(name)
+    got_dyn, got_kin, _, _ = pose_shortcuts(sim, *state)
+    assert got_dyn.tolist() == turn_dyn and got_kin.tolist() == turn_kin
+    nd, nk = len(state[0]), len(state[2])
+    code, jac = tangent(sim, *state)
+    ref = step_derivatives(sim, *state)
+    assert code == DIFF_OK and ref.exact
+    assert relative_error(type(ref)(**{**ref.__dict__, "jacobian": jac}), ref) <= TANGENT_RTOL
+    cols = [3 * d + 2 for d in range(nd) if turn_dyn[d]] + [6 * nd + 3 * j + 2 for j in range(nk) if turn_kin[j]]
+    unit = np.eye(6 * nd + 3 * nk, 6 * nd + 6 * nk)[:, cols]
+    assert np.array_equal(jac[:, cols], unit)
+    assert np.max(np.abs(ref.jacobian[:, cols] - unit), initial=0.0) <= 1e-12
+
+
+@pytest.mark.parametrize("name, glides", [
+    ("falling_rod", [True]), ("bouncing_disk", [True]), ("block_on_incline", [True]),
+    ("four_disks", [True, False, False, False]), ("box_tip", [True]), ("tip_box", [False]), ("box_push", [False]),
+])
+def test_a_body_on_one_plane_glides_along_it(name, glides):
+    """A body whose contacts are all with half-planes of one normal n, clear of every other pair (four_disks' thrown
+    disk, rolling on the ground; box_tip's box on its corner, the finger clear of it; not the disks pressed
+    together, nor tip_box's box, which the finger pushes): moving it along the plane, t = (-n_y, n_x), moves none of
+    its contacts, so J_x t_x + J_y t_y = 0 for its pose columns. The tangent evaluates one translation and writes the
+    other from it: on the 30 degree incline, x's from y's at -t_y / t_x = -tan 30 deg; on level ground, x's column
+    is zero but its own q+ row. The dual numbers' columns hold the same relation, and the Jacobian agrees with
+    theirs."""
+    sim, state = bench_state(name)
+    _, _, axis, ratio = pose_shortcuts(sim, *state)
+    assert (axis >= 0).tolist() == glides
+    code, jac = tangent(sim, *state)
+    ref = step_derivatives(sim, *state)
+    assert code == DIFF_OK and ref.exact
+    assert relative_error(type(ref)(**{**ref.__dict__, "jacobian": jac}), ref) <= TANGENT_RTOL
+    nd = len(state[0])
+    eye = np.eye(jac.shape[0], jac.shape[1])
+    for d in np.flatnonzero(axis >= 0):
+        kb, ka = 3 * d + axis[d], 3 * d + 1 - axis[d]
+        # the pose columns less q+'s identity: the smooth part's, which the glide leaves alone
+        for J in (jac, ref.jacobian):
+            smooth_b, smooth_a = J[:, kb] - eye[:, kb], J[:, ka] - eye[:, ka]
+            assert np.max(np.abs(smooth_b - ratio[d] * smooth_a)) <= 1e-9 * max(np.max(np.abs(smooth_a)), 1.0)
+    if name == "block_on_incline":
+        assert axis[0] == 0 and abs(ratio[0] + np.tan(np.radians(30.0))) < 1e-12
+    if name in ("falling_rod", "bouncing_disk", "box_tip"):
+        assert axis[0] == 0 and ratio[0] == 0.0
