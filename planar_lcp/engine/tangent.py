@@ -12,8 +12,8 @@ in them: the dynamic bodies' without restitution or a limit surface in any islan
 kinematic bodies' without restitution, `_kinematic_velocity_columns`; none for the pose of a body
 in no contact and clear of every shape pair, which moves nothing there but its own end pose: `_untouched_bodies`,
 `_clear_of_pairs`, nor for the angle of a body whose shapes are disks about its centre of mass, whose geometry a
-turn leaves as it is: `_turn_free_bodies`, and one translation's for a body touching only half-planes of one normal,
-which it glides along: `_glide_columns`), and adds the LCP's through one solve with A_BB at the state.
+turn leaves as it is: `_turn_free_bodies`, and one translation's of an island touching only half-planes of one normal,
+which it glides along: `_glide_axes`), and adds the LCP's through one solve with A_BB at the state.
 Only the rows of A and b that depend on the state enter: the Delassus part G^T M^-1 G z + b over the force unknowns
 (computed as G^T (M^-1 (G z)), linear in the unknowns), the friction and slack rows being constant.
 
@@ -755,75 +755,90 @@ def _clear_of_pairs(m, w, nd, steps, margin, kinematic_only, untouched_dyn, unto
 
 
 @njit(cache=True)
-def _glide_axes(m, w, nd, ncon, steps, margin, glide_axis, glide_ratio):
-    """The dynamic bodies that glide: every contact of theirs at x (w.con_*) with a half-plane, all of one normal n,
-    no forced pair, and every pair of theirs with another shape clear (no contact within margin plus
-    CLEARANCE_FACTOR times the translations' difference step, at the poses in w.vert_world). Moving such a body
-    along the planes, t = (-n_y, n_x), moves none of its contacts' gaps, normals or arms, so the smooth part's rows
-    and outputs stay as they are: J_x t_x + J_y t_y = 0 for its pose columns. glide_axis[d]: the axis b whose
-    column follows from the other's, a (|t_b| the larger), J_b = glide_ratio[d] J_a with glide_ratio[d] = -t_a / t_b
-    (zero on a horizontal or vertical plane); -1 where the body does not glide."""
-    normal = np.zeros((nd, 2))
-    touches = np.zeros(nd, np.bool_)
-    glides = np.ones(nd, np.bool_)
+def _glide_axes(m, w, nd, nisl, ncon, steps, margin, glide_t, glide_group, glide_axis):
+    """The islands that glide: every contact of their bodies at x (w.con_*, w.body_island) between two of them or
+    with a half-plane, the half-planes all of one normal n, no forced pair, and every pair of a body of theirs with a
+    shape of another island, a kinematic body or a static body but such a half-plane clear (no contact within margin
+    plus CLEARANCE_FACTOR times the body's translations' difference step, at the poses in w.vert_world). Moving the
+    whole island along the planes, t = (-n_y, n_x), moves none of its contacts' gaps, normals or arms, so the smooth
+    part's rows and outputs stay as they are: the sum over its bodies of J_x t_x + J_y t_y is zero. glide_t[d]: t
+    for a body of such an island (else zero), glide_group[d] its island (else -1); glide_axis[d]: for the island's
+    last body, the axis b whose column follows from the others' (|t_b| the larger: `_glide_columns`), else -1."""
+    normal = np.zeros((nisl, 2))
+    touches = np.zeros(nisl, np.bool_)
+    glides = np.ones(nisl, np.bool_)
     for j in range(ncon):
         p = w.con_pair[j]
-        sa, sb = m.pair_a[p], m.pair_b[p]
-        for side in range(2):
-            s_own, s_other = (sa, sb) if side == 0 else (sb, sa)
-            b = m.shape_body[s_own]
-            if m.body_kind[b] != BODY_DYNAMIC:
-                continue
-            d = m.body_slot[b]
-            if m.shape_kind[s_other] != SHAPE_HALFPLANE:
-                glides[d] = False
-            elif not touches[d]:
-                touches[d] = True
-                normal[d, 0], normal[d, 1] = m.hp_normal_w[s_other, 0], m.hp_normal_w[s_other, 1]
-            elif normal[d, 0] != m.hp_normal_w[s_other, 0] or normal[d, 1] != m.hp_normal_w[s_other, 1]:
-                glides[d] = False
-    for d in range(nd):
-        glides[d] = glides[d] and touches[d]
+        sa, sb = m.pair_a[p], m.pair_b[p]          # shape A is a dynamic body's
+        isl = w.body_island[m.body_slot[m.shape_body[sa]]]
+        if m.shape_kind[sb] == SHAPE_HALFPLANE:
+            nx, ny = m.hp_normal_w[sb, 0], m.hp_normal_w[sb, 1]
+            if not touches[isl]:
+                touches[isl] = True
+                normal[isl, 0], normal[isl, 1] = nx, ny
+            elif normal[isl, 0] != nx or normal[isl, 1] != ny:
+                glides[isl] = False
+        elif m.body_kind[m.shape_body[sb]] != BODY_DYNAMIC:
+            glides[isl] = False                      # a kinematic or static shape other than a half-plane
+    for isl in range(nisl):
+        glides[isl] = glides[isl] and touches[isl]
     for p in range(m.pair_a.shape[0]):
         sa, sb = m.pair_a[p], m.pair_b[p]
         for side in range(2):
             s_own, s_other = (sa, sb) if side == 0 else (sb, sa)
-            b = m.shape_body[s_own]
-            if m.body_kind[b] != BODY_DYNAMIC or not glides[m.body_slot[b]]:
+            b_own, b_other = m.shape_body[s_own], m.shape_body[s_other]
+            if m.body_kind[b_own] != BODY_DYNAMIC:
                 continue
-            d = m.body_slot[b]
+            d = m.body_slot[b_own]
+            isl = w.body_island[d]
+            if not glides[isl]:
+                continue
             if w.pair_forced[p]:
-                glides[d] = False
+                glides[isl] = False
+            elif m.body_kind[b_other] == BODY_DYNAMIC and w.body_island[m.body_slot[b_other]] == isl:
+                continue                                 # it moves along
             elif m.shape_kind[s_other] == SHAPE_HALFPLANE and (
-                    m.hp_normal_w[s_other, 0] == normal[d, 0] and m.hp_normal_w[s_other, 1] == normal[d, 1]):
+                    m.hp_normal_w[s_other, 0] == normal[isl, 0] and m.hp_normal_w[s_other, 1] == normal[isl, 1]):
                 continue                                 # its gaps to a plane of the same normal stay as they are
             else:
                 room = margin + CLEARANCE_FACTOR * max(steps[0, 3 * d], steps[0, 3 * d + 1])
                 if pair_contacts(m, w.vert_world, p, room, False, w.pair_phi, w.pair_n, w.pair_p) > 0:
-                    glides[d] = False
+                    glides[isl] = False
+    last = np.full(nisl, -1, np.int64)
     for d in range(nd):
+        isl = w.body_island[d]
         glide_axis[d] = -1
-        glide_ratio[d] = 0.0
-        if glides[d]:
-            tx, ty = -normal[d, 1], normal[d, 0]
-            if abs(tx) >= abs(ty):
-                glide_axis[d], glide_ratio[d] = 0, -ty / tx
-            else:
-                glide_axis[d], glide_ratio[d] = 1, -tx / ty
+        glide_group[d] = isl if glides[isl] else -1
+        glide_t[d, 0] = -normal[isl, 1] if glides[isl] else 0.0
+        glide_t[d, 1] = normal[isl, 0] if glides[isl] else 0.0
+        last[isl] = d
+    for isl in range(nisl):
+        if glides[isl]:
+            d = last[isl]
+            glide_axis[d] = 0 if abs(glide_t[d, 0]) >= abs(glide_t[d, 1]) else 1
 
 
 @njit(cache=True)
-def _glide_columns(nd, glide_axis, glide_ratio, dr, jy):
-    """A gliding body's derived pose column (`_glide_axes`) from its other translation's."""
-    for d in range(nd):
-        b = glide_axis[d]
+def _glide_columns(nd, glide_t, glide_group, glide_axis, dr, jy):
+    """A gliding island's derived pose column (`_glide_axes`), its last body's along axis b, from the others':
+    J_b = -(sum over the island's other bodies of J_b) - (t_a / t_b) (sum over all its bodies of J_a)."""
+    for last in range(nd):
+        b = glide_axis[last]
         if b < 0:
             continue
-        kb, ka = 3 * d + b, 3 * d + 1 - b
-        for r in range(dr.shape[0]):
-            dr[r, kb] = glide_ratio[d] * dr[r, ka]
-        for r in range(jy.shape[0]):
-            jy[r, kb] = glide_ratio[d] * jy[r, ka]
+        ratio = glide_t[last, 1 - b] / glide_t[last, b]
+        kb = 3 * last + b
+        for part in range(2):
+            cols = dr if part == 0 else jy
+            for r in range(cols.shape[0]):
+                acc = 0.0
+                for d in range(nd):
+                    if glide_group[d] != glide_group[last]:
+                        continue
+                    acc += ratio * cols[r, 3 * d + 1 - b]
+                    if d != last:
+                        acc += cols[r, 3 * d + b]
+                cols[r, kb] = -acc
 
 
 @njit(cache=True)
@@ -839,7 +854,7 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
     where they move); none for the `derived` pose columns, nor for an untouched body's pose (no contact, clear of
     every pair: `_untouched_bodies`, `_clear_of_pairs`), which moves none of the rows nor the outputs but a kinematic
     body's own qk+, nor for the angle of a body a turn leaves alike (`_turn_free_bodies`: the same), nor for a
-    gliding body's derived translation (`_glide_axes`: `_glide_columns` writes it after), nor for an
+    gliding island's derived translation (`_glide_axes`: `_glide_columns` writes it after), nor for an
     untouched kinematic body's velocity in the rows (in no row: zero), nor for a resting
     body's velocity (`_hold_resting` writes its columns). Returns DIFF_OK, TANGENT_CONTACTS (an evaluation with
     other contacts, or whose end-of-step check adds a pair) or TANGENT_KINK (one-sided differences that differ by
@@ -1089,8 +1104,8 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     untouched_dyn, untouched_kin, resting_dyn = np.empty(nd, np.bool_), np.empty(nk, np.bool_), np.empty(nd, np.bool_)
     _untouched_bodies(m, w, ncon, untouched_dyn, untouched_kin, resting_dyn)
     _clear_of_pairs(m, w, nd, steps, cold_opt.margin, False, untouched_dyn, untouched_kin)
-    glide_axis, glide_ratio = np.empty(nd, np.int64), np.empty(nd)
-    _glide_axes(m, w, nd, ncon, steps, cold_opt.margin, glide_axis, glide_ratio)
+    glide_t, glide_group, glide_axis = np.empty((nd, 2)), np.empty(nd, np.int64), np.empty(nd, np.int64)
+    _glide_axes(m, w, nd, nisl, ncon, steps, cold_opt.margin, glide_t, glide_group, glide_axis)
     zoff = np.zeros(nisl + 1, np.int64)
     for isl in range(nisl):
         nci, nsi = island_members(m, w, isl, ncon)
@@ -1144,7 +1159,7 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
                            turn_free_kin, glide_axis, dr, jy)
     if code != DIFF_OK:
         return _give_way(msize, mbasic, mmodes, w, code)
-    _glide_columns(nd, glide_axis, glide_ratio, dr, jy)
+    _glide_columns(nd, glide_t, glide_group, glide_axis, dr, jy)
     if derived >= 0:
         _derived_columns(derived, nd, nk, dr, jy)
     # the LCP's part at x's contacts, and the velocities' columns where they are in closed form
