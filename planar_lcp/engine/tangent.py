@@ -39,7 +39,8 @@ re-solve. Everywhere else, and where its checks fail, it returns a code and the 
   out must hold by themselves along every input;
 - every evaluation at a moved pose has x's contacts (the same pairs, in the same order, hence the same islands; a
   pair's contacts, whose order can swap between the two sides of a pose, matched to x's by their points) and its
-  end-of-step check adds no pair;
+  end-of-step check adds no pair (taken where its end configuration moved far enough from x's that it could:
+  `_end_room`, `_end_motion`);
 - the one-sided differences of the smooth part agree (a kink of the contact geometry, of max and min in the rows,
   or a body at rest on its limit surface, whose re-centred column jumps);
 - the cold steps at x +- d move as J d predicts (d the mixed direction of `step_differences`).
@@ -59,7 +60,7 @@ from planar_lcp.engine.assemble import (REST_SPEED, apply_impulses, assemble_col
                                         kinematic_velocity_along, recentre_limit_surfaces, support_column_count)
 from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC, SHAPE_HALFPLANE,
                                         SUPPORT_LIMIT_SURFACE)
-from planar_lcp.engine.contacts import body_poses, pair_contacts
+from planar_lcp.engine.contacts import body_poses, find_contacts, pair_contacts, world_vertices
 from planar_lcp.engine.islands import island_members
 from planar_lcp.engine.layout import Stat
 from planar_lcp.engine.rollout import (DIFF_MOVES, DIFF_OK, _restore_memory, _sides_differ, cold_step_at,
@@ -842,16 +843,62 @@ def _glide_columns(nd, glide_t, glide_group, glide_axis, dr, jy):
 
 
 @njit(cache=True)
+def _turn_reach(m):
+    """Three times the farthest shape point of any body from its origin (core vertices plus radius): a body's turn by
+    dtheta moves a pair's gap by at most that times |dtheta| while the pair is near contact (its own points move by
+    its reach times |dtheta|; a face normal of its turns, and the other shape's points, within twice the largest
+    reach of its origin, move along it by as much)."""
+    far = 0.0
+    for s in range(m.shape_body.shape[0]):
+        if m.shape_kind[s] == SHAPE_HALFPLANE:
+            continue
+        a0 = m.shape_vert_adr[s]
+        for k in range(a0, a0 + m.shape_vert_num[s]):
+            far = max(far, np.hypot(m.vert_local[k, 0], m.vert_local[k, 1]) + m.shape_radius[s])
+    return 3.0 * far
+
+
+@njit(cache=True)
+def _end_room(m, w, opt, qk_new):
+    """How far the end configuration (w.q_new, qk_new: x's, after its end-of-step check added no pair) may move
+    before that check could add one: the penetration tolerance less the deepest penetration of a pair it may add (a
+    pair with fewer than two contacts in the set, not forced); pairs apart there (no contact at gap 0) have the whole
+    tolerance."""
+    body_poses(m, w.q_new, qk_new, w.body_pose)
+    world_vertices(m, w.body_pose, w.vert_world)
+    nchk = find_contacts(m, w.vert_world, 0.0, w.pair_forced, w.check_pair, w.check_phi, w.check_n, w.check_p,
+                         w.pair_phi, w.pair_n, w.pair_p)
+    room = opt.pen_tol
+    for j in range(nchk):
+        p = w.check_pair[j]
+        if w.pair_set_count[p] < 2 and not w.pair_forced[p]:
+            room = min(room, w.check_phi[j] + opt.pen_tol)
+    return room
+
+
+@njit(cache=True, inline='always')
+def _end_motion(nd, nk, f, f0, turn_reach):
+    """The most a body moves a gap of its pairs near contact between the end configurations f and f0 (the smooth
+    part's outputs: q+ and qk+ poses): its translation's components plus its turn times `_turn_reach`."""
+    far = 0.0
+    for b in range(nd + nk):
+        o = 3 * b if b < nd else 6 * nd + 3 * (b - nd)
+        far = max(far, abs(f[o] - f0[o]) + abs(f[o + 1] - f0[o + 1]) + abs(f[o + 2] - f0[o + 2]) * turn_reach)
+    return far
+
+
+@njit(cache=True)
 def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, nisl, ncon, z, zoff, r0, f0, derived,
                     linear_dyn, linear_kin, untouched_dyn, untouched_kin, resting_dyn, turn_free_dyn, turn_free_kin,
-                    glide_axis, dr, jy):
+                    glide_axis, end_room, turn_reach, dr, jy):
     """The smooth part's columns (z held) into dr (its rows) and jy (its outputs), by central differences along
     each of its inputs, +- eps_k (steps[0]), from x's (q, v, qk, vk; its contacts' pairs and points in w, the rows
     r0 and outputs f0 there): the velocities' first (on x's contacts and poses; none where the smooth part is
     linear in them, `linear_dyn` and `linear_kin`: `_dynamic_velocity_columns` and `_kinematic_velocity_columns`
     give them), the kinematic ones before the dynamic ones' (which move the limit surfaces'
-    re-centred columns), then the poses' (each with its contacts and the end-of-step check, the re-centred columns
-    where they move); none for the `derived` pose columns, nor for an untouched body's pose (no contact, clear of
+    re-centred columns), then the poses' (each with its contacts and, where its end configuration moved farther than
+    end_room allows, the end-of-step check; the re-centred columns where they move); none for the `derived` pose
+    columns, nor for an untouched body's pose (no contact, clear of
     every pair: `_untouched_bodies`, `_clear_of_pairs`), which moves none of the rows nor the outputs but a kinematic
     body's own qk+, nor for the angle of a body a turn leaves alike (`_turn_free_bodies`: the same), nor for a
     gliding island's derived translation (`_glide_axes`: `_glide_columns` writes it after), nor for an
@@ -924,8 +971,13 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
                         w.v_new[d, a] = w.v_tilde[d, a]
             _smooth_part(m, h, w, kinv, nisl, ncon, z, zoff, q, qk_out, rp if sgn == 0 else rm,
                          fp if sgn == 0 else fm, dv)
-            if pose and check_end_configuration(m, w, opt, qk_out, scratch) != 0:
-                return TANGENT_CONTACTS
+            # the end-of-step check, where the end configuration moved far enough from x's that it could add a
+            # pair (a pair's gap moves by at most both its bodies' `_end_motion`; CLEARANCE_FACTOR to spare): else
+            # it adds none, as at x
+            if pose and CLEARANCE_FACTOR * 2.0 * _end_motion(nd, nk, fp if sgn == 0 else fm, f0,
+                                                             turn_reach) >= end_room:
+                if check_end_configuration(m, w, opt, qk_out, scratch) != 0:
+                    return TANGENT_CONTACTS
         for r in range(N):
             dr[r, k] = (rp[r] - rm[r]) / (2.0 * e)
         for r in range(nout):
@@ -1136,6 +1188,7 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     _smooth_part(m, h, w, vka, nisl, ncon, z, zoff, qa, qk_out, r0, f0, np.empty((nd, 3)))
     if check_end_configuration(m, w, cold_opt, qk_out, scratch) != 0:
         return _give_way(msize, mbasic, mmodes, w, TANGENT_CONTACTS)
+    end_room = _end_room(m, w, cold_opt, qk_out)
     # a kinematic body's pose moves its end pose qk+ (a dynamic one's, q_hat only: q+ = q + h v+ stays): clear of
     # every pair there too, as the end-of-step check would find it
     _clear_of_pairs(m, w, nd, steps, 0.0, True, untouched_dyn, untouched_kin)
@@ -1156,7 +1209,7 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     _turn_free_bodies(m, turn_free_dyn, turn_free_kin)
     code = _smooth_columns(m, h, cold_opt, w, qa, va, qka, vka, qk_out, scratch, steps, tols, nisl, ncon, z, zoff, r0,
                            f0, derived, linear_dyn, linear_kin, untouched_dyn, untouched_kin, resting_dyn, turn_free_dyn,
-                           turn_free_kin, glide_axis, dr, jy)
+                           turn_free_kin, glide_axis, end_room, _turn_reach(m), dr, jy)
     if code != DIFF_OK:
         return _give_way(msize, mbasic, mmodes, w, code)
     _glide_columns(nd, glide_t, glide_group, glide_axis, dr, jy)

@@ -399,3 +399,38 @@ def test_an_island_on_one_plane_glides_along_it(name, groups):
             assert np.max(np.abs(along)) <= 1e-9 * scale
     if name == "block_on_incline":
         assert axis[0] == 0 and abs(t[0, 1] / t[0, 0] - np.tan(np.radians(30.0))) < 1e-12
+
+
+def test_a_pairs_gap_moves_no_more_than_its_bodies_end_motion():
+    """The end-of-step check runs at an evaluation only where its end configuration moved from x's by more than the
+    room the check leaves (`_end_room`): a pair's gap moves by at most its two bodies' `_end_motion` (translation
+    components plus the turn times `_turn_reach`). Held on seeded random scenes (boxes, capsules, polygons, disks on
+    a tilted ground) and box_stack: every pair within 1 cm of contact, every body moved at random by up to 1e-4 (m
+    and rad), its closest gap (`contacts_at`, all pairs) moves by no more than that bound."""
+    from planar_lcp.engine.contacts import contacts_at
+    from planar_lcp.engine.tangent import _end_motion, _turn_reach
+    rng = np.random.default_rng(11)
+    checked = 0
+    scenes = [random_vertical_scene(seed) for seed in range(8)] + [load_scene("box_stack")]
+    for scene in scenes:
+        sim = Simulator(compile_scene(scene), options("position"))
+        a = sim.model.arrays
+        reach = _turn_reach(sim.kmodel)
+        for q, v, qk, vk in states_along(sim, *sim.initial_state(), 40, 10):
+            nd, nk = len(q), len(qk)
+            pair0, phi0, _, _ = contacts_at(a, q, qk, 0.0, all_pairs=True, m=sim.kmodel)
+            gap0 = {p: phi0[pair0 == p].min() for p in set(pair0.tolist())}
+            for _ in range(5):
+                scale = 10.0 ** rng.uniform(-9, -4)
+                dq, dqk = rng.uniform(-scale, scale, (nd, 3)), rng.uniform(-scale, scale, (nk, 3))
+                pair1, phi1, _, _ = contacts_at(a, q + dq, qk + dqk, 0.0, all_pairs=True, m=sim.kmodel)
+                f0 = np.concatenate([q.ravel(), np.zeros(3 * nd), qk.ravel()])
+                f1 = np.concatenate([(q + dq).ravel(), np.zeros(3 * nd), (qk + dqk).ravel()])
+                motion = _end_motion(nd, nk, f1, f0, reach)
+                for p, g in gap0.items():
+                    if g > 0.01:
+                        continue
+                    moved = abs(phi1[pair1 == p].min() - g)
+                    assert moved <= 2.0 * motion * (1 + 1e-9) + 1e-15, (scene.name, p, moved, motion)
+                    checked += 1
+    assert checked > 100
