@@ -887,6 +887,87 @@ def _end_motion(nd, nk, f, f0, turn_reach):
     return far
 
 
+@njit(cache=True, inline='always')
+def _is_moved(m, b, kinematic, i):
+    """Whether body b is the one an evaluation moves: slot i, kinematic or dynamic."""
+    return m.body_slot[b] == i and m.body_kind[b] == (BODY_KINEMATIC if kinematic else BODY_DYNAMIC)
+
+
+@njit(cache=True)
+def _watched_pairs(m, w, opt, nd, steps, pairs, ncon, first, count, watch):
+    """x's contacts by pair (first[p]: pair p's first in `pairs`, count[p]: how many; a pair's contacts are
+    consecutive), and the pairs an evaluation at a moved pose recomputes where one of their bodies moves (watch):
+    those with contacts at x, forced, or not clear of the contact margin by CLEARANCE_FACTOR times their bodies'
+    difference steps' largest point motion (`_pose_motion`) at x's linearization pose (w.body_pose; the others
+    cannot meet the margin there: their contacts stay none)."""
+    for p in range(first.shape[0]):
+        first[p] = -1
+        count[p] = 0
+    for j in range(ncon):
+        p = pairs[j]
+        if first[p] < 0:
+            first[p] = j
+        count[p] += 1
+    world_vertices(m, w.body_pose, w.vert_world)
+    for p in range(first.shape[0]):
+        if count[p] > 0 or w.pair_forced[p]:
+            watch[p] = True
+            continue
+        sa, sb = m.pair_a[p], m.pair_b[p]
+        room = opt.margin
+        for side in range(2):
+            b = m.shape_body[sa if side == 0 else sb]
+            if m.body_kind[b] != BODY_STATIC:
+                room += CLEARANCE_FACTOR * _pose_motion(m, w, steps, nd, b, sa, sb)
+        watch[p] = pair_contacts(m, w.vert_world, p, room, False, w.pair_phi, w.pair_n, w.pair_p) > 0
+
+
+@njit(cache=True)
+def _moved_pose_contacts(m, w, opt, stats, recentre, kinematic, i, ncon, nisl, pairs, phi_x, n_x, p_x, first, count,
+                         watch):
+    """`prepare_contacts` at a pose where one body (slot i, kinematic or dynamic) moved from x's: the contacts of its
+    watched pairs (`_watched_pairs`) found again, every other pair's x's (phi_x, n_x, p_x: the same bodies' poses
+    give them), x's islands (the same pairs join the same bodies). False where a pair of the moved body has another
+    number of contacts than at x."""
+    body_poses(m, w.q_hat, w.qk_hat, w.body_pose)
+    if recentre and m.support_model == SUPPORT_LIMIT_SURFACE:
+        recentre_limit_surfaces(m, w)
+    world_vertices(m, w.body_pose, w.vert_world)
+    for j in range(ncon):
+        w.con_pair[j] = pairs[j]
+        w.con_phi[j] = phi_x[j]
+        for c in range(2):
+            w.con_n[j, c] = n_x[j, c]
+            w.con_p[j, c] = p_x[j, c]
+    for p in range(first.shape[0]):
+        if not watch[p] or not (_is_moved(m, m.shape_body[m.pair_a[p]], kinematic, i)
+                                or _is_moved(m, m.shape_body[m.pair_b[p]], kinematic, i)):
+            continue
+        cnt = pair_contacts(m, w.vert_world, p, opt.margin, w.pair_forced[p], w.pair_phi, w.pair_n, w.pair_p)
+        if cnt != count[p]:
+            return False
+        for c in range(cnt):
+            j = first[p] + c
+            w.con_phi[j] = w.pair_phi[c]
+            for a in range(2):
+                w.con_n[j, a] = w.pair_n[c, a]
+                w.con_p[j, a] = w.pair_p[c, a]
+    # the rest of prepare_contacts' work but the islands'
+    for p in range(first.shape[0]):
+        w.pair_set_count[p] = count[p]
+    for kk in range(w.kin_lag.shape[0]):
+        for c in range(3):
+            w.kin_lag[kk, c] = 0.0
+    for j in range(ncon):
+        w.con_cn[j] = 0.0
+        w.con_ft[j] = 0.0
+    stats[Stat.N_ISLANDS] = nisl
+    for d in range(w.v_new.shape[0]):
+        for c in range(3):
+            w.v_new[d, c] = w.v_tilde[d, c]
+    return True
+
+
 @njit(cache=True)
 def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, nisl, ncon, z, zoff, r0, f0, derived,
                     linear_dyn, linear_kin, untouched_dyn, untouched_kin, resting_dyn, turn_free_dyn, turn_free_kin,
@@ -912,6 +993,10 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
     nout = f0.shape[0]
     pairs = w.con_pair[:ncon].copy()
     points = w.con_p[:ncon].copy()
+    phi_x, normals = w.con_phi[:ncon].copy(), w.con_n[:ncon].copy()
+    npair = m.pair_a.shape[0]
+    first, count, watch = np.empty(npair, np.int64), np.empty(npair, np.int64), np.empty(npair, np.bool_)
+    _watched_pairs(m, w, opt, nd, steps, pairs, ncon, first, count, watch)
     order = np.empty(ncon, np.int64)
     phi_m, n_m, p_m = np.empty(ncon), np.empty((ncon, 2)), np.empty((ncon, 2))
     rp, rm = np.empty(N), np.empty(N)
@@ -953,14 +1038,10 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
                 # the re-centred columns depend on a dynamic body's angle and velocity only: an evaluation that
                 # moves neither keeps them, once they are x's again (at_x)
                 turns = kind == SMOOTH_POSE and c == 2
-                nc, ni = prepare_contacts(m, w, opt, w.qk_hat, scratch, turns or not at_x)
+                same = _moved_pose_contacts(m, w, opt, scratch, turns or not at_x, kind == SMOOTH_KIN_POSE, i, ncon,
+                                            nisl, pairs, phi_x, normals, points, first, count, watch)
                 at_x = not turns
-                if nc != ncon or ni != nisl:
-                    return TANGENT_CONTACTS
-                for j in range(ncon):
-                    if w.con_pair[j] != pairs[j]:
-                        return TANGENT_CONTACTS
-                if not _match_contacts(w, ncon, points, order, phi_m, n_m, p_m):
+                if not same or not _match_contacts(w, ncon, points, order, phi_m, n_m, p_m):
                     return TANGENT_CONTACTS
             else:
                 if kind == SMOOTH_VELOCITY and m.support_model == SUPPORT_LIMIT_SURFACE:

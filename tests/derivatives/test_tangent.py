@@ -434,3 +434,43 @@ def test_a_pairs_gap_moves_no_more_than_its_bodies_end_motion():
                     assert moved <= 2.0 * motion * (1 + 1e-9) + 1e-15, (scene.name, p, moved, motion)
                     checked += 1
     assert checked > 100
+
+
+@pytest.mark.parametrize("room, watched", [(1e-3, False), (1e-7, True), (-1e-4, True)])
+def test_an_evaluation_finds_again_the_contacts_of_the_pairs_a_move_can_reach(room, watched):
+    """An evaluation at a moved pose finds again only the contacts of the moved body's pairs that have contacts at
+    x, are forced, or lie within the contact margin plus CLEARANCE_FACTOR times their difference steps' reach
+    (`_watched_pairs`; the others keep x's, none). tip_box's finger moved to a gap of the margin plus `room` from
+    the box: 1 mm beyond it, the pair is not watched; 1e-7 m beyond (within its difference steps' reach) or inside
+    the margin, it is, and the Jacobian agrees with the dual numbers wherever the first try answers."""
+    from planar_lcp.derivatives.differences import DIFF_STEP
+    from planar_lcp.engine.layout import NSTAT
+    from planar_lcp.engine.rollout import difference_steps
+    from planar_lcp.engine.contacts import contacts_at
+    from planar_lcp.engine.tangent import _contacts_at, _watched_pairs
+    sim, (q, v, qk, vk) = bench_state("tip_box")
+    qk = qk.copy()
+    qk[0, 0] -= finger_gap(sim, q, v, qk, vk) - (sim.kopt.margin + room)
+    m, w, opt, h = sim.kmodel, sim.kwork, sim.kopt, sim.h
+    nd, nk = len(q), len(qk)
+    x = np.concatenate([np.ravel(a) for a in (q, v, qk, vk)]).astype(float)
+    parts = [np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3)), np.empty((nk, 3))]
+    sim.reset_warm_start()
+    ncon, _ = _contacts_at(m, h, opt, w, x, nd, nk, *parts, np.empty((nk, 3)), np.zeros(NSTAT))
+    a = sim.model.arrays
+    npair = len(a.pair_a)
+    first, count, watch = np.empty(npair, np.int64), np.empty(npair, np.int64), np.empty(npair, np.bool_)
+    pairs, _, _, _ = contacts_at(a, q + h * v, qk + h * vk, opt.margin, m=m)
+    _watched_pairs(m, w, opt, nd, difference_steps(x, DIFF_STEP), pairs.astype(np.int64), ncon, first, count, watch)
+    sim.reset_warm_start()
+    finger = sim.model.kin_names.index("finger")
+    from planar_lcp.engine.constants import BODY_KINEMATIC
+    fingers = [p for p in range(npair) if a.body_kind[a.shape_body[a.pair_b[p]]] == BODY_KINEMATIC and
+               a.body_slot[a.shape_body[a.pair_b[p]]] == finger]
+    assert [bool(watch[p]) for p in fingers] == [watched]
+    assert np.array_equal(count, np.bincount(pairs, minlength=npair))
+    code, jac = tangent(sim, q, v, qk, vk)
+    if code == DIFF_OK:
+        ref = step_derivatives(sim, q, v, qk, vk)
+        assert ref.exact
+        assert relative_error(type(ref)(**{**ref.__dict__, "jacobian": jac}), ref) <= TANGENT_RTOL
