@@ -145,7 +145,7 @@ def _turn_free_bodies(m, turn_free_dyn, turn_free_kin):
         a = m.shape_vert_adr[s]
         disk = m.shape_vert_num[s] == 1 and m.vert_local[a, 0] == 0.0 and m.vert_local[a, 1] == 0.0
         if not disk:
-            _mark_touched(m, m.shape_body[s], turn_free_dyn, turn_free_kin)
+            _unflag(m, m.shape_body[s], turn_free_dyn, turn_free_kin)
     for e in range(m.sup_dyn.shape[0]):
         turn_free_dyn[m.sup_dyn[e]] = False
 
@@ -681,23 +681,24 @@ def _untouched_bodies(m, w, ncon, untouched_dyn, untouched_kin, resting_dyn):
         untouched_kin[kk] = True
     for s in range(m.shape_body.shape[0]):
         if m.shape_kind[s] == SHAPE_HALFPLANE:
-            _mark_touched(m, m.shape_body[s], untouched_dyn, untouched_kin)
+            _unflag(m, m.shape_body[s], untouched_dyn, untouched_kin)
     for p in range(m.pair_a.shape[0]):
         if w.pair_forced[p]:
-            _mark_touched(m, m.shape_body[m.pair_a[p]], untouched_dyn, untouched_kin)
-            _mark_touched(m, m.shape_body[m.pair_b[p]], untouched_dyn, untouched_kin)
+            _unflag(m, m.shape_body[m.pair_a[p]], untouched_dyn, untouched_kin)
+            _unflag(m, m.shape_body[m.pair_b[p]], untouched_dyn, untouched_kin)
     for j in range(ncon):
         p = w.con_pair[j]
-        _mark_touched(m, m.shape_body[m.pair_a[p]], untouched_dyn, untouched_kin)
-        _mark_touched(m, m.shape_body[m.pair_b[p]], untouched_dyn, untouched_kin)
+        _unflag(m, m.shape_body[m.pair_a[p]], untouched_dyn, untouched_kin)
+        _unflag(m, m.shape_body[m.pair_b[p]], untouched_dyn, untouched_kin)
 
 
 @njit(cache=True, inline='always')
-def _mark_touched(m, b, untouched_dyn, untouched_kin):
+def _unflag(m, b, flags_dyn, flags_kin):
+    """Body b's flag (by slot, among the dynamic or the kinematic bodies) set False; a static body has none."""
     if m.body_kind[b] == BODY_DYNAMIC:
-        untouched_dyn[m.body_slot[b]] = False
+        flags_dyn[m.body_slot[b]] = False
     elif m.body_kind[b] == BODY_KINEMATIC:
-        untouched_kin[m.body_slot[b]] = False
+        flags_kin[m.body_slot[b]] = False
 
 
 @njit(cache=True, inline='always')
@@ -750,9 +751,9 @@ def _clear_of_pairs(m, w, nd, steps, margin, kinematic_only, untouched_dyn, unto
             room += CLEARANCE_FACTOR * _pose_motion(m, w, steps, nd, bb, sa, sb)
         if pair_contacts(m, w.vert_world, p, room, False, w.pair_phi, w.pair_n, w.pair_p) > 0:
             if ua:
-                _mark_touched(m, ba, untouched_dyn, untouched_kin)
+                _unflag(m, ba, untouched_dyn, untouched_kin)
             if ub:
-                _mark_touched(m, bb, untouched_dyn, untouched_kin)
+                _unflag(m, bb, untouched_dyn, untouched_kin)
 
 
 @njit(cache=True)
