@@ -459,7 +459,6 @@ def step_differences(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v
     DIFF_OK where the checks of planar_lcp/derivatives/differences.py hold, else the DIFF_* reason. tols: (step,
     kink, mixed, floor, whether the fixed-point iteration count may differ) of differences.py. The warm-start memory
     is left as the cold step left it."""
-    nd, nk = q.shape[0], qk.shape[0]
     code, x, steps, base, rec, memory = cold_step_at(m, h, cold_opt, w, q, v, qk, vk, tols[0], stats)
     if code != DIFF_OK:
         return code

@@ -201,22 +201,31 @@ def test_the_velocity_columns_agree_with_the_dual_numbers_to_round_off(name):
     assert np.max(np.abs(jac[:, cols] - ref.jacobian[:, cols])) <= 1e-9 * np.max(np.abs(ref.jacobian[:, cols]))
 
 
+def contacts_at_linearization(sim, q, v, qk, vk):
+    """`step_tangent`'s first stage, the state's contacts and islands at the linearization pose, into the simulator's
+    work (its warm-start memory reset before): (ncon, nisl, x flattened, the differences' steps)."""
+    from planar_lcp.derivatives.differences import DIFF_STEP
+    from planar_lcp.engine.layout import NSTAT
+    from planar_lcp.engine.rollout import difference_steps
+    from planar_lcp.engine.tangent import _contacts_at
+    nd, nk = len(q), len(qk)
+    x = np.concatenate([np.ravel(a) for a in (q, v, qk, vk)]).astype(float)
+    parts = [np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3)), np.empty((nk, 3))]
+    sim.reset_warm_start()
+    ncon, nisl = _contacts_at(sim.kmodel, sim.h, sim.kopt, sim.kwork, x, nd, nk, *parts, np.empty((nk, 3)),
+                              np.zeros(NSTAT))
+    return ncon, nisl, x, difference_steps(x, DIFF_STEP)
+
+
 def untouched_flags(sim, q, v, qk, vk):
     """The tangent's verdict at the linearization pose: (dynamic bodies, kinematic bodies) in no contact and clear
     of every pair there, and the dynamic ones among them held at rest by their table, as `step_tangent` reaches it
     before its check at the end configuration (where the kinematic bodies of tip_box and push_box, at rest, stand
     as at the linearization pose)."""
-    from planar_lcp.derivatives.differences import DIFF_STEP
-    from planar_lcp.engine.layout import NSTAT
-    from planar_lcp.engine.rollout import difference_steps
-    from planar_lcp.engine.tangent import _clear_of_pairs, _contacts_at, _untouched_bodies
-    m, w, opt, h = sim.kmodel, sim.kwork, sim.kopt, sim.h
+    from planar_lcp.engine.tangent import _clear_of_pairs, _untouched_bodies
+    m, w, opt = sim.kmodel, sim.kwork, sim.kopt
     nd, nk = len(q), len(qk)
-    x = np.concatenate([np.ravel(a) for a in (q, v, qk, vk)]).astype(float)
-    steps = difference_steps(x, DIFF_STEP)
-    parts = [np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3)), np.empty((nk, 3))]
-    sim.reset_warm_start()
-    ncon, _ = _contacts_at(m, h, opt, w, x, nd, nk, *parts, np.empty((nk, 3)), np.zeros(NSTAT))
+    ncon, _, _, steps = contacts_at_linearization(sim, q, v, qk, vk)
     dyn, kin, resting = np.empty(nd, np.bool_), np.empty(nk, np.bool_), np.empty(nd, np.bool_)
     _untouched_bodies(m, w, ncon, dyn, kin, resting)
     _clear_of_pairs(m, w, nd, steps, opt.margin, False, dyn, kin)
@@ -323,17 +332,10 @@ def pose_shortcuts(sim, q, v, qk, vk):
     kinematic bodies, each dynamic body's glide direction t (zero where its island does not glide), its island where
     it glides (else -1), the derived axis of each gliding island's last body (else -1)), as `step_tangent` reaches
     them."""
-    from planar_lcp.derivatives.differences import DIFF_STEP
-    from planar_lcp.engine.layout import NSTAT
-    from planar_lcp.engine.rollout import difference_steps
-    from planar_lcp.engine.tangent import _contacts_at, _glide_axes, _turn_free_bodies
-    m, w, opt, h = sim.kmodel, sim.kwork, sim.kopt, sim.h
+    from planar_lcp.engine.tangent import _glide_axes, _turn_free_bodies
+    m, w, opt = sim.kmodel, sim.kwork, sim.kopt
     nd, nk = len(q), len(qk)
-    x = np.concatenate([np.ravel(a) for a in (q, v, qk, vk)]).astype(float)
-    steps = difference_steps(x, DIFF_STEP)
-    parts = [np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3)), np.empty((nk, 3))]
-    sim.reset_warm_start()
-    ncon, nisl = _contacts_at(m, h, opt, w, x, nd, nk, *parts, np.empty((nk, 3)), np.zeros(NSTAT))
+    ncon, nisl, _, steps = contacts_at_linearization(sim, q, v, qk, vk)
     turn_dyn, turn_kin = np.empty(nd, np.bool_), np.empty(nk, np.bool_)
     _turn_free_bodies(m, turn_dyn, turn_kin)
     t, group, axis = np.empty((nd, 2)), np.empty(nd, np.int64), np.empty(nd, np.int64)
@@ -443,28 +445,21 @@ def test_an_evaluation_finds_again_the_contacts_of_the_pairs_a_move_can_reach(ro
     (`_watched_pairs`; the others keep x's, none). tip_box's finger moved to a gap of the margin plus `room` from
     the box: 1 mm beyond it, the pair is not watched; 1e-7 m beyond (within its difference steps' reach) or inside
     the margin, it is, and the Jacobian agrees with the dual numbers wherever the first try answers."""
-    from planar_lcp.derivatives.differences import DIFF_STEP
-    from planar_lcp.engine.layout import NSTAT
-    from planar_lcp.engine.rollout import difference_steps
+    from planar_lcp.engine.constants import BODY_KINEMATIC
     from planar_lcp.engine.contacts import contacts_at
-    from planar_lcp.engine.tangent import _contacts_at, _watched_pairs
+    from planar_lcp.engine.tangent import _watched_pairs
     sim, (q, v, qk, vk) = bench_state("tip_box")
     qk = qk.copy()
     qk[0, 0] -= finger_gap(sim, q, v, qk, vk) - (sim.kopt.margin + room)
     m, w, opt, h = sim.kmodel, sim.kwork, sim.kopt, sim.h
-    nd, nk = len(q), len(qk)
-    x = np.concatenate([np.ravel(a) for a in (q, v, qk, vk)]).astype(float)
-    parts = [np.empty((nd, 3)), np.empty((nd, 3)), np.empty((nk, 3)), np.empty((nk, 3))]
-    sim.reset_warm_start()
-    ncon, _ = _contacts_at(m, h, opt, w, x, nd, nk, *parts, np.empty((nk, 3)), np.zeros(NSTAT))
+    ncon, _, _, steps = contacts_at_linearization(sim, q, v, qk, vk)
     a = sim.model.arrays
     npair = len(a.pair_a)
     first, count, watch = np.empty(npair, np.int64), np.empty(npair, np.int64), np.empty(npair, np.bool_)
     pairs, _, _, _ = contacts_at(a, q + h * v, qk + h * vk, opt.margin, m=m)
-    _watched_pairs(m, w, opt, nd, difference_steps(x, DIFF_STEP), pairs.astype(np.int64), ncon, first, count, watch)
+    _watched_pairs(m, w, opt, len(q), steps, pairs.astype(np.int64), ncon, first, count, watch)
     sim.reset_warm_start()
     finger = sim.model.kin_names.index("finger")
-    from planar_lcp.engine.constants import BODY_KINEMATIC
     fingers = [p for p in range(npair) if a.body_kind[a.shape_body[a.pair_b[p]]] == BODY_KINEMATIC and
                a.body_slot[a.shape_body[a.pair_b[p]]] == finger]
     assert [bool(watch[p]) for p in fingers] == [watched]
