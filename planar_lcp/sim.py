@@ -134,6 +134,15 @@ def rollout_kernel(options):
     return rollout_pgs if options.solver == "pgs" else rollout_lemke
 
 
+@functools.cache
+def _derivatives():
+    """planar_lcp.derivatives, imported at the first derivatives call (its import takes about 70 ms, which a
+    simulation without derivatives does not pay), then by a cached call (an import statement at every call costs
+    about a microsecond, which a small scene's derivatives count)."""
+    import planar_lcp.derivatives
+    return planar_lcp.derivatives
+
+
 class Simulator:
     """A compiled model, step options, and the work buffers of its kernel.
 
@@ -279,8 +288,7 @@ class Simulator:
         "one_sided" (as "differences", but at a switch the compiled step's one-sided differences, not exact). The
         step differentiated is the cold one (no warm start), and the simulator's warm-start memory is reset as by
         `reset_warm_start()`."""
-        from planar_lcp.derivatives import step_derivatives
-        return step_derivatives(self, q, v, qk, vk, params, method)
+        return _derivatives().step_derivatives(self, q, v, qk, vk, params, method)
 
     def smoothed_derivatives(self, q, v, qk, vk, sigma, samples=64, seed=0, method="zeroth"):
         """The Jacobian of the step smoothed by Gaussian noise of standard deviation `sigma` on its inputs (randomized

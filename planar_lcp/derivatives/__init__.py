@@ -34,10 +34,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planar_lcp.derivatives import forward
-from planar_lcp.derivatives.differences import checked_differences, one_sided_differences, param_differences
+from planar_lcp.derivatives.differences import (checked_differences, first_try, one_sided_differences,
+                                                param_differences)
 from planar_lcp.derivatives.dual import Dual, grads, values, with_derivatives
 from planar_lcp.engine.layout import Stat
-from planar_lcp.engine.rollout import DIFF_NONFINITE, DIFF_REASONS, SIDE_LEFT_ONLY, SIDE_RIGHT_ONLY, SIDES_DIFFER
+from planar_lcp.engine.rollout import (DIFF_MOVES, DIFF_NONFINITE, DIFF_OK, DIFF_REASONS, SIDE_LEFT_ONLY,
+                                       SIDE_RIGHT_ONLY, SIDES_DIFFER)
 from planar_lcp.engine.step import FORM_VELOCITY, STEP_LCP_FAILED, STEP_NONFINITE, STEP_OK
 from planar_lcp.errors import SimulationError
 
@@ -564,6 +566,16 @@ def _one_sided(sim, model, q, v, qk, vk, why):
 METHODS = ("dual", "differences", "one_sided")
 
 
+def _differences_answer(nd, nk, q1, v1, qk1, status, J, params, fallback):
+    """The checked differences' `StepDerivatives`; fallback: "" or the reason that comes with an answer, the mixed
+    direction's check (differences.py): the step is not linear in its inputs together there."""
+    degenerate = (Degenerate("mixed", "the step", fallback + ": each input's differences hold, their sum does not "
+                             "(the step is not linear in its inputs together)"),) if fallback else ()
+    # by position (a dataclass takes them so in a third of the time by keyword): q, v, qk, status, jacobian, ndyn,
+    # nkin, params, exact, degenerate, jacobian_right, jacobian_left, method
+    return StepDerivatives(q1, v1, qk1, status, J, nd, nk, params, not degenerate, degenerate, J, J, "differences")
+
+
 def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
     """The Jacobians of `sim.step(q, v, qk, vk)` (a `StepDerivatives`); `params`, scene parameter names (module
     docstring). The step is the cold one (no warm start: a function of its inputs alone). method "dual": the step on
@@ -572,6 +584,18 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
     ("mixed") where only the mixed direction's fails, else the dual numbers', the reason in `fallback`; "one_sided":
     as "differences", but where their checks find a switch at the state the compiled step's one-sided differences
     (`_one_sided`), the dual numbers only where those fail too or with `params`."""
+    tangent_code = None
+    if method != "dual" and not params:
+        # the usual call first: the simulator's first try bound once (differences.py `FirstTry`), the state's arrays
+        # as its kernel takes them. The general way's checks, conversions and look-ups, made once there, are a part
+        # of a small scene's call that counts where its cost is counted in steps (docs/performance.md, "The step's
+        # derivatives"); where the first try gives way, the general way goes on from its code
+        first = first_try(sim) if method in METHODS else None
+        if first is not None and first.takes(q, v, qk, vk):
+            tangent_code, (q1, v1, qk1), J = first(sim, q, v, qk, vk)
+            if tangent_code == DIFF_OK or tangent_code == DIFF_MOVES:
+                return _differences_answer(first.nd, first.nk, q1, v1, qk1, STEP_OK, J, (),
+                                           "" if tangent_code == DIFF_OK else DIFF_REASONS[DIFF_MOVES])
     if sim.options.solver == "osqp":
         raise ValueError("step_derivatives: solver 'osqp' is not differentiable here (its QP solver is a C library); "
                          "use solver 'lemke'")
@@ -586,7 +610,7 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
         if sim.options.solver == "pgs":
             fallback = "PGS keeps no LCP basis"
         else:
-            got, fallback = checked_differences(sim, q, v, qk, vk)
+            got, fallback = checked_differences(sim, q, v, qk, vk, tangent_code)
             if got is None and fallback == DIFF_REASONS[DIFF_NONFINITE]:
                 _check_finite(q, v, qk, vk)
             if got is not None and params:
@@ -597,13 +621,7 @@ def step_derivatives(sim, q, v, qk, vk, params=(), method="dual"):
                 fallback = why or fallback
             if got is not None:
                 (q1, v1, qk1), status, J = got
-                # a reason with an answer: the mixed direction's check (differences.py), the step not linear here
-                degenerate = (Degenerate("mixed", "the step", fallback + ": each input's differences hold, their "
-                                         "sum does not (the step is not linear in its inputs together)"),
-                              ) if fallback else ()
-                return StepDerivatives(q=q1, v=v1, qk=qk1, status=status, jacobian=J, ndyn=model.ndyn,
-                                       nkin=model.nkin, params=params, exact=not degenerate, degenerate=degenerate,
-                                       jacobian_right=J, jacobian_left=J, method="differences")
+                return _differences_answer(model.ndyn, model.nkin, q1, v1, qk1, status, J, params, fallback)
             if method == "one_sided" and not params and fallback != DIFF_REASONS[DIFF_NONFINITE]:
                 sided = _one_sided(sim, model, q, v, qk, vk, fallback)
                 if sided is not None:

@@ -100,12 +100,64 @@ def tangent_at_bases(sim, q, v, qk, vk):
     return int(code), jac
 
 
-def checked_differences(sim, q, v, qk, vk):
+class FirstTry:
+    """The first try (`step_tangent`) bound to one simulator: its entry point and the arguments every call repeats
+    (the model, the options, the differences' settings), so that a call from Python costs the compiled work and
+    little else (`first_try`). Called with the simulator and a state `takes` accepts, it returns (code, (q+, v+, qk+),
+    jacobian), the cold step's stats in sim.stats."""
+
+    __slots__ = ("entry", "warm_opt", "tols", "dyn", "kin", "nd", "nk", "jac_shape")
+
+    def __init__(self, sim, entry):
+        self.entry = entry
+        self.warm_opt, self.tols, _ = kernel_settings(sim)
+        self.nd, self.nk = sim.model.ndyn, sim.model.nkin
+        self.dyn, self.kin = (self.nd, 3), (self.nk, 3)
+        self.jac_shape = (6 * self.nd + 3 * self.nk, 6 * self.nd + 6 * self.nk)
+
+    def takes(self, q, v, qk, vk):
+        """Whether the state's arrays are as the entry point was compiled for: float64 ndarrays of the model's
+        shapes, C-contiguous, aligned and writeable (numba types a read-only array apart); any other goes the general
+        way, which makes them so (`step_derivatives`). One expression: this runs at every call."""
+        dyn, kin, f8, nd = self.dyn, self.kin, _FLOAT64, np.ndarray
+        return (type(q) is nd and type(v) is nd and type(qk) is nd and type(vk) is nd
+                and q.shape == dyn and v.shape == dyn and qk.shape == kin and vk.shape == kin
+                and q.dtype is f8 and v.dtype is f8 and qk.dtype is f8 and vk.dtype is f8
+                and q.flags.carray and v.flags.carray and qk.flags.carray and vk.flags.carray)
+
+    def __call__(self, sim, q, v, qk, vk):
+        jac = np.empty(self.jac_shape)
+        q1, v1, qk1 = np.empty(self.dyn), np.empty(self.dyn), np.empty(self.kin)
+        # the kernel's cold step forgets the warm-start memory itself (`reset_warm_start`'s work); the next `step`
+        # starts cold, as after any cold step
+        sim.forget_last_step()
+        code = self.entry(sim.kmodel, sim.h, sim.kopt, self.warm_opt, sim.kwork, q, v, qk, vk, self.tols, jac, q1, v1,
+                          qk1, sim.stats)
+        return code, (q1, v1, qk1), jac
+
+
+#: float64 as numpy makes it (`is`, not ==: an equal dtype of another byte order or with metadata goes the general
+#: way)
+_FLOAT64 = np.dtype(np.float64)
+
+
+def first_try(sim):
+    """The simulator's `FirstTry`, kept with its entry points (engine/entry.py `EntryPoints.bound`) once its first
+    call through `checked_differences` has compiled or loaded the kernel's; None before."""
+    calls = sim.kernel_calls
+    got = calls.bound.get(step_tangent)
+    if got is None and step_tangent in calls:
+        got = calls.bound[step_tangent] = FirstTry(sim, calls.entry(step_tangent))
+    return got
+
+
+def checked_differences(sim, q, v, qk, vk, tangent_code=None):
     """((q+, v+, qk+), status, jacobian (6 ndyn + 3 nkin, 6 ndyn + 6 nkin)) of the cold step by its checked
     differences and "", where they stand for its derivatives (module docstring); the same and the reason where only
     the mixed direction's check failed (each input's differences hold, the step is not linear in them together:
     not differentiable); else (None, why), the reason DIFF_REASONS[DIFF_NONFINITE] where an input is not finite.
-    The state's arrays: float64, C-contiguous, of the model's shapes."""
+    The state's arrays: float64, C-contiguous, of the model's shapes. tangent_code: the first try's code where the
+    caller ran it (`FirstTry`) and it did not answer (neither DIFF_OK nor DIFF_MOVES), else None: it runs here."""
     nd, nk = len(q), len(qk)
     warm_opt, tols, retry_tols = kernel_settings(sim)
     jac = np.empty((6 * nd + 3 * nk, 6 * nd + 6 * nk))
@@ -121,7 +173,7 @@ def checked_differences(sim, q, v, qk, vk):
 
     # the derivatives at the cold step's bases first (engine/tangent.py), where they cover the step and its checks
     # hold; else the differences of whole steps
-    code = run(step_tangent, tols)
+    code = run(step_tangent, tols) if tangent_code is None else tangent_code
     if code == DIFF_SPACE:
         # an island larger than the dense buffers: a step grows them (as often as it needs), then again
         sim.step(q, v, qk, vk)

@@ -16,10 +16,16 @@ class EntryPoints:
 
     def __init__(self):
         self._entry = {}
+        #: a caller's objects made over these entry points, by kernel (derivatives/differences.py `FirstTry`)
+        self.bound = {}
 
     def __contains__(self, kernel):
         """Whether `kernel` is called by its entry point."""
         return kernel in self._entry
+
+    def entry(self, kernel):
+        """The compiled entry point of `kernel` (after its first `call`)."""
+        return self._entry[kernel]
 
     def call(self, kernel, *args):
         """kernel(*args), by its compiled entry point after the first call (module docstring)."""

@@ -61,7 +61,7 @@ from planar_lcp.engine.assemble import (REST_SPEED, apply_impulses, assemble_col
 from planar_lcp.engine.constants import (BODY_DYNAMIC, BODY_KINEMATIC, BODY_STATIC, SHAPE_HALFPLANE,
                                         SUPPORT_LIMIT_SURFACE)
 from planar_lcp.engine.contacts import body_poses, find_contacts, pair_contacts, world_vertices
-from planar_lcp.engine.islands import island_members
+from planar_lcp.engine.islands import contact_island, island_members
 from planar_lcp.engine.layout import Stat
 from planar_lcp.engine.rollout import (DIFF_MOVES, DIFF_OK, _restore_memory, _sides_differ, cold_step_at,
                                        mixed_direction_check, unflatten_inputs)
@@ -400,18 +400,24 @@ def _moved_start(m, h, opt, w, q, v, qk, vk, kinv, qk_out, scratch, kind, i, c, 
 
 
 @njit(cache=True, inline='always')
-def _smooth_part(m, h, w, vk, nisl, ncon, z, zoff, q, qk_out, r, out, dv):
+def _smooth_part(m, h, w, vk, nisl, ncon, z, zoff, q, qk_out, r, out, dv, active, r0, f0):
     """With the contacts and islands of `_contacts_at` and the answers z held (island i's at zoff[i] ...
     zoff[i + 1]): the rows r = (A z + b) of every island over its force unknowns (G^T (M^-1 G z) + b; b alone on the
     constant rows), and the step's outputs out = (q + h v+, v+, qk+) with v+ = v_tilde + M^-1 G z. dv: (ndyn, 3)
-    scratch. Leaves q+ in w.q_new (for the end-of-step check)."""
+    scratch. Leaves q+ in w.q_new (for the end-of-step check). An island not `active` (an evaluation that moves
+    nothing of it: `_active_islands`) keeps x's rows r0 and its bodies x's outputs f0, bit for bit what computing
+    them again would give."""
     k = support_column_count(m)
     nd = q.shape[0]
     for isl in range(nisl):
+        o = zoff[isl]
+        if not active[isl]:
+            for u in range(o, zoff[isl + 1]):
+                r[u] = r0[u]
+            continue
         nci, nsi = island_members(m, w, isl, ncon)
         if nci == 0 and nsi == 0:
             continue
-        o = zoff[isl]
         n, nf = assemble_columns(m, w, vk, nci, nsi, h, False, r[o:zoff[isl + 1]], np.bool_(True))
         nforce = nci + 2 * nf + k * nsi
         for d in range(nd):
@@ -424,6 +430,13 @@ def _smooth_part(m, h, w, vk, nisl, ncon, z, zoff, q, qk_out, r, out, dv):
             for c in range(3):
                 w.v_new[d, c] += dv[d, c]
     for d in range(nd):
+        if not active[w.body_island[d]]:
+            for c in range(3):
+                w.q_new[d, c] = f0[3 * d + c]
+                w.v_new[d, c] = f0[3 * nd + 3 * d + c]
+                out[3 * d + c] = f0[3 * d + c]
+                out[3 * nd + 3 * d + c] = f0[3 * nd + 3 * d + c]
+            continue
         for c in range(3):
             w.q_new[d, c] = q[d, c] + h * w.v_new[d, c]
             out[3 * d + c] = w.q_new[d, c]
@@ -431,6 +444,22 @@ def _smooth_part(m, h, w, vk, nisl, ncon, z, zoff, q, qk_out, r, out, dv):
     for j in range(qk_out.shape[0]):
         for c in range(3):
             out[6 * nd + 3 * j + c] = qk_out[j, c]
+
+
+@njit(cache=True)
+def _active_islands(m, w, ncon, kind, i, active):
+    """The islands an evaluation along one input of the smooth part (kind: SMOOTH_*, body slot i) moves: a dynamic
+    body's own island (its contacts and support elements are there, and only its rows and outputs move), a kinematic
+    body's the islands of its contacts (its pose and velocity enter the rows through them alone)."""
+    for isl in range(active.shape[0]):
+        active[isl] = False
+    if kind == SMOOTH_POSE or kind == SMOOTH_VELOCITY:
+        active[w.body_island[i]] = True
+        return
+    for j in range(ncon):
+        b = m.shape_body[m.pair_b[w.con_pair[j]]]
+        if m.body_kind[b] == BODY_KINEMATIC and m.body_slot[b] == i:
+            active[contact_island(m, w.body_island, w.con_pair, j)] = True
 
 
 @njit(cache=True)
@@ -1004,6 +1033,7 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
     fp, fm = np.empty(nout), np.empty(nout)
     kinv = np.empty((nk, 3))
     dv = np.empty((nd, 3))
+    active = np.empty(nisl, np.bool_)  # the islands an evaluation moves (`_active_islands`)
     at_x = True                        # w.sup_recentred holds x's re-centred columns
     for t in range(K):
         if (linear_kin and t < 3 * nk) or (linear_dyn and 3 * nk <= t < 3 * nk + 3 * nd):
@@ -1032,6 +1062,7 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
                 jy[6 * nd + 3 * i + c, k] = 1.0
             continue
         e = steps[0, k]
+        _active_islands(m, w, ncon, kind, i, active)
         for sgn in range(2):
             _moved_start(m, h, opt, w, q, v, qk, vk, kinv, qk_out, scratch, kind, i, c, e if sgn == 0 else -e)
             pose = kind == SMOOTH_POSE or kind == SMOOTH_KIN_POSE
@@ -1052,7 +1083,7 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
                     for a in range(3):
                         w.v_new[d, a] = w.v_tilde[d, a]
             _smooth_part(m, h, w, kinv, nisl, ncon, z, zoff, q, qk_out, rp if sgn == 0 else rm,
-                         fp if sgn == 0 else fm, dv)
+                         fp if sgn == 0 else fm, dv, active, r0, f0)
             # the end-of-step check, where the end configuration moved far enough from x's that it could add a
             # pair (a pair's gap moves by at most both its bodies' `_end_motion`; CLEARANCE_FACTOR to spare): else
             # it adds none, as at x
@@ -1267,7 +1298,8 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
         return _give_way(msize, mbasic, mmodes, w, TANGENT_DEGENERATE)
     # the smooth part at x (its end-of-step check moves the body poses: put back for the velocities' columns)
     r0, f0 = np.empty(N), np.empty(nout)
-    _smooth_part(m, h, w, vka, nisl, ncon, z, zoff, qa, qk_out, r0, f0, np.empty((nd, 3)))
+    _smooth_part(m, h, w, vka, nisl, ncon, z, zoff, qa, qk_out, r0, f0, np.empty((nd, 3)), np.ones(nisl, np.bool_),
+                 r0, f0)
     if check_end_configuration(m, w, cold_opt, qk_out, scratch) != 0:
         return _give_way(msize, mbasic, mmodes, w, TANGENT_CONTACTS)
     end_room = _end_room(m, w, cold_opt, qk_out)

@@ -167,6 +167,51 @@ def test_the_kernels_entry_point_answers_as_numbas_dispatcher():
     assert np.array_equal(got.jacobian, sim.step_derivatives(*states[1], method="differences").jacobian)
 
 
+@pytest.mark.parametrize("formulation", ["position", "fixed_point"])
+def test_the_bound_first_try_answers_as_the_general_way(formulation):
+    """Once its entry point is known, a simulator's first try is bound to it (differences.py `FirstTry`) and states
+    whose arrays it takes go straight to it: the same answer, bit for bit (Jacobians, state, stats, verdict), as the
+    general way that arrays it does not take (read-only, strided views, lists) go, where the first try answers
+    (the position form) and where it gives way and the differences of whole steps answer (the fixed-point form, which
+    it does not cover). The bound object keeps no reference to the simulator."""
+    import gc
+    import weakref
+
+    from numba import config
+
+    from planar_lcp.derivatives.differences import first_try
+    sim = Simulator(compile_scene(load_scene("box_push")), options(formulation))
+    states = states_along(sim, *sim.initial_state(), 40, 10)
+    assert first_try(sim) is None
+    sim.step_derivatives(*states[0], method="differences")
+    first = first_try(sim)
+    assert (first is not None) == (not config.DISABLE_JIT)
+
+    def answer(state):
+        d = sim.step_derivatives(*state, method="differences")
+        return (d.jacobian, d.jacobian_right, d.jacobian_left, d.q, d.v, d.qk, sim.stats.copy(),
+                (d.status, d.exact, d.method, d.fallback, [str(g) for g in d.degenerate]))
+
+    for state in states[1:]:
+        if first is not None:
+            assert first.takes(*state)
+        frozen = [a.copy() for a in state]
+        for a in frozen:
+            a.flags.writeable = False
+        strided = [np.repeat(a, 2, axis=1)[:, ::2] for a in state]      # every other column: not contiguous
+        others = (frozen, strided, [a.tolist() for a in state])
+        assert not any(first.takes(*o) for o in others[:2]) if first is not None else True
+        want = answer(state)
+        assert want[-1][2] == ("differences" if formulation == "position" else want[-1][2])
+        for other in others:
+            got = answer(other)
+            assert all(np.array_equal(g, w) for g, w in zip(got[:-1], want[:-1])) and got[-1] == want[-1]
+    gone = weakref.ref(sim)
+    del sim, first
+    gc.collect()
+    assert gone() is None
+
+
 def test_the_incline_block_slides_with_dv_dmu_minus_g_cos_a_h():
     """A block sliding down a 30 degree incline: d(v+ along the slope)/d(mu) = g cos(a) h, against the slide."""
     sim = Simulator(compile_scene(load_scene("block_on_incline")), SimOptions())

@@ -469,3 +469,34 @@ def test_an_evaluation_finds_again_the_contacts_of_the_pairs_a_move_can_reach(ro
         ref = step_derivatives(sim, q, v, qk, vk)
         assert ref.exact
         assert relative_error(type(ref)(**{**ref.__dict__, "jacobian": jac}), ref) <= TANGENT_RTOL
+
+
+def test_an_evaluation_moves_only_the_islands_of_its_body():
+    """A wide pusher driving two boxes side by side (apart: two islands, both touched by the pusher) past a third box
+    at rest (an island of its own) on a limit-surface table: an evaluation along a box's pose or velocity computes
+    its island's rows and outputs alone and along the pusher's both pushed islands (`_active_islands`), the others'
+    kept from the state's; where the tangent answers it agrees with the dual numbers. A pusher whose evaluations
+    moved one of its islands only would leave the other's columns zero."""
+    from planar_lcp.engine.layout import Stat
+    from planar_lcp.spec.scene import parse_scene
+
+    def box(name, x, y):
+        return {"name": name, "type": "dynamic", "mass": 0.5, "position": [x, y], "support_friction": 0.4,
+                "shapes": [{"type": "box", "width": 0.1, "height": 0.1}]}
+    pusher = {"name": "pusher", "type": "kinematic", "position": [-0.07, 0.0], "velocity": [0.1, 0.02],
+              "shapes": [{"type": "box", "width": 0.02, "height": 0.3}]}
+    scene = parse_scene({"name": "two_islands", "world": {"plane": "horizontal", "friction": 0.5,
+                                                          "support_model": "limit_surface"},
+                         "sim": {"h": 0.01, "t_end": 0.5},
+                         "bodies": [box("a", 0.0, 0.08), box("b", 0.0, -0.08), box("c", 0.5, 0.5), pusher]})
+    sim = Simulator(compile_scene(scene), options("position"))
+    states = states_along(sim, *sim.initial_state(), 40, 4)[3:]
+    pushing = []
+    for state in states:
+        sim.reset_warm_start()
+        sim.step(*state)
+        if sim.stats[Stat.N_ISLANDS] == 3 and sim.stats[Stat.N_CONTACTS] >= 4:
+            pushing.append(state)
+    assert pushing, "no state with the pusher on both boxes"
+    answered, _ = check(sim, pushing)
+    assert answered >= 1, "the tangent answers on none of the states that push both boxes"
