@@ -102,8 +102,8 @@ def tangent_at_bases(sim, q, v, qk, vk):
 
 class FirstTry:
     """The first try (`step_tangent`) bound to one simulator: its entry point and the arguments every call repeats
-    (the model, the options, the differences' settings), so that a call from Python costs the compiled work and
-    little else (`first_try`). Called with the simulator and a state `takes` accepts, it returns (code, (q+, v+, qk+),
+    (the model, the options, the differences' settings), looked up once instead of at every call from Python
+    (`first_try`). Called with the simulator and a state `takes` accepts, it returns (code, (q+, v+, qk+),
     jacobian), the cold step's stats in sim.stats."""
 
     __slots__ = ("entry", "warm_opt", "tols", "dyn", "kin", "nd", "nk", "jac_shape")
