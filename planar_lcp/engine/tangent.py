@@ -1014,7 +1014,8 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
     body's own qk+, nor for the angle of a body a turn leaves alike (`_turn_free_bodies`: the same), nor for a
     gliding island's derived translation (`_glide_axes`: `_glide_columns` writes it after), nor for an
     untouched kinematic body's velocity in the rows (in no row: zero), nor for a resting
-    body's velocity (`_hold_resting` writes its columns). Returns DIFF_OK, TANGENT_CONTACTS (an evaluation with
+    body's velocity (`_hold_resting` writes its columns). Where it answers it leaves x's stage in w as
+    `_contacts_at` left it (x's contacts put back, as they were found). Returns DIFF_OK, TANGENT_CONTACTS (an evaluation with
     other contacts, or whose end-of-step check adds a pair) or TANGENT_KINK (one-sided differences that differ by
     more than tols[1] of their scale, at least tols[3]: the checked differences' kink test, `_sides_differ`)."""
     nd, nk = q.shape[0], qk.shape[0]
@@ -1100,6 +1101,11 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
         code = TANGENT_KINK if _sides_differ(rp, rm, r0, e, tols) or _sides_differ(fp, fm, f0, e, tols) else DIFF_OK
         if code != DIFF_OK:
             return code
+    # x's stage again for the LCP's part: its contacts put back as found there (slot -1: no body moved, no pair found
+    # again), not found again, and its islands, which no evaluation changed
+    begin_step(m, q, v, qk, vk, h, opt, w, qk_out, scratch)
+    _moved_pose_contacts(m, w, opt, scratch, True, False, -1, ncon, nisl, pairs, phi_x, normals, points, first, count,
+                         watch)
     return DIFF_OK
 
 
@@ -1329,8 +1335,8 @@ def step_tangent(m, h, cold_opt, warm_opt, w, q, v, qk, vk, tols, jac, q1, v1, q
     _glide_columns(nd, glide_t, glide_group, glide_axis, dr, jy)
     if derived >= 0:
         _derived_columns(derived, nd, nk, dr, jy)
-    # the LCP's part at x's contacts, and the velocities' columns where they are in closed form
-    _contacts_at(m, h, cold_opt, w, x, nd, nk, qa, va, qka, vka, qk_out, scratch)
+    # the LCP's part at x's contacts (`_smooth_columns` put them back), and the velocities' columns where they are
+    # in closed form
     if linear_dyn:
         _dynamic_velocity_columns(m, h, w, nd, nk, nisl, ncon, zoff, np.empty(N), dr, jy)
     if linear_kin:
