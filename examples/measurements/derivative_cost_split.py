@@ -30,7 +30,7 @@ from planar_lcp.sim import SimOptions, Simulator
 from planar_lcp.spec.scene import load_scene
 
 SCENES = ("falling_rod", "box_push", "painleve_rod", "bouncing_disk", "block_on_incline", "box_tip", "tip_box",
-          "four_disks")
+          "four_disks", "box_stack")
 
 
 @njit

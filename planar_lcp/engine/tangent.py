@@ -1015,9 +1015,10 @@ def _smooth_columns(m, h, opt, w, q, v, qk, vk, qk_out, scratch, steps, tols, ni
     gliding island's derived translation (`_glide_axes`: `_glide_columns` writes it after), nor for an
     untouched kinematic body's velocity in the rows (in no row: zero), nor for a resting
     body's velocity (`_hold_resting` writes its columns). Where it answers it leaves x's stage in w as
-    `_contacts_at` left it (x's contacts put back, as they were found). Returns DIFF_OK, TANGENT_CONTACTS (an evaluation with
-    other contacts, or whose end-of-step check adds a pair) or TANGENT_KINK (one-sided differences that differ by
-    more than tols[1] of their scale, at least tols[3]: the checked differences' kink test, `_sides_differ`)."""
+    `_contacts_at` left it (x's contacts put back, as they were found). Returns DIFF_OK, TANGENT_CONTACTS (an
+    evaluation with other contacts, or whose end-of-step check adds a pair) or TANGENT_KINK (one-sided differences
+    that differ by more than tols[1] of their scale, at least tols[3]: the checked differences' kink test,
+    `_sides_differ`)."""
     nd, nk = q.shape[0], qk.shape[0]
     K = steps.shape[1]
     N = zoff[nisl]
