@@ -958,7 +958,8 @@ def _moved_pose_contacts(m, w, opt, stats, recentre, kinematic, i, ncon, nisl, p
     """`prepare_contacts` at a pose where one body (slot i, kinematic or dynamic) moved from x's: the contacts of its
     watched pairs (`_watched_pairs`) found again, every other pair's x's (phi_x, n_x, p_x: the same bodies' poses
     give them), x's islands (the same pairs join the same bodies). False where a pair of the moved body has another
-    number of contacts than at x."""
+    number of contacts than at x. Slot -1 moves no body (no dynamic or kinematic body has it): x's contacts put
+    back as found, none found again."""
     body_poses(m, w.q_hat, w.qk_hat, w.body_pose)
     if recentre and m.support_model == SUPPORT_LIMIT_SURFACE:
         recentre_limit_surfaces(m, w)
